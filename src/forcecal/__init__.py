@@ -1,0 +1,33 @@
+"""forcecal: external forces on a vibrating structure from reactions and inertia.
+
+The public names are re-exported here; internals live in the stage modules.
+"""
+
+from .errors import (
+    ConditioningError,
+    DataError,
+    DimensionError,
+    FitError,
+    ForcecalError,
+    InputError,
+    RigError,
+)
+from .records import Run, Scan
+from .rig import Rig, load_rig
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "ConditioningError",
+    "DataError",
+    "DimensionError",
+    "FitError",
+    "ForcecalError",
+    "InputError",
+    "Rig",
+    "RigError",
+    "Run",
+    "Scan",
+    "__version__",
+    "load_rig",
+]

@@ -1,0 +1,119 @@
+"""Containers for recorded data: an SLDV scan and a run recording.
+
+Both hold SI values (conversion happens once, in :mod:`forcecal.io`), time on the last axis.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import DimensionError
+
+__all__ = ["Run", "Scan"]
+
+
+@dataclass(frozen=True)
+class Scan:
+    """A sequential SLDV scan: one response record and one reference record per point.
+
+    Attributes
+    ----------
+    points : (n_points, n_dim) array [m]
+        Coordinates of the scan points in the rig's axes (n_dim = 1 for a beam, 2 for a plate).
+    response : (n_points, n_samples) array [m/s] or [m]
+        The vibration records, velocity or displacement according to ``quantity``.
+    reference : (n_points, n_samples) array [A]
+        The coil current recorded in the same acquisition as each response record.
+    fs : float [Hz]
+        Sampling rate, common to all records.
+    quantity : {"velocity", "displacement"}
+    source : str
+        Where the scan was read from, for messages.
+    """
+
+    points: np.ndarray
+    response: np.ndarray
+    reference: np.ndarray
+    fs: float
+    quantity: str = "velocity"
+    source: str = "<scan>"
+
+    def __post_init__(self) -> None:
+        pts = np.asarray(self.points, dtype=float)
+        if pts.ndim == 1:
+            pts = pts[:, None]
+        object.__setattr__(self, "points", pts)
+        resp = np.atleast_2d(np.asarray(self.response, dtype=float))
+        ref = np.atleast_2d(np.asarray(self.reference, dtype=float))
+        object.__setattr__(self, "response", resp)
+        object.__setattr__(self, "reference", ref)
+        if resp.shape != ref.shape or resp.shape[0] != pts.shape[0]:
+            raise DimensionError(
+                f"scan '{self.source}': {pts.shape[0]} points, response {resp.shape}, "
+                f"reference {ref.shape}; expected one response and one reference record per point"
+            )
+        if self.quantity not in ("velocity", "displacement"):
+            raise DimensionError(
+                f"scan '{self.source}': quantity '{self.quantity}' is neither velocity nor "
+                "displacement"
+            )
+
+    @property
+    def x(self) -> np.ndarray:
+        """(n_points,) first coordinate of every point [m]."""
+        return self.points[:, 0]
+
+    @property
+    def n_points(self) -> int:
+        return self.points.shape[0]
+
+    @property
+    def n_samples(self) -> int:
+        return self.response.shape[1]
+
+
+@dataclass(frozen=True)
+class Run:
+    """One run recording: uniformly sampled named channels, raw values as in the file.
+
+    Attributes
+    ----------
+    channels : mapping name -> (n_samples,) array
+        Raw channel values (the rig's per-channel scale is applied later).
+    fs : float [Hz]
+    t0 : float [s]
+        Time stamp of the first sample.
+    name : str
+        The file name without its extension, used to name outputs.
+    source : str
+        The path the run was read from, for messages.
+    """
+
+    channels: Mapping[str, np.ndarray]
+    fs: float
+    t0: float = 0.0
+    name: str = "run"
+    source: str = "<run>"
+    labels: Mapping[str, str] = field(default_factory=dict)
+
+    @property
+    def n_samples(self) -> int:
+        return len(next(iter(self.channels.values())))
+
+    @property
+    def time(self) -> np.ndarray:
+        """(n_samples,) time stamps [s]."""
+        return self.t0 + np.arange(self.n_samples) / self.fs
+
+    def channel(self, name: str) -> np.ndarray:
+        from .errors import DataError
+
+        if name not in self.channels:
+            raise DataError(
+                f"run '{self.source}': channel '{name}' named in the rig is missing "
+                f"(found: {', '.join(sorted(self.channels))})"
+            )
+        return np.asarray(self.channels[name], dtype=float)

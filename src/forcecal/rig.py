@@ -1,0 +1,417 @@
+"""The rig: structure, force gauges, force points, sensors and actuator channels.
+
+A rig is read from the TOML file described in INTERFACES.md section 1 and validated before any
+computation: every message names the file and the key at fault.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import RigError
+
+__all__ = [
+    "Actuator",
+    "ForcePoint",
+    "Gauge",
+    "LumpedMass",
+    "Rig",
+    "Sensor",
+    "Structure",
+    "load_rig",
+    "parse_rig",
+    "rig_to_dict",
+]
+
+
+@dataclass(frozen=True)
+class LumpedMass:
+    """A point mass rigidly attached to the structure [kg] at (x, y) [m]."""
+
+    x: float
+    mass: float
+    y: float = 0.0
+
+
+@dataclass(frozen=True)
+class Gauge:
+    """A force gauge; ``scale`` converts the raw channel to N acting on the structure in +w."""
+
+    name: str
+    x: float
+    y: float = 0.0
+    scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class ForcePoint:
+    """A point where an unknown external force acts (an actuator pole).
+
+    ``gap`` is the static air gap [m] with the structure at w = 0, or None when unknown.
+    """
+
+    name: str
+    x: float
+    y: float = 0.0
+    gap: float | None = None
+
+
+@dataclass(frozen=True)
+class Sensor:
+    """A point displacement sensor; ``scale`` converts the raw channel to m in +w."""
+
+    name: str
+    x: float
+    y: float = 0.0
+    scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """Channels and data of the electromagnet under calibration."""
+
+    current: str = "i"
+    flux: str | None = None
+    turns: float | None = None
+    pole_area: float | None = None
+    current_scale: float = 1.0
+    flux_scale: float = 1.0
+
+    @property
+    def ideal_k(self) -> float | None:
+        """mu0 N^2 A / 4 [N m^2 / A^2], the ideal constant of f = K i^2 / s^2 for a U-core."""
+        if self.turns is None or self.pole_area is None:
+            return None
+        return 4e-7 * math.pi * self.turns**2 * self.pole_area / 4.0
+
+
+@dataclass(frozen=True)
+class Structure:
+    """The elastic body: its kind, extent and mass distribution.
+
+    For a beam, ``length`` [m] and ``mass_per_length`` [kg/m] along x in [0, length].
+    For a plate, ``outline`` (n_vertices, 2) [m] and ``mass_per_area`` [kg/m^2].
+    """
+
+    kind: str
+    length: float | None = None
+    mass_per_length: float | None = None
+    mass_per_area: float | None = None
+    outline: tuple[tuple[float, float], ...] | None = None
+    masses: tuple[LumpedMass, ...] = ()
+
+    @property
+    def dim(self) -> int:
+        return 1 if self.kind == "beam" else 2
+
+    def contains(self, x: float, y: float = 0.0, tol: float = 1e-9) -> bool:
+        """Whether (x, y) lies on the structure (within ``tol`` [m])."""
+        if self.kind == "beam":
+            return -tol <= x <= self.length + tol
+        from matplotlib.path import Path as _Path  # point-in-polygon, no plotting
+
+        return bool(_Path(np.asarray(self.outline)).contains_point((x, y), radius=tol)) or bool(
+            _Path(np.asarray(self.outline)).contains_point((x, y), radius=-tol)
+        )
+
+    @property
+    def total_mass(self) -> float:
+        """Distributed plus lumped mass [kg]."""
+        if self.kind == "beam":
+            distributed = self.mass_per_length * self.length
+        else:
+            v = np.asarray(self.outline)
+            area = 0.5 * abs(np.dot(v[:, 0], np.roll(v[:, 1], -1)) - np.dot(v[:, 1], np.roll(v[:, 0], -1)))
+            distributed = self.mass_per_area * area
+        return distributed + sum(m.mass for m in self.masses)
+
+
+@dataclass(frozen=True)
+class Rig:
+    """A complete rig description (INTERFACES.md section 1)."""
+
+    name: str
+    structure: Structure
+    gauges: tuple[Gauge, ...]
+    forces: tuple[ForcePoint, ...]
+    sensors: tuple[Sensor, ...]
+    actuator: Actuator = field(default_factory=Actuator)
+    frequency: float | None = None
+    source: str = "<rig>"
+
+    @property
+    def gauge_names(self) -> list[str]:
+        return [g.name for g in self.gauges]
+
+    @property
+    def force_names(self) -> list[str]:
+        return [f.name for f in self.forces]
+
+    @property
+    def sensor_names(self) -> list[str]:
+        return [s.name for s in self.sensors]
+
+    @staticmethod
+    def _coords(items) -> np.ndarray:
+        return np.array([[p.x, p.y] for p in items], dtype=float).reshape(-1, 2)
+
+    @property
+    def gauge_points(self) -> np.ndarray:
+        """(n_gauges, 2) [m]."""
+        return self._coords(self.gauges)
+
+    @property
+    def force_points(self) -> np.ndarray:
+        """(n_forces, 2) [m]."""
+        return self._coords(self.forces)
+
+    @property
+    def sensor_points(self) -> np.ndarray:
+        """(n_sensors, 2) [m]."""
+        return self._coords(self.sensors)
+
+
+# --------------------------------------------------------------------------------------------
+# reading and validation
+
+
+class _Reader:
+    """Typed access to a TOML table with messages that name the file and the key."""
+
+    def __init__(self, source: str):
+        self.source = source
+
+    def fail(self, key: str, what: str) -> RigError:
+        return RigError(f"rig '{self.source}': key '{key}' {what}")
+
+    def number(self, table: dict, key: str, path: str, *, required=True, positive=False,
+               default=None) -> float | None:
+        full = f"{path}.{key}" if path else key
+        if key not in table:
+            if required:
+                raise self.fail(full, "is missing")
+            return default
+        value = table[key]
+        if isinstance(value, bool) or not isinstance(value, int | float):
+            raise self.fail(full, f"must be a number, found {value!r}")
+        value = float(value)
+        if not math.isfinite(value):
+            raise self.fail(full, f"must be finite, found {value!r}")
+        if positive and value <= 0:
+            raise self.fail(full, f"must be positive, found {value!r}")
+        return value
+
+    def text(self, table: dict, key: str, path: str, *, required=True, default=None):
+        full = f"{path}.{key}" if path else key
+        if key not in table:
+            if required:
+                raise self.fail(full, "is missing")
+            return default
+        value = table[key]
+        if not isinstance(value, str) or not value.strip():
+            raise self.fail(full, f"must be a non-empty string, found {value!r}")
+        return value
+
+    def table(self, doc: dict, key: str, *, required=True) -> dict:
+        if key not in doc:
+            if required:
+                raise self.fail(key, "is missing (a [" + key + "] table)")
+            return {}
+        value = doc[key]
+        if not isinstance(value, dict):
+            raise self.fail(key, "must be a table")
+        return value
+
+    def array_of_tables(self, doc: dict, key: str) -> list[dict]:
+        if key not in doc:
+            raise self.fail(key, f"is missing (at least one [[{key}]] table)")
+        value = doc[key]
+        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
+            raise self.fail(key, f"must be an array of tables [[{key}]]")
+        return value
+
+
+_KNOWN_TOP = {"name", "structure", "gauges", "forces", "sensors", "actuator", "acquisition"}
+
+
+def load_rig(path: str | Path) -> Rig:
+    """Read and validate a rig file.
+
+    Raises
+    ------
+    RigError
+        When the file is missing, is not TOML, or a key is missing or inconsistent; the message
+        names the file and the key.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise RigError(f"rig '{path}': file not found")
+    try:
+        doc = tomllib.loads(path.read_text(encoding="utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise RigError(f"rig '{path}': not a valid TOML file ({exc})") from None
+    return parse_rig(doc, source=str(path))
+
+
+def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
+    """Validate a rig given as a parsed TOML document (see :func:`load_rig`)."""
+    r = _Reader(source)
+    unknown = set(doc) - _KNOWN_TOP
+    if unknown:
+        raise r.fail(sorted(unknown)[0], "is not a rig key (expected one of "
+                     + ", ".join(sorted(_KNOWN_TOP)) + ")")
+    name = r.text(doc, "name", "", required=False, default=Path(source).stem)
+
+    st = r.table(doc, "structure")
+    kind = r.text(st, "kind", "structure", required=False, default="beam")
+    if kind not in ("beam", "plate"):
+        raise r.fail("structure.kind", f"must be 'beam' or 'plate', found {kind!r}")
+    masses_raw = st.get("masses", [])
+    if not isinstance(masses_raw, list):
+        raise r.fail("structure.masses", "must be an array of {x, mass} tables")
+    if kind == "beam":
+        length = r.number(st, "length", "structure", positive=True)
+        mpl = r.number(st, "mass_per_length", "structure", positive=True)
+        structure_kw = dict(length=length, mass_per_length=mpl)
+    else:
+        mpa = r.number(st, "mass_per_area", "structure", positive=True)
+        outline = st.get("outline")
+        if (not isinstance(outline, list) or len(outline) < 3
+                or not all(isinstance(v, list) and len(v) == 2 for v in outline)):
+            raise r.fail("structure.outline", "must list at least 3 [x, y] vertices")
+        structure_kw = dict(mass_per_area=mpa,
+                            outline=tuple((float(a), float(b)) for a, b in outline))
+    masses = []
+    for k, m in enumerate(masses_raw):
+        key = f"structure.masses[{k}]"
+        if not isinstance(m, dict):
+            raise r.fail(key, "must be a table {x = ..., mass = ...}")
+        masses.append(LumpedMass(
+            x=r.number(m, "x", key),
+            y=r.number(m, "y", key, required=kind == "plate", default=0.0),
+            mass=r.number(m, "mass", key, positive=True),
+        ))
+    structure = Structure(kind=kind, masses=tuple(masses), **structure_kw)
+    for k, m in enumerate(masses):
+        if not structure.contains(m.x, m.y):
+            raise r.fail(f"structure.masses[{k}].x", f"= {m.x} lies off the structure")
+
+    def points(key: str, extra: tuple[str, ...]) -> list[dict]:
+        items = r.array_of_tables(doc, key)
+        out = []
+        for k, item in enumerate(items):
+            path = f"{key}[{k}]"
+            entry = dict(
+                name=r.text(item, "name", path),
+                x=r.number(item, "x", path),
+                y=r.number(item, "y", path, required=kind == "plate", default=0.0),
+            )
+            for e in extra:
+                if e == "gap":
+                    entry[e] = r.number(item, "gap", path, required=False, positive=True)
+                else:
+                    entry[e] = r.number(item, e, path, required=False, default=1.0)
+                    if entry[e] == 0.0:
+                        raise r.fail(f"{path}.{e}", "must not be zero")
+            if not structure.contains(entry["x"], entry["y"]):
+                where = (f"x = {entry['x']} lies off the structure (0 <= x <= {structure.length})"
+                         if kind == "beam" else
+                         f"(x, y) = ({entry['x']}, {entry['y']}) lies outside the outline")
+                raise r.fail(f"{path}.x", where)
+            out.append(entry)
+        return out
+
+    gauges = tuple(Gauge(**g) for g in points("gauges", ("scale",)))
+    forces = tuple(ForcePoint(**f) for f in points("forces", ("gap",)))
+    sensors = tuple(Sensor(**s) for s in points("sensors", ("scale",)))
+
+    act = r.table(doc, "actuator", required=False)
+    actuator = Actuator(
+        current=r.text(act, "current", "actuator", required=False, default="i"),
+        flux=r.text(act, "flux", "actuator", required=False, default=None),
+        turns=r.number(act, "turns", "actuator", required=False, positive=True),
+        pole_area=r.number(act, "pole_area", "actuator", required=False, positive=True),
+        current_scale=r.number(act, "current_scale", "actuator", required=False, default=1.0),
+        flux_scale=r.number(act, "flux_scale", "actuator", required=False, default=1.0),
+    )
+    acq = r.table(doc, "acquisition", required=False)
+    frequency = r.number(acq, "frequency", "acquisition", required=False, positive=True)
+
+    # names: unique across every channel kind
+    seen: dict[str, str] = {}
+    for key, items in (("gauges", gauges), ("forces", forces), ("sensors", sensors)):
+        for k, item in enumerate(items):
+            if item.name in seen or item.name in ("time", "total"):
+                raise r.fail(f"{key}[{k}].name",
+                             f"= '{item.name}' is used twice (also {seen.get(item.name, 'reserved')})")
+            seen[item.name] = f"{key}[{k}]"
+    if actuator.current in seen:
+        raise r.fail("actuator.current", f"= '{actuator.current}' is also {seen[actuator.current]}")
+
+    # statics: gauge count, distinct points
+    needed = 2 if kind == "beam" else 3
+    if len(gauges) != needed:
+        raise r.fail("gauges", f"has {len(gauges)} entries; a {kind} on statically determinate "
+                     f"gauges needs exactly {needed}")
+    if len(forces) > len(gauges):
+        raise r.fail("forces", f"has {len(forces)} entries; at most {len(gauges)} forces "
+                     "(one per gauge) can be determined")
+    for key, items in (("gauges", gauges), ("forces", forces), ("sensors", sensors)):
+        pts = Rig._coords(items)
+        for a in range(len(items)):
+            for b in range(a):
+                if np.hypot(*(pts[a] - pts[b])) < 1e-6:
+                    raise r.fail(f"{key}[{a}].x", f"puts '{items[a].name}' at the same point as "
+                                 f"'{items[b].name}'")
+    return Rig(name=name, structure=structure, gauges=gauges, forces=forces, sensors=sensors,
+               actuator=actuator, frequency=frequency, source=source)
+
+
+def rig_to_dict(rig: Rig) -> dict[str, Any]:
+    """The rig as a TOML-ready document (inverse of :func:`parse_rig`)."""
+    st = rig.structure
+    plate = st.kind == "plate"
+    structure: dict[str, Any] = {"kind": st.kind}
+    if plate:
+        structure["mass_per_area"] = st.mass_per_area
+        structure["outline"] = [list(v) for v in st.outline]
+    else:
+        structure["length"] = st.length
+        structure["mass_per_length"] = st.mass_per_length
+    if st.masses:
+        structure["masses"] = [
+            {"x": m.x, **({"y": m.y} if plate else {}), "mass": m.mass} for m in st.masses
+        ]
+
+    def point(p, extra):
+        d = {"name": p.name, "x": p.x}
+        if plate:
+            d["y"] = p.y
+        for e in extra:
+            v = getattr(p, e)
+            if v is not None and not (e == "scale" and v == 1.0):
+                d[e] = v
+        return d
+
+    doc: dict[str, Any] = {
+        "name": rig.name,
+        "structure": structure,
+        "gauges": [point(g, ("scale",)) for g in rig.gauges],
+        "forces": [point(f, ("gap",)) for f in rig.forces],
+        "sensors": [point(s, ("scale",)) for s in rig.sensors],
+    }
+    act = {"current": rig.actuator.current}
+    for key in ("flux", "turns", "pole_area"):
+        v = getattr(rig.actuator, key)
+        if v is not None:
+            act[key] = v
+    doc["actuator"] = act
+    if rig.frequency is not None:
+        doc["acquisition"] = {"frequency": rig.frequency}
+    return doc
