@@ -127,7 +127,8 @@ class Structure:
             distributed = self.mass_per_length * self.length
         else:
             v = np.asarray(self.outline)
-            area = 0.5 * abs(np.dot(v[:, 0], np.roll(v[:, 1], -1)) - np.dot(v[:, 1], np.roll(v[:, 0], -1)))
+            x, y = v[:, 0], v[:, 1]
+            area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
             distributed = self.mass_per_area * area
         return distributed + sum(m.mass for m in self.masses)
 
@@ -348,8 +349,8 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     for key, items in (("gauges", gauges), ("forces", forces), ("sensors", sensors)):
         for k, item in enumerate(items):
             if item.name in seen or item.name in ("time", "total"):
-                raise r.fail(f"{key}[{k}].name",
-                             f"= '{item.name}' is used twice (also {seen.get(item.name, 'reserved')})")
+                other = seen.get(item.name, "a reserved column name")
+                raise r.fail(f"{key}[{k}].name", f"= '{item.name}' is used twice (also {other})")
             seen[item.name] = f"{key}[{k}]"
     if actuator.current in seen:
         raise r.fail("actuator.current", f"= '{actuator.current}' is also {seen[actuator.current]}")

@@ -1,0 +1,520 @@
+"""Smooth spatial shapes fitted over scan points (METHOD.md section 3, step 2).
+
+A shape phi(x) over the structure is expanded on polynomials beta_r that are orthonormal on the
+scan points in the discrete (optionally weighted) inner product
+
+    <f, g> = sum_k w_k f(x_k) g(x_k),          so that   B^T W B = I,
+
+with B[k, r] = beta_r(x_k). They are built from the Legendre Vandermonde matrix V of the
+coordinates mapped affinely to [-1, 1] over the structure's extent (not the range of the
+scan points) and the triangular factor of its QR factorization, sqrt(W) V = Q R:
+
+    beta(x) = V(x) R^-1,
+
+which can be evaluated anywhere (sensors, gauges, quadrature nodes), not only at the scan
+points. In 2-D the Vandermonde holds the products P_i(u) P_j(v) of total degree i + j < order,
+ordered by total degree, so the basis of a lower order is always the leading columns of a
+higher one.
+
+``order`` counts polynomial degrees: order p holds every polynomial of (total) degree below p,
+that is p functions in 1-D and p (p + 1) / 2 in 2-D. Order 1 is the constant (rigid
+translation), order 2 adds the rigid rotations.
+
+Complex shapes (harmonic phasors) are fitted with Re and Im sharing the same order, since they
+describe one physical shape; the order is chosen by generalized cross-validation or BIC.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.polynomial import legendre
+from scipy.linalg import solve_triangular
+
+from .errors import ConditioningError, DataError, DimensionError
+
+__all__ = [
+    "PolynomialBasis",
+    "ShapeFit",
+    "fit_shape",
+    "legendre_vandermonde",
+    "n_functions",
+    "orthonormal_basis",
+    "project",
+    "shape_similarity",
+]
+
+#: Smallest |R_ii| / max |R_ii| of the Vandermonde QR accepted as full rank.
+_RANK_TOL = 1e-10
+#: Default cap on the order tried by :func:`fit_shape`.
+_MAX_ORDER = 20
+
+
+def n_functions(order: int, n_dim: int) -> int:
+    """Number of basis functions of a given order (max total degree + 1) in 1-D or 2-D."""
+    if n_dim == 1:
+        return order
+    if n_dim == 2:
+        return order * (order + 1) // 2
+    raise DimensionError(f"n_dim must be 1 or 2; got {n_dim}")
+
+
+def _as_domain(extent: object) -> np.ndarray:
+    dom = np.asarray(extent, dtype=float)
+    if dom.shape == (2,):
+        dom = dom[None, :]
+    if dom.ndim != 2 or dom.shape[1] != 2 or dom.shape[0] not in (1, 2):
+        raise DimensionError(
+            "extent must be (x_min, x_max) or ((x_min, x_max), (y_min, y_max)) [m]; "
+            f"got shape {dom.shape}"
+        )
+    if not np.all(np.isfinite(dom)) or np.any(dom[:, 1] <= dom[:, 0]):
+        raise DataError(f"extent {dom.tolist()} must have finite bounds with min < max [m]")
+    return dom
+
+
+def _as_points(points: object, n_dim: int | None = None) -> np.ndarray:
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim == 0:
+        pts = pts.reshape(1, 1)
+    elif pts.ndim == 1:
+        pts = pts[:, None]
+    if pts.ndim != 2 or pts.shape[1] not in (1, 2):
+        raise DimensionError(
+            f"points must be (n_points,) or (n_points, n_dim) with n_dim 1 or 2; "
+            f"got shape {np.shape(points)}"
+        )
+    if n_dim is not None and pts.shape[1] != n_dim:
+        raise DimensionError(f"points have {pts.shape[1]} coordinate(s); the basis is {n_dim}-D")
+    if not np.all(np.isfinite(pts)):
+        raise DataError("points contain non-finite coordinates")
+    return pts
+
+
+def legendre_vandermonde(points: np.ndarray, extent: object, order: int) -> np.ndarray:
+    """Legendre Vandermonde matrix on the extent mapped to [-1, 1].
+
+    Parameters
+    ----------
+    points : (n_points,) or (n_points, n_dim) array [m]
+    extent : (x_min, x_max) or ((x_min, x_max), (y_min, y_max)) [m]
+    order : int
+        Max total degree + 1.
+
+    Returns
+    -------
+    (n_points, n_functions(order, n_dim)) array [1]
+        1-D: P_0(u) .. P_{order-1}(u). 2-D: P_i(u) P_j(v) by total degree d = i + j, and
+        within a degree by decreasing i.
+    """
+    dom = _as_domain(extent)
+    pts = _as_points(points, dom.shape[0])
+    if order < 1:
+        raise DimensionError(f"order must be >= 1; got {order}")
+    u = 2.0 * (pts - dom[:, 0]) / (dom[:, 1] - dom[:, 0]) - 1.0
+    if dom.shape[0] == 1:
+        return legendre.legvander(u[:, 0], order - 1)
+    pu = legendre.legvander(u[:, 0], order - 1)
+    pv = legendre.legvander(u[:, 1], order - 1)
+    cols = [pu[:, d - j] * pv[:, j] for d in range(order) for j in range(d + 1)]
+    return np.stack(cols, axis=1)
+
+
+@dataclass(frozen=True)
+class PolynomialBasis:
+    """Polynomials orthonormal on a set of scan points, evaluable anywhere.
+
+    Attributes
+    ----------
+    order : int
+        Max total degree + 1 (see the module docstring).
+    domain : (n_dim, 2) array [m]
+        Extent mapped to [-1, 1]: [[x_min, x_max]] or [[x_min, x_max], [y_min, y_max]].
+    coefficients : (n_funcs, n_funcs) upper-triangular array [1]
+        R^-1: column r holds the Legendre coefficients of beta_r, so that
+        beta(x) = legendre_vandermonde(x) @ coefficients.
+    """
+
+    order: int
+    domain: np.ndarray
+    coefficients: np.ndarray
+
+    @property
+    def n_dim(self) -> int:
+        """Number of coordinates, 1 or 2."""
+        return self.domain.shape[0]
+
+    @property
+    def n_funcs(self) -> int:
+        """Number of basis functions."""
+        return self.coefficients.shape[1]
+
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
+        """Basis functions at arbitrary points.
+
+        Parameters
+        ----------
+        points : (n_points,) or (n_points, n_dim) array [m]
+
+        Returns
+        -------
+        (n_points, n_funcs) array [1]
+        """
+        return legendre_vandermonde(points, self.domain, self.order) @ self.coefficients
+
+    def truncate(self, order: int) -> PolynomialBasis:
+        """The nested basis of a lower order (its leading functions)."""
+        if not 1 <= order <= self.order:
+            raise DimensionError(f"order must be in 1..{self.order}; got {order}")
+        n = n_functions(order, self.n_dim)
+        return PolynomialBasis(order, self.domain, self.coefficients[:n, :n].copy())
+
+
+def _as_weights(weights: object, n_points: int) -> np.ndarray:
+    if weights is None:
+        return np.ones(n_points)
+    w = np.asarray(weights, dtype=float)
+    if w.shape != (n_points,):
+        raise DimensionError(f"weights must be ({n_points},); got shape {w.shape}")
+    if not np.all(np.isfinite(w)) or np.any(w <= 0):
+        raise DataError("weights must be finite and positive")
+    return w
+
+
+def _check_inside(pts: np.ndarray, dom: np.ndarray) -> None:
+    tol = 1e-9 * (dom[:, 1] - dom[:, 0])
+    outside = np.any((pts < dom[:, 0] - tol) | (pts > dom[:, 1] + tol), axis=1)
+    if outside.any():
+        k = int(np.argmax(outside))
+        raise DataError(
+            f"{int(outside.sum())} scan point(s) lie outside the extent {dom.tolist()} [m], "
+            f"first point {k} at {pts[k].tolist()}; check the units of the points and extent"
+        )
+
+
+def _inverse_triangular(r: np.ndarray) -> np.ndarray:
+    return solve_triangular(r, np.eye(r.shape[0]))
+
+
+def orthonormal_basis(
+    points: np.ndarray, extent: object, order: int, weights: np.ndarray | None = None
+) -> PolynomialBasis:
+    """Polynomial basis orthonormal on the scan points.
+
+    Parameters
+    ----------
+    points : (n_points,) or (n_points, n_dim) array [m]
+        Scan points, inside the extent.
+    extent : (x_min, x_max) or ((x_min, x_max), (y_min, y_max)) [m]
+        The structure's extent (e.g. (0, L) for a beam), mapped to [-1, 1].
+    order : int
+        Max total degree + 1.
+    weights : (n_points,) array, optional
+        Positive weights of the inner product (default 1).
+
+    Returns
+    -------
+    PolynomialBasis
+        B = basis.evaluate(points) satisfies B^T diag(weights) B = I.
+
+    Raises
+    ------
+    ConditioningError
+        The points cannot support that many functions (too few or degenerate points).
+    """
+    dom = _as_domain(extent)
+    pts = _as_points(points, dom.shape[0])
+    _check_inside(pts, dom)
+    n_funcs = n_functions(order, dom.shape[0])
+    if n_funcs > pts.shape[0]:
+        raise ConditioningError(
+            f"a basis of order {order} has {n_funcs} functions; {pts.shape[0]} points cannot "
+            "support it"
+        )
+    sw = np.sqrt(_as_weights(weights, pts.shape[0]))[:, None]
+    v = sw * legendre_vandermonde(pts, dom, order)
+    # QR twice ("twice is enough"): the second pass makes V R^-1 orthonormal to rounding
+    _, r1 = np.linalg.qr(v)
+    d = np.abs(np.diag(r1))
+    if d.min() <= _RANK_TOL * d.max():
+        raise ConditioningError(
+            f"the {pts.shape[0]} scan points cannot support a basis of order {order} "
+            f"({n_funcs} functions): the Vandermonde matrix is numerically rank deficient "
+            f"(|R_ii| ratio {d.min() / d.max():.1e}); lower the order or add points"
+        )
+    r1_inv = _inverse_triangular(r1)
+    _, r2 = np.linalg.qr(v @ r1_inv)
+    r_inv = r1_inv @ _inverse_triangular(r2)
+    # unique sign convention: positive diagonal of R (beta_0 is a positive constant)
+    r_inv = r_inv * np.sign(np.diag(r_inv))
+    return PolynomialBasis(order=int(order), domain=dom, coefficients=np.triu(r_inv))
+
+
+@dataclass(frozen=True)
+class ShapeFit:
+    """A shape fitted over the scan points on an orthonormal polynomial basis.
+
+    Attributes
+    ----------
+    basis : PolynomialBasis
+        The basis of the chosen order.
+    coefficients : (n_funcs,) or (n_funcs, k) array [unit of the values]
+        Expansion coefficients p_r, complex when the values are complex.
+    order : int
+        The chosen order (max total degree + 1).
+    orders : (n_orders,) int array
+        The orders tried.
+    score : (n_orders,) array
+        The selection criterion for every order tried (smaller is better).
+    criterion : str
+        "gcv", "bic" or "fixed".
+    residual_std : float [unit of the values]
+        Standard deviation of a residual of unit weight, pooled over Re, Im and all columns:
+        sqrt(RSS_w / (m (n_points - n_funcs))) for m real columns.
+    coefficient_covariance : (n_funcs, n_funcs) array [unit of the values ^2]
+        sigma^2 (B^T W B)^-1: the covariance of the real part of each column of coefficients,
+        and equally of the imaginary part.
+    """
+
+    basis: PolynomialBasis
+    coefficients: np.ndarray
+    order: int
+    orders: np.ndarray
+    score: np.ndarray
+    criterion: str
+    residual_std: float
+    coefficient_covariance: np.ndarray
+
+    def evaluate(self, points: np.ndarray) -> np.ndarray:
+        """Fitted shape at arbitrary points.
+
+        Parameters
+        ----------
+        points : (n_points,) or (n_points, n_dim) array [m]
+
+        Returns
+        -------
+        (n_points,) or (n_points, k) array [unit of the values]
+        """
+        return self.basis.evaluate(points) @ self.coefficients
+
+    def std(self, points: np.ndarray) -> np.ndarray:
+        """Standard uncertainty of Re (and of Im) of the fitted shape at points.
+
+        Parameters
+        ----------
+        points : (n_points,) or (n_points, n_dim) array [m]
+
+        Returns
+        -------
+        (n_points,) array [unit of the values]
+        """
+        b = self.basis.evaluate(points)
+        return np.sqrt(np.einsum("kr,rs,ks->k", b, self.coefficient_covariance, b))
+
+
+def _real_columns(values: np.ndarray) -> np.ndarray:
+    """(n, k) real or complex -> (n, m) real: Re columns, then Im columns if complex."""
+    if np.iscomplexobj(values):
+        return np.concatenate([values.real, values.imag], axis=1)
+    return values
+
+
+def _default_max_order(n_points: int, n_dim: int) -> int:
+    order = 1
+    while order < _MAX_ORDER and n_functions(order + 1, n_dim) <= n_points // 3:
+        order += 1
+    return order
+
+
+def fit_shape(
+    points: np.ndarray,
+    values: np.ndarray,
+    extent: object,
+    max_order: int | None = None,
+    criterion: str = "gcv",
+    weights: np.ndarray | None = None,
+    order: int | None = None,
+) -> ShapeFit:
+    """Fit a smooth shape over scan points, choosing the order from the data.
+
+    Every order p = 1 .. max_order is fitted by weighted least squares on the orthonormal basis
+    (nested, so one basis of the largest order serves all). Re and Im, and all columns of a
+    stack, share the order. With n points, p functions, m real columns and weighted residual
+    sum of squares RSS:
+
+    - GCV(p) = (RSS / (n m)) / (1 - p / n)^2 (generalized cross-validation of a linear
+      smoother of trace p);
+    - BIC(p) = n m ln(RSS / (n m)) + p m ln(n m).
+
+    RSS below the rounding level of the data is treated as that level, so that data an order
+    represents exactly select that order, not a higher one.
+
+    Parameters
+    ----------
+    points : (n_points,) or (n_points, n_dim) array [m]
+        Scan points.
+    values : (n_points,) or (n_points, k) array, real or complex [any unit]
+        Shape values at the points (e.g. harmonic phasors H_n(x_k)).
+    extent : (x_min, x_max) or ((x_min, x_max), (y_min, y_max)) [m]
+        The structure's extent, mapped to [-1, 1].
+    max_order : int, optional
+        Largest order tried. Default: the largest order with at most n_points // 3 functions,
+        capped at 20.
+    criterion : {"gcv", "bic"}
+    weights : (n_points,) array, optional
+        Positive weights (inverse variances up to a common factor).
+    order : int, optional
+        Use this order instead of selecting one (``criterion`` becomes "fixed").
+
+    Returns
+    -------
+    ShapeFit
+
+    Raises
+    ------
+    DataError
+        Non-finite values, or an order that leaves no residual degree of freedom.
+    DimensionError
+        Values and points that do not agree.
+    """
+    if criterion not in ("gcv", "bic"):
+        raise DataError(f"criterion must be 'gcv' or 'bic'; got '{criterion}'")
+    dom = _as_domain(extent)
+    n_dim = dom.shape[0]
+    pts = _as_points(points, n_dim)
+    n = pts.shape[0]
+    vals = np.asarray(values)
+    if vals.ndim not in (1, 2) or vals.shape[0] != n:
+        raise DimensionError(
+            f"values must be ({n},) or ({n}, k) for {n} points; got shape {vals.shape}"
+        )
+    if not np.all(np.isfinite(vals)):
+        raise DataError(f"values contain {int((~np.isfinite(vals)).sum())} non-finite entries")
+    is_complex = np.iscomplexobj(vals)
+    vals = vals.astype(complex if is_complex else float)
+    y = _real_columns(vals.reshape(n, -1))
+    # columns identically zero (e.g. the Im part of a real shape) carry no observation
+    y = y[:, np.any(y != 0.0, axis=0)] if np.any(y != 0.0) else y[:, :1]
+    m = y.shape[1]
+    w = _as_weights(weights, n)
+
+    if order is not None:
+        orders = np.array([int(order)])
+        criterion_used = "fixed"
+    else:
+        top = _default_max_order(n, n_dim) if max_order is None else int(max_order)
+        if top < 1:
+            raise DataError(f"max_order must be >= 1; got {top}")
+        orders = np.arange(1, top + 1)
+        criterion_used = criterion
+    top_funcs = n_functions(int(orders[-1]), n_dim)
+    if top_funcs >= n:
+        raise DataError(
+            f"order {int(orders[-1])} has {top_funcs} functions; {n} scan points leave no "
+            "residual degree of freedom (lower max_order)"
+        )
+
+    full = orthonormal_basis(pts, dom, int(orders[-1]), w)
+    sw = np.sqrt(w)[:, None]
+    b = full.evaluate(pts) * sw  # (n, P), orthonormal columns
+    yw = y * sw
+    c_all = b.T @ yw
+    floor = max((64.0 * np.finfo(float).eps) ** 2 * float(np.sum(yw**2)), np.finfo(float).tiny)
+    rss = np.empty(orders.size)
+    for i, p in enumerate(orders):
+        k = n_functions(int(p), n_dim)
+        resid = yw - b[:, :k] @ c_all[:k]
+        rss[i] = float(np.sum(resid**2))
+    n_funcs = np.array([n_functions(int(p), n_dim) for p in orders])
+    rss_eff = np.maximum(rss, floor)
+    n_obs = n * m
+    if criterion_used == "bic":
+        score = n_obs * np.log(rss_eff / n_obs) + n_funcs * m * math.log(n_obs)
+    else:
+        score = (rss_eff / n_obs) / (1.0 - n_funcs / n) ** 2
+    i_best = int(np.argmin(score))
+    p_best = int(orders[i_best])
+    k_best = int(n_funcs[i_best])
+
+    basis = full.truncate(p_best)
+    bb = b[:, :k_best]
+    coef_real = np.linalg.lstsq(bb, vals.reshape(n, -1).real * sw, rcond=None)[0]
+    coef = coef_real
+    if is_complex:
+        coef = coef_real + 1j * np.linalg.lstsq(bb, vals.reshape(n, -1).imag * sw, rcond=None)[0]
+    if vals.ndim == 1:
+        coef = coef[:, 0]
+    sigma = math.sqrt(rss[i_best] / (m * (n - k_best)))
+    gram = bb.T @ bb
+    cov = sigma**2 * np.linalg.inv(gram)
+    return ShapeFit(
+        basis=basis,
+        coefficients=coef,
+        order=p_best,
+        orders=orders,
+        score=score,
+        criterion=criterion_used,
+        residual_std=sigma,
+        coefficient_covariance=0.5 * (cov + cov.T),
+    )
+
+
+def project(
+    points: np.ndarray,
+    values: np.ndarray,
+    basis: PolynomialBasis,
+    weights: np.ndarray | None = None,
+) -> np.ndarray:
+    """Weighted least-squares projection of values onto the span of a basis.
+
+    The basis need not be orthonormal on these points.
+
+    Parameters
+    ----------
+    points : (n_points,) or (n_points, n_dim) array [m]
+    values : (n_points,) or (n_points, k) array, real or complex [any unit]
+    basis : PolynomialBasis
+    weights : (n_points,) array, optional
+
+    Returns
+    -------
+    array like ``values``
+        The projected values at the points, B (B^T W B)^-1 B^T W values.
+    """
+    b = basis.evaluate(points)
+    vals = np.asarray(values)
+    if vals.shape[0] != b.shape[0] or vals.ndim not in (1, 2):
+        raise DimensionError(
+            f"values must be ({b.shape[0]},) or ({b.shape[0]}, k); got shape {vals.shape}"
+        )
+    sw = np.sqrt(_as_weights(weights, b.shape[0]))
+    coef = np.linalg.lstsq(b * sw[:, None], (vals.T * sw).T, rcond=None)[0]
+    return b @ coef
+
+
+def shape_similarity(shape_a: np.ndarray, shape_b: np.ndarray) -> float:
+    """Modal assurance criterion of two (complex) shapes sampled at the same points.
+
+    MAC = |a^H b|^2 / ((a^H a) (b^H b)): 1 for the same shape up to a complex factor, 0 for
+    orthogonal shapes.
+
+    Parameters
+    ----------
+    shape_a, shape_b : (n_points,) arrays, real or complex [any unit]
+
+    Returns
+    -------
+    float [1]
+    """
+    a = np.asarray(shape_a).ravel()
+    b = np.asarray(shape_b).ravel()
+    if a.shape != b.shape:
+        raise DimensionError(f"shapes have {a.size} and {b.size} values; expected equal")
+    na = float(np.vdot(a, a).real)
+    nb = float(np.vdot(b, b).real)
+    if na == 0.0 or nb == 0.0:
+        raise DataError("the MAC of a zero shape is undefined")
+    return float(abs(np.vdot(a, b)) ** 2 / (na * nb))

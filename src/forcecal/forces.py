@@ -1,0 +1,294 @@
+"""Forces from reactions and inertia (METHOD.md sections 2 and 3, steps 5 and 6).
+
+Per harmonic n >= 1: J_{r,n} = m_{r,n} (-(n w0)^2) Q_n and F_n = Psi^+ (J_n - R_n); the DC part
+has no inertia, F_0 = -Psi^+ (R_0 - R_0,tare). The reactions-only (static) estimate,
+-Psi^+ R(t) sample by sample, is returned beside it as the baseline.
+
+Standard uncertainties are propagated linearly from the noise of every channel (estimated from
+its own fit residuals) and from the scan model's shape coefficients, so that near a resonance,
+where F is a small difference of large numbers, the stated uncertainty grows with it.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .coordinates import Coordinates, generalized_coordinates
+from .errors import DataError, InputError
+from .harmonics import HarmonicFit, fit_harmonics, refine_fundamental
+from .inertia import mass_weights
+from .io.run_files import check_clipping
+from .records import Run
+from .relaxation import force_matrix
+from .rig import Rig
+from .spatial import SpatialModel
+
+__all__ = ["ForceEstimate", "channels_si", "reconstruct"]
+
+log = logging.getLogger(__name__)
+
+FREQUENCY_MISMATCH = 0.01
+"""Relative difference between a run's and the scan's fundamental that draws a warning."""
+
+
+@dataclass(frozen=True)
+class ForceEstimate:
+    """The forces of one run.
+
+    Attributes
+    ----------
+    f0 : [Hz] refined fundamental of the run
+    harmonics : (H+1,) int 0..H; phasors follow the convention of :mod:`forcecal.harmonics`
+    force : (n_forces, H+1) complex [N]; force_std : (n_forces, H+1) [N] (Re and Im each)
+    total : (H+1,) complex [N]; total_std : (H+1,) [N]
+    static : (n_forces, H+1) complex [N]: reactions-only phasors
+    inertia : (n_gauges, H+1) complex [N]: J_{r,n}
+    reactions : (n_gauges, H+1) complex [N]
+    with_inertia : (H+1,) bool: harmonics whose inertia came from the scan model
+    kept : (H+1,) bool: harmonics the data support (a shape in the model, or reactions above
+        five times their noise); the others are set to zero
+    time : (n_samples,) [s]; series : (n_forces, n_samples) [N];
+    static_series : (n_forces, n_samples) [N] -Psi^+ R(t) sample by sample
+    """
+
+    run_name: str
+    force_names: tuple[str, ...]
+    gauge_names: tuple[str, ...]
+    f0: float
+    harmonics: np.ndarray
+    force: np.ndarray
+    force_std: np.ndarray
+    total: np.ndarray
+    total_std: np.ndarray
+    static: np.ndarray
+    inertia: np.ndarray
+    reactions: np.ndarray
+    with_inertia: np.ndarray
+    kept: np.ndarray
+    coordinates: Coordinates
+    time: np.ndarray
+    series: np.ndarray
+    static_series: np.ndarray
+    psi_condition: float
+    consistency: np.ndarray
+    dc_observed: bool = True
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def total_series(self) -> np.ndarray:
+        """(n_samples,) [N]"""
+        return self.series.sum(axis=0)
+
+    @property
+    def inertia_share(self) -> float:
+        """RMS of the inertia's contribution to the total AC force over the RMS of that force."""
+        inertia_total = np.sum(self.inertia_force[:, 1:], axis=0)
+        return float(np.sqrt(np.sum(np.abs(inertia_total) ** 2))
+                     / np.sqrt(np.sum(np.abs(self.total[1:]) ** 2)))
+
+    @property
+    def inertia_force(self) -> np.ndarray:
+        """(n_forces, H+1) complex [N]: the inertia's contribution Psi^+ J_n to each force."""
+        return self.force - self.static
+
+    @property
+    def waveform_std(self) -> float:
+        """Standard uncertainty [N] of the total force waveform (RMS over time, AC part)."""
+        return float(np.sqrt(np.sum(self.total_std[1:] ** 2)))
+
+
+def channels_si(rig: Rig, run: Run) -> dict[str, np.ndarray]:
+    """Gauge, sensor, current and (if any) flux channels in SI with the rig's scales."""
+    out = {g.name: g.scale * run.channel(g.name) for g in rig.gauges}
+    out.update({s.name: s.scale * run.channel(s.name) for s in rig.sensors})
+    act = rig.actuator
+    out[act.current] = act.current_scale * run.channel(act.current)
+    if act.flux and act.flux in run.channels:
+        out[act.flux] = act.flux_scale * run.channel(act.flux)
+    return out
+
+
+def _psi_pinv(rig: Rig) -> tuple[np.ndarray, float]:
+    psi = force_matrix(rig)
+    return np.linalg.pinv(psi), float(np.linalg.cond(psi))
+
+
+def _series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
+    """Evaluate phasors (..., H+1) at times t -> (..., n_t)."""
+    n = np.arange(phasors.shape[-1])
+    e = np.exp(1j * 2 * np.pi * f0 * np.outer(n, t))
+    return (phasors @ e).real
+
+
+def _shape_jacobian(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit,
+                    pinv: np.ndarray, w0n: float) -> tuple[np.ndarray, np.ndarray]:
+    """Covariance (n_forces, 2, 2) of (Re, Im) of Psi^+ J_n due to the shape coefficients."""
+    fit = model.shapes[k]
+    n = int(model.harmonics[k])
+    pts, weights = mass_weights(rig)
+    c = weights @ fit.basis.evaluate(pts)                          # (n_g, nf)
+    bs = fit.basis.evaluate(rig.sensor_points[:, 0])               # (n_s, nf)
+    s = sensors.phasors[:, n]
+    w = 1.0 / sensors.phasor_std[:, n] ** 2
+
+    def inertia_force(p: np.ndarray) -> np.ndarray:
+        phi = bs @ p
+        q = np.sum(w * np.conj(phi) * s) / np.sum(w * np.abs(phi) ** 2)
+        return pinv @ ((c @ p) * (-(w0n**2)) * q)
+
+    p0 = fit.coefficients
+    nf = len(p0)
+    h = 1e-6 * np.linalg.norm(p0)
+    jac = np.empty((pinv.shape[0], 2 * nf), dtype=complex)
+    for j in range(nf):
+        for part, d in ((0, h), (1, 1j * h)):
+            e = np.zeros(nf, dtype=complex)
+            e[j] = d
+            jac[:, part * nf + j] = (inertia_force(p0 + e) - inertia_force(p0 - e)) / (2 * h)
+    cov_p = np.kron(np.eye(2), fit.coefficient_covariance)         # Re and Im independent
+    jr, ji = jac.real, jac.imag
+    cov = np.stack([
+        np.stack([np.einsum("fa,ab,fb->f", jr, cov_p, jr), np.einsum("fa,ab,fb->f", jr, cov_p, ji)],
+                 -1),
+        np.stack([np.einsum("fa,ab,fb->f", ji, cov_p, jr), np.einsum("fa,ab,fb->f", ji, cov_p, ji)],
+                 -1),
+    ], -2)
+    total_j = jac.sum(axis=0)
+    tr, ti = total_j.real, total_j.imag
+    cov_total = np.array([[tr @ cov_p @ tr, tr @ cov_p @ ti], [ti @ cov_p @ tr, ti @ cov_p @ ti]])
+    return cov, cov_total
+
+
+def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None = None,
+                tare: Run | None = None, ac_coupled: bool = False) -> ForceEstimate:
+    """External forces of one run from its reactions, sensors and the spatial model.
+
+    Parameters
+    ----------
+    rig : the rig; model : the spatial model from the scan
+    run : the recording (gauge, sensor and current channels named as in the rig)
+    n_harmonics : H, harmonics 0..H are estimated (default: as many as the scan was fitted with)
+    tare : a zero-current record whose gauge DC is subtracted
+    ac_coupled : the gauges do not measure DC (piezoelectric): the DC force is not estimated
+    """
+    if rig.frequency is None:
+        raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing")
+    sig = channels_si(rig, run)
+    for name, values in sig.items():
+        check_clipping(values, name, run.source, run.fs)
+    h = n_harmonics or len(model.snr)
+    current = sig[rig.actuator.current]
+    sensors = np.stack([sig[s] for s in rig.sensor_names])
+    gauges = np.stack([sig[g] for g in rig.gauge_names])
+    f0 = refine_fundamental(np.vstack([current, sensors]), run.fs, rig.frequency, h, t0=run.t0)
+    notes = []
+    if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
+        msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
+               f"{model.f0:.4g} Hz; its shapes may not apply")
+        warnings.warn(msg, stacklevel=2)
+        notes.append(msg)
+    g_fit = fit_harmonics(gauges, run.fs, f0, h, t0=run.t0)
+    s_fit = fit_harmonics(sensors, run.fs, f0, h, t0=run.t0)
+    coords = generalized_coordinates(model, rig, s_fit, run.source)
+    pinv, cond = _psi_pinv(rig)
+    psi = force_matrix(rig)
+    n_g, n_f = len(rig.gauges), len(rig.forces)
+
+    reactions = g_fit.phasors.copy()                                 # (n_g, H+1)
+    if tare is not None:
+        t_sig = channels_si(rig, tare)
+        tare_dc = np.array([t_sig[g].mean() for g in rig.gauge_names])
+        reactions[:, 0] -= tare_dc
+    inertia = np.zeros((n_g, h + 1), dtype=complex)
+    with_inertia = np.zeros(h + 1, dtype=bool)
+    w0 = 2 * np.pi * f0
+    var_re = np.zeros((n_f, h + 1))
+    var_im = np.zeros((n_f, h + 1))
+    var_total = np.zeros((h + 1, 2))
+    r_var = g_fit.phasor_std**2                                      # (n_g, H+1)
+    var_re += (pinv**2) @ r_var
+    var_im += (pinv**2) @ r_var
+    ones = np.ones(n_f)
+    var_total += ((ones @ pinv) ** 2 @ r_var)[:, None]
+    for k, n in enumerate(model.harmonics):
+        n = int(n)
+        if n > h:
+            continue
+        w0n = n * w0
+        m = model.couplings[k]                                       # (n_g,)
+        inertia[:, n] = m * (-(w0n**2)) * coords.q[k]
+        with_inertia[n] = True
+        a = pinv @ m * w0n**2                                        # d F / d Q
+        q_var = coords.q_std[k] ** 2
+        var_re[:, n] += np.abs(a) ** 2 * q_var
+        var_im[:, n] += np.abs(a) ** 2 * q_var
+        var_total[n] += abs(ones @ a) ** 2 * q_var
+        cov, cov_total = _shape_jacobian(model, rig, k, s_fit, pinv, w0n)
+        var_re[:, n] += cov[:, 0, 0]
+        var_im[:, n] += cov[:, 1, 1]
+        var_total[n] += np.diag(cov_total)
+    # harmonics the scan could not resolve: kept only where the reactions show them; their
+    # inertia is not compensated, so it is bounded by the whole mass moving with the sensors'
+    # amplitude (or their noise) and that bound is stated as an uncertainty
+    mass = rig.structure.total_mass
+    row_share = np.sum(pinv**2, axis=1)
+    kept = with_inertia.copy()
+    kept[0] = True
+    for n in range(1, h + 1):
+        if with_inertia[n]:
+            continue
+        if not np.any(np.abs(reactions[:, n]) > 5 * g_fit.phasor_std[:, n]):
+            continue
+        kept[n] = True
+        noise = float(np.sqrt(np.mean(s_fit.phasor_std[:, n] ** 2)))
+        motion = max(float(np.sqrt(np.mean(np.abs(s_fit.phasors[:, n]) ** 2))), noise)
+        bound = mass * (n * w0) ** 2 * motion
+        var_re[:, n] += bound**2 / 2 * row_share
+        var_im[:, n] += bound**2 / 2 * row_share
+        var_total[n] += bound**2 / 2
+        notes.append(f"harmonic {n}: no shape in the scan model "
+                     f"({model.dropped.get(n, 'not scanned')}); its inertia, up to {bound:.2g} N, "
+                     "is not compensated and is counted in the uncertainty")
+    reactions[:, ~kept] = 0.0
+    inertia[:, ~kept] = 0.0
+    var_re[:, ~kept] = var_im[:, ~kept] = 0.0
+    var_total[~kept] = 0.0
+    force = pinv @ (inertia - reactions)
+    static = pinv @ (-reactions)
+    if ac_coupled:
+        force[:, 0] = 0.0
+        static[:, 0] = 0.0
+        var_re[:, 0] = var_im[:, 0] = 0.0
+        var_total[0] = 0.0
+    consistency = np.linalg.norm(psi @ force - (inertia - reactions), axis=0)
+    force_std = np.sqrt((var_re + var_im) / 2)
+    force_std[:, 0] = np.sqrt(var_re[:, 0])                          # DC is real
+    total_std = np.sqrt(var_total.mean(axis=1))
+    total_std[0] = np.sqrt(var_total[0, 0])
+    t = run.time
+    static_series = pinv @ (-gauges)
+    if tare is not None:
+        static_series = static_series + (pinv @ tare_dc)[:, None]
+    if ac_coupled:
+        static_series = static_series - static_series.mean(axis=1, keepdims=True)
+    return ForceEstimate(
+        run_name=run.name, force_names=tuple(rig.force_names),
+        gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
+        force=force, force_std=force_std, total=force.sum(axis=0), total_std=total_std,
+        static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
+        kept=kept, coordinates=coords, time=t, series=_series(force, f0, t),
+        static_series=static_series, psi_condition=cond, consistency=consistency,
+        dc_observed=not ac_coupled, notes=tuple(notes),
+    )
+
+
+def check_record_length(run: Run, f0: float) -> None:
+    """DataError when a record holds fewer than five periods of the drive."""
+    periods = run.n_samples / run.fs * f0
+    if periods < 5:
+        raise DataError(f"run '{run.source}': the record holds {periods:.1f} periods of "
+                        f"{f0:.4g} Hz; at least 5 are needed")

@@ -1,0 +1,517 @@
+"""Fourier series of steady periodic signals, fitted by linear least squares.
+
+Convention
+----------
+A steady periodic signal of fundamental frequency f0 = w0 / (2 pi) is written
+
+    x(t) = X_0 + sum_{n=1..H} Re( X_n exp(j n w0 t) ),
+
+with t the *absolute* time stamp of each sample, t = t0 + k / fs (k = 0 .. N-1), so that records
+taken at different times keep their relative phase. X_0 is real (the mean) and
+X_n = A_n exp(j phi_n) carries the amplitude A_n and the phase phi_n of harmonic n (one-sided
+amplitude: a unit cosine has X_1 = 1).
+
+The fit is ordinary least squares on the design matrix of :func:`design_matrix`; it neither
+needs nor assumes a whole number of periods in the record, so the phasors of noise-free data are
+exact either way. Time is on the last axis: ``x`` is ``(..., n_samples)`` and every channel is
+fitted with one shared QR factorization.
+
+For white noise of standard deviation sigma over N samples spanning a whole number of periods,
+Re and Im of every harmonic n >= 1 have variance 2 sigma^2 / N and the mean has sigma^2 / N
+(METHOD.md section 6, :func:`noise_bound`); for other record lengths the exact diagonal of
+(A^T A)^-1 is used.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.linalg import solve_triangular
+from scipy.optimize import minimize_scalar
+
+from .errors import ConditioningError, DataError, DimensionError
+
+__all__ = [
+    "HarmonicFit",
+    "design_matrix",
+    "fit_harmonics",
+    "fundamental_uncertainty",
+    "noise_bound",
+    "refine_fundamental",
+    "significant_harmonics",
+]
+
+#: Largest condition number of the design matrix accepted by :func:`fit_harmonics`.
+_MAX_CONDITION = 1e10
+
+
+@dataclass(frozen=True)
+class HarmonicFit:
+    """Least-squares Fourier series of one or several records sharing one time base.
+
+    Attributes
+    ----------
+    f0 : float [Hz]
+        Fundamental frequency used in the fit.
+    phasors : (..., H+1) complex array [unit of x]
+        X_0 .. X_H in the convention of the module docstring (X_0 real).
+    residual_std : (...) array [unit of x]
+        Unbiased residual standard deviation, sqrt(RSS / (N - (2H+1))).
+    phasor_std : (..., H+1) array [unit of x]
+        Standard uncertainty of Re X_n and of Im X_n. For n = 0 it is the uncertainty of the
+        mean; for n >= 1 the root mean square of the two exact values
+        sigma * sqrt(diag (A^T A)^-1), which are equal (sqrt(2 / N) sigma) for a whole number
+        of periods.
+    residuals : (..., n_samples) array [unit of x]
+        Data minus the fitted series.
+    unscaled_covariance : (2H+1, 2H+1) array [1]
+        (A^T A)^-1 of the design matrix, coefficient order [X_0, Re X_1, Im X_1, Re X_2, ...];
+        multiply by ``residual_std**2`` for the covariance of one channel (see
+        :attr:`covariance`).
+    fs : float [Hz]
+        Sampling rate of the records.
+    t0 : float [s]
+        Absolute time of the first sample.
+    """
+
+    f0: float
+    phasors: np.ndarray
+    residual_std: np.ndarray
+    phasor_std: np.ndarray
+    residuals: np.ndarray
+    unscaled_covariance: np.ndarray
+    fs: float
+    t0: float = 0.0
+
+    @property
+    def n_harmonics(self) -> int:
+        """Number H of harmonics above DC."""
+        return self.phasors.shape[-1] - 1
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples per record."""
+        return self.residuals.shape[-1]
+
+    @property
+    def dof(self) -> int:
+        """Residual degrees of freedom N - (2H+1)."""
+        return self.n_samples - (2 * self.n_harmonics + 1)
+
+    @property
+    def amplitudes(self) -> np.ndarray:
+        """(..., H+1) amplitudes |X_n| [unit of x] (|mean| for n = 0)."""
+        return np.abs(self.phasors)
+
+    @property
+    def phases(self) -> np.ndarray:
+        """(..., H+1) phases arg X_n [rad]."""
+        return np.angle(self.phasors)
+
+    @property
+    def times(self) -> np.ndarray:
+        """(n_samples,) absolute sample times t0 + k / fs [s]."""
+        return self.t0 + np.arange(self.n_samples) / self.fs
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(..., 2H+1, 2H+1) covariance of [X_0, Re X_1, Im X_1, ...] [unit of x ^2]."""
+        s2 = np.asarray(self.residual_std) ** 2
+        return s2[..., None, None] * self.unscaled_covariance
+
+    def evaluate(self, t: np.ndarray) -> np.ndarray:
+        """Reconstruct the fitted series.
+
+        Parameters
+        ----------
+        t : (n_t,) array [s]
+            Absolute times.
+
+        Returns
+        -------
+        (..., n_t) array [unit of x]
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        n = np.arange(self.n_harmonics + 1)
+        cycles = np.mod(np.multiply.outer(n * self.f0, t), 1.0)  # as in design_matrix
+        rotor = np.exp(1j * 2.0 * np.pi * cycles)  # (H+1, n_t)
+        return (self.phasors @ rotor).real
+
+
+def design_matrix(t: np.ndarray, f0: float, n_harmonics: int) -> np.ndarray:
+    """Least-squares design matrix of a Fourier series.
+
+    Parameters
+    ----------
+    t : (n_samples,) array [s]
+        Absolute sample times.
+    f0 : float [Hz]
+        Fundamental frequency.
+    n_harmonics : int
+        Number H of harmonics above DC.
+
+    Returns
+    -------
+    (n_samples, 2H+1) array [1]
+        Columns [1, cos(w0 t), -sin(w0 t), cos(2 w0 t), -sin(2 w0 t), ...], so that the
+        least-squares coefficients c give X_0 = c_0 and X_n = c_{2n-1} + j c_{2n}.
+    """
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1:
+        raise DimensionError(f"t must be one-dimensional; got shape {t.shape}")
+    if n_harmonics < 0:
+        raise DimensionError(f"n_harmonics must be >= 0; got {n_harmonics}")
+    n = np.arange(1, n_harmonics + 1)
+    # phase in cycles, reduced modulo 1 before scaling by 2 pi
+    cycles = np.mod(np.multiply.outer(t, n * f0), 1.0)
+    arg = 2.0 * np.pi * cycles
+    a = np.empty((t.size, 2 * n_harmonics + 1))
+    a[:, 0] = 1.0
+    a[:, 1::2] = np.cos(arg)
+    a[:, 2::2] = -np.sin(arg)
+    return a
+
+
+def _check_nyquist(f0: float, n_harmonics: int, fs: float) -> None:
+    if n_harmonics * f0 >= 0.5 * fs:
+        raise DataError(
+            f"harmonic {n_harmonics} of {f0:.6g} Hz is at {n_harmonics * f0:.6g} Hz, not below "
+            f"the Nyquist frequency {0.5 * fs:.6g} Hz of fs = {fs:.6g} Hz; reduce n_harmonics"
+        )
+
+
+def _qr(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    q, r = np.linalg.qr(a)
+    d = np.abs(np.diag(r))
+    if d.min() <= d.max() / _MAX_CONDITION:
+        raise ConditioningError(
+            f"the harmonic design matrix ({a.shape[0]} samples, {a.shape[1]} columns) is "
+            "numerically rank deficient: the record is too short for the harmonics requested"
+        )
+    return q, r
+
+
+def fit_harmonics(
+    x: np.ndarray, fs: float, f0: float, n_harmonics: int, t0: float = 0.0
+) -> HarmonicFit:
+    """Fit the Fourier series of one or several records at a known fundamental.
+
+    Parameters
+    ----------
+    x : (..., n_samples) array [any unit]
+        Records, time on the last axis; every channel shares the time base.
+    fs : float [Hz]
+        Sampling rate.
+    f0 : float [Hz]
+        Fundamental frequency (refine it first with :func:`refine_fundamental`).
+    n_harmonics : int
+        Number H of harmonics above DC; H f0 must be below fs / 2.
+    t0 : float [s]
+        Absolute time of the first sample.
+
+    Returns
+    -------
+    HarmonicFit
+
+    Raises
+    ------
+    DataError
+        Non-finite samples, too few samples, or harmonics above the Nyquist frequency.
+    ConditioningError
+        The design matrix is numerically rank deficient.
+    """
+    if np.iscomplexobj(x):
+        raise DataError("x must be real-valued samples; got a complex array")
+    x = np.asarray(x, dtype=float)
+    if x.ndim == 0:
+        raise DimensionError("x must have a time axis; got a scalar")
+    if not (fs > 0 and f0 > 0):
+        raise DataError(f"fs and f0 must be positive; got fs = {fs} Hz, f0 = {f0} Hz")
+    n_cols = 2 * n_harmonics + 1
+    n_samples = x.shape[-1]
+    if n_samples <= n_cols:
+        raise DataError(
+            f"a fit of {n_harmonics} harmonics needs more than {n_cols} samples; "
+            f"the record has {n_samples}"
+        )
+    bad = ~np.isfinite(x)
+    if bad.any():
+        raise DataError(f"x contains {int(bad.sum())} non-finite samples")
+    _check_nyquist(f0, n_harmonics, fs)
+
+    t = t0 + np.arange(n_samples) / fs
+    a = design_matrix(t, f0, n_harmonics)
+    q, r = _qr(a)
+    lead = x.shape[:-1]
+    xt = x.reshape(-1, n_samples).T  # (N, M)
+    qtx = q.T @ xt  # (2H+1, M)
+    coef = solve_triangular(r, qtx)  # (2H+1, M)
+    resid = xt - q @ qtx
+    dof = n_samples - n_cols
+    sigma = np.sqrt(np.sum(resid**2, axis=0) / dof)
+
+    r_inv = solve_triangular(r, np.eye(n_cols))
+    cov = r_inv @ r_inv.T
+    diag = np.diag(cov)
+    unit_std = np.empty(n_harmonics + 1)
+    unit_std[0] = math.sqrt(diag[0])
+    unit_std[1:] = np.sqrt(0.5 * (diag[1::2] + diag[2::2]))
+
+    phasors = np.empty((n_harmonics + 1, xt.shape[1]), dtype=complex)
+    phasors[0] = coef[0]
+    phasors[1:] = coef[1::2] + 1j * coef[2::2]
+
+    return HarmonicFit(
+        f0=float(f0),
+        phasors=phasors.T.reshape(*lead, n_harmonics + 1),
+        residual_std=sigma.reshape(lead),
+        phasor_std=(sigma[:, None] * unit_std).reshape(*lead, n_harmonics + 1),
+        residuals=resid.T.reshape(x.shape),
+        unscaled_covariance=cov,
+        fs=float(fs),
+        t0=float(t0),
+    )
+
+
+def noise_bound(sigma: float | np.ndarray, n_samples: int) -> float | np.ndarray:
+    """Standard uncertainty of Re X_n and Im X_n (n >= 1) for white noise.
+
+    var(Re X_n) = var(Im X_n) = 2 sigma^2 / N for a whole number of periods (METHOD.md
+    section 6).
+
+    Parameters
+    ----------
+    sigma : float or array [unit of x]
+        Standard deviation of the white noise on each sample.
+    n_samples : int
+        Number of samples N in the record.
+
+    Returns
+    -------
+    float or array [unit of x]
+        sqrt(2 sigma^2 / N).
+    """
+    if n_samples <= 0:
+        raise DataError(f"n_samples must be positive; got {n_samples}")
+    return np.sqrt(2.0 / n_samples) * np.asarray(sigma, dtype=float)
+
+
+def significant_harmonics(fit: HarmonicFit, k: float = 5.0) -> np.ndarray:
+    """Which harmonics stand above the noise floor.
+
+    Parameters
+    ----------
+    fit : HarmonicFit
+    k : float
+        Coverage factor: harmonic n is significant when |X_n| > k * phasor_std[n].
+
+    Returns
+    -------
+    (..., H+1) bool array
+        Index n is harmonic n (index 0 is the mean). Combine channels with ``.any(axis=0)``.
+    """
+    return np.abs(fit.phasors) > k * fit.phasor_std
+
+
+def _as_records(records: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
+    if any(np.iscomplexobj(rec) for rec in records):
+        raise DataError("records must be real-valued samples; got complex values")
+    if isinstance(records, np.ndarray):
+        arr = np.asarray(records, dtype=float)
+        if arr.ndim == 1:
+            arr = arr[None, :]
+        if arr.ndim != 2:
+            raise DimensionError(
+                f"records must be (n_records, n_samples) or a list of 1-D arrays; "
+                f"got shape {arr.shape}"
+            )
+        out = list(arr)
+    else:
+        out = [np.asarray(rec, dtype=float) for rec in records]
+    if not out:
+        raise DataError("no records given")
+    for i, rec in enumerate(out):
+        if rec.ndim != 1:
+            raise DimensionError(f"record {i} must be one-dimensional; got shape {rec.shape}")
+        bad = ~np.isfinite(rec)
+        if bad.any():
+            raise DataError(f"record {i} contains {int(bad.sum())} non-finite samples")
+    return out
+
+
+def _group_by_length(records: list[np.ndarray]) -> list[np.ndarray]:
+    groups: dict[int, list[np.ndarray]] = {}
+    for rec in records:
+        groups.setdefault(rec.size, []).append(rec)
+    return [np.stack(g) for g in groups.values()]
+
+
+def _total_rss(groups: list[np.ndarray], fs: float, f0: float, h: int, t0: float) -> float:
+    total = 0.0
+    for g in groups:
+        t = t0 + np.arange(g.shape[1]) / fs
+        q, _ = np.linalg.qr(design_matrix(t, f0, h))
+        resid = g.T - q @ (q.T @ g.T)
+        total += float(np.sum(resid**2))
+    return total
+
+
+def refine_fundamental(
+    records: np.ndarray | Sequence[np.ndarray],
+    fs: float,
+    f0_nominal: float,
+    n_harmonics: int,
+    t0: float = 0.0,
+    search: float = 0.05,
+    min_explained: float = 0.5,
+) -> float:
+    """Estimate the fundamental frequency shared by several records.
+
+    The fundamental minimizes the total residual sum of squares of the harmonic fits of all
+    records, each record scaled by its own RMS (about its mean) so that no record dominates.
+    A grid within +-``search`` (relative) of the nominal value, spaced a quarter of the
+    narrowest valley of the objective (1 / (2 H T), T the longest record duration), locates the
+    minimum; a bounded scalar minimization between the neighbouring grid points refines it to
+    about 1e-10 relative.
+
+    Parameters
+    ----------
+    records : (n_records, n_samples) array or sequence of 1-D arrays [any unit]
+        Records that share one fundamental (all scan reference records, all channels of a
+        run); records in a sequence may differ in length.
+    fs : float [Hz]
+        Sampling rate.
+    f0_nominal : float [Hz]
+        Nominal drive frequency.
+    n_harmonics : int
+        Number H of harmonics in the model (at least 1).
+    t0 : float [s]
+        Absolute time of the first sample; the residual, hence the result, does not depend on
+        it.
+    search : float [1]
+        Half-width of the search interval relative to ``f0_nominal``.
+    min_explained : float [1]
+        Smallest acceptable fraction of the (mean-removed) variance explained by the best fit.
+
+    Returns
+    -------
+    float [Hz]
+        The refined fundamental.
+
+    Raises
+    ------
+    DataError
+        A record shorter than 5 periods, a constant record, harmonics above the Nyquist
+        frequency, or a best fit that explains less than ``min_explained`` of the variance
+        (the data contradict the nominal frequency).
+    """
+    if n_harmonics < 1:
+        raise DataError(f"refine_fundamental needs n_harmonics >= 1; got {n_harmonics}")
+    if not (0.0 < search < 1.0):
+        raise DataError(f"search must be in (0, 1); got {search}")
+    if not (fs > 0 and f0_nominal > 0):
+        raise DataError(f"fs and f0 must be positive; got fs = {fs} Hz, f0 = {f0_nominal} Hz")
+    recs = _as_records(records)
+    f_lo = f0_nominal * (1.0 - search)
+    f_hi = f0_nominal * (1.0 + search)
+    _check_nyquist(f_hi, n_harmonics, fs)
+
+    lengths = np.array([rec.size for rec in recs])
+    i_short = int(np.argmin(lengths))
+    periods = lengths[i_short] / fs * f0_nominal
+    if periods < 5.0:
+        raise DataError(
+            f"record {i_short} holds {periods:.1f} periods of {f0_nominal:.6g} Hz "
+            f"({lengths[i_short]} samples at {fs:.6g} Hz); at least 5 periods are needed to "
+            "refine the fundamental"
+        )
+
+    scaled = []
+    for i, rec in enumerate(recs):
+        centred = rec - rec.mean()
+        rms = math.sqrt(float(np.mean(centred**2)))
+        if rms == 0.0 or rms <= 1e-12 * float(np.max(np.abs(rec))):
+            raise DataError(f"record {i} is constant; it carries no information on f0")
+        scaled.append(centred / rms)
+    groups = _group_by_length(scaled)
+    total_var = float(lengths.sum())  # each scaled record has unit mean square
+
+    duration = lengths.max() / fs
+    spacing = 1.0 / (2.0 * n_harmonics * duration)
+    n_grid = max(math.ceil((f_hi - f_lo) / spacing) + 1, 5)
+    grid = np.linspace(f_lo, f_hi, n_grid)
+    rss = np.array([_total_rss(groups, fs, f, n_harmonics, t0) for f in grid])
+    i_best = int(np.argmin(rss))
+    lo = grid[max(i_best - 1, 0)]
+    hi = grid[min(i_best + 1, n_grid - 1)]
+    res = minimize_scalar(
+        lambda f: _total_rss(groups, fs, f, n_harmonics, t0),
+        bounds=(lo, hi),
+        method="bounded",
+        options={"xatol": 1e-10 * f0_nominal, "maxiter": 500},
+    )
+    f_best, rss_best = float(res.x), float(res.fun)
+    if rss[i_best] < rss_best:  # the grid point itself was better than any trial of the search
+        f_best, rss_best = float(grid[i_best]), float(rss[i_best])
+    explained = 1.0 - rss_best / total_var
+    if explained < min_explained:
+        raise DataError(
+            f"the data contradict the nominal drive frequency of {f0_nominal:.6g} Hz: best fit "
+            f"at {f_best:.6g} Hz within +-{100 * search:.3g} % explains only "
+            f"{100 * max(explained, 0.0):.1f} % of the variance of the records "
+            f"(at least {100 * min_explained:.0f} % expected)"
+        )
+    return f_best
+
+
+def fundamental_uncertainty(
+    records: np.ndarray | Sequence[np.ndarray],
+    fs: float,
+    f0: float,
+    n_harmonics: int,
+    t0: float = 0.0,
+) -> float:
+    """Standard uncertainty of a fundamental estimated by :func:`refine_fundamental`.
+
+    Linearized (Cramer-Rao) bound for white noise: every record contributes the Fisher
+    information ||P d||^2 / sigma^2 on f0, where d = dx/df0 is the derivative of its fitted
+    series, P projects out the span of its own harmonic design matrix (its phasors are nuisance
+    parameters) and sigma is its residual standard deviation.
+
+    Parameters
+    ----------
+    records : (n_records, n_samples) array or sequence of 1-D arrays [any unit]
+    fs : float [Hz]
+    f0 : float [Hz]
+        The refined fundamental.
+    n_harmonics : int
+    t0 : float [s]
+        Absolute time of the first sample.
+
+    Returns
+    -------
+    float [Hz]
+        inf when the records carry no information (noise-free records give 0).
+    """
+    recs = _as_records(records)
+    info = 0.0
+    for rec in recs:
+        fit = fit_harmonics(rec, fs, f0, n_harmonics, t0)
+        t = fit.times
+        n = np.arange(n_harmonics + 1)
+        rotor = np.exp(1j * 2.0 * np.pi * f0 * np.multiply.outer(n, t))
+        d = ((1j * 2.0 * np.pi * n * t[:, None]) * rotor.T) @ fit.phasors
+        d = d.real
+        q, _ = np.linalg.qr(design_matrix(t, f0, n_harmonics))
+        d_perp = d - q @ (q.T @ d)
+        sigma2 = float(fit.residual_std) ** 2
+        energy = float(d_perp @ d_perp)
+        if sigma2 == 0.0:
+            if energy > 0.0:
+                return 0.0
+            continue
+        info += energy / sigma2
+    return math.inf if info == 0.0 else 1.0 / math.sqrt(info)

@@ -1,0 +1,552 @@
+"""Run recordings: CSV, NI TDMS and HDF5 (INTERFACES.md section 3), and result tables.
+
+A run file holds uniformly sampled, named channels:
+
+- CSV: a header row whose first column is ``time`` [s], then one numeric column per channel;
+- TDMS: one group, one channel per signal, sampling from the ``wf_increment`` property
+  (start from ``wf_start_offset``) or from a channel named ``time``;
+- HDF5: one root dataset per channel, the rate in the root attribute ``fs`` [Hz] (optionally
+  ``t0`` [s]), or a root dataset named ``time``.
+
+Reading checks what would silently spoil an estimate and says where, in one line: no samples,
+a non-numeric cell, NaN or infinite samples, non-uniform time stamps, fewer than
+:data:`MIN_SAMPLES` samples. :func:`check_clipping` finds saturated (flat-topped) channels.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from collections.abc import Callable, Mapping, Sequence
+from pathlib import Path
+
+import h5py
+import numpy as np
+from nptdms import ChannelObject, TdmsFile, TdmsWriter
+
+from ..errors import DataError, InputError
+from ..records import Run
+from .atomic import atomic_path, write_text_atomic
+
+__all__ = [
+    "MIN_SAMPLES",
+    "RUN_SUFFIXES",
+    "check_clipping",
+    "read_run",
+    "read_table_csv",
+    "write_run_csv",
+    "write_run_hdf5",
+    "write_run_tdms",
+    "write_table_csv",
+]
+
+MIN_SAMPLES = 16
+RUN_SUFFIXES = (".csv", ".tdms", ".h5", ".hdf5")
+_UNIFORM_RTOL = 1e-6  # allowed deviation of a time step from the mean step, relative
+_ROUNDING_CAP = 0.25  # rounded stamps excuse at most this share of a step
+_CLIP_FRACTION = 0.005  # share of samples at one extreme from which clipping is suspected
+_CLIP_RUN = 3  # consecutive samples at the extreme from which clipping is suspected
+_CLIP_RATIO = 4.0  # extreme count / count just inside it; a smooth peak stays below ~2.5
+
+
+# --------------------------------------------------------------------------------------------
+# reading runs
+
+
+def read_run(path: str | Path) -> Run:
+    """Read one run recording, choosing the reader from the file suffix.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``, ``.tdms``, ``.h5`` or ``.hdf5``.
+
+    Returns
+    -------
+    Run
+        ``channels`` name -> (n_samples,) raw values, ``fs`` [Hz], ``t0`` [s], ``name`` = the
+        file stem, ``source`` = ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        Missing file, unknown suffix, unreadable file, missing ``time`` column or sampling.
+    DataError
+        Empty, non-numeric, NaN/infinite, non-uniformly sampled or too short records.
+    """
+    path = Path(path)
+    suffix = path.suffix.lower()
+    readers = {".csv": _read_csv_run, ".tdms": _read_tdms_run, ".h5": _read_hdf5_run}
+    readers[".hdf5"] = _read_hdf5_run
+    if suffix not in readers:
+        raise InputError(
+            f"run '{path}': unknown file type '{path.suffix}'; accepted: {', '.join(RUN_SUFFIXES)}"
+        )
+    if not path.is_file():
+        raise InputError(f"run '{path}': file does not exist")
+    return readers[suffix](path)
+
+
+def _read_csv_run(path: Path) -> Run:
+    header, cells, rows = _parse_csv(path, "run")
+    values = _numeric(cells, header, rows, path, "run")
+    time = values[:, 0]
+    _check_length(time.size, path)
+
+    def where(k: int) -> str:
+        return f"row {rows[k]}"
+
+    _check_finite_time(time, path, where)
+    resolution = np.zeros_like(time)
+    if _first_irregular_step(time, resolution) is not None:  # allow for the digits written
+        resolution = _decimal_resolution([row[0] for row in cells], time)
+    fs, t0 = _sampling_from_time(time, path, resolution, where)
+    channels = {name: values[:, j] for j, name in enumerate(header[1:], start=1)}
+    return _finish(path, channels, fs, t0)
+
+
+def _read_tdms_run(path: Path) -> Run:
+    try:
+        tdms = TdmsFile.read(path)
+    except Exception as exc:  # npTDMS raises assorted errors on a malformed file
+        raise InputError(f"run '{path}': not a readable TDMS file ({_first_line(exc)})") from exc
+    groups = [g for g in tdms.groups() if g.channels()]
+    if len(groups) != 1:
+        names = ", ".join(repr(g.name) for g in groups) or "none with channels"
+        raise InputError(f"run '{path}': expected one group of channels, found {names}")
+    raw = {ch.name: ch for ch in groups[0].channels()}
+    time_name = next((n for n in raw if n.strip().lower() == "time"), None)
+    channels = {n: _tdms_values(ch, path) for n, ch in raw.items() if n != time_name}
+    if not channels:
+        raise DataError(f"run '{path}': group {groups[0].name!r} holds no signal channels")
+    first = next(iter(raw[n] for n in channels))
+    if "wf_increment" in first.properties:
+        fs = _rate_from_increment(first.properties["wf_increment"], path)
+        t0 = float(first.properties.get("wf_start_offset", 0.0))
+        _check_equal_lengths(channels, path)
+        _check_length(len(next(iter(channels.values()))), path)
+        return _finish(path, channels, fs, t0)
+    if time_name is None:
+        raise InputError(
+            f"run '{path}': no 'wf_increment' property and no 'time' channel; "
+            "cannot tell the sampling"
+        )
+    return _with_time_channel(path, _tdms_time(raw[time_name], path), channels)
+
+
+def _read_hdf5_run(path: Path) -> Run:
+    try:
+        with h5py.File(path, "r") as h5:
+            attrs = {key: h5.attrs[key] for key in ("fs", "t0") if key in h5.attrs}
+            data = {n: h5[n][()] for n in h5 if isinstance(h5[n], h5py.Dataset)}
+    except OSError as exc:
+        raise InputError(f"run '{path}': not a readable HDF5 file ({_first_line(exc)})") from exc
+    time_name = next((n for n in data if n.strip().lower() == "time"), None)
+    channels = {n: _hdf5_values(v, n, path) for n, v in data.items() if n != time_name}
+    if not channels:
+        raise DataError(f"run '{path}': no channel datasets at the file root")
+    if "fs" in attrs:
+        fs = _positive_number(attrs["fs"], "root attribute 'fs'", path)
+        t0 = float(np.asarray(attrs.get("t0", 0.0), dtype=float).item())
+        _check_equal_lengths(channels, path)
+        _check_length(len(next(iter(channels.values()))), path)
+        return _finish(path, channels, fs, t0)
+    if time_name is None:
+        raise InputError(
+            f"run '{path}': no 'fs' attribute on the file root and no 'time' dataset; "
+            "cannot tell the sampling"
+        )
+    return _with_time_channel(path, _hdf5_values(data[time_name], time_name, path), channels)
+
+
+def _with_time_channel(path: Path, time: np.ndarray, channels: dict[str, np.ndarray]) -> Run:
+    """Finish a run whose sampling comes from a time channel."""
+    _check_equal_lengths({"time": time, **channels}, path)
+    _check_length(time.size, path)
+    _check_finite_time(time, path, _sample_label)
+    fs, t0 = _sampling_from_time(time, path, np.zeros_like(time), _sample_label)
+    return _finish(path, channels, fs, t0)
+
+
+def _finish(path: Path, channels: dict[str, np.ndarray], fs: float, t0: float) -> Run:
+    """Check every channel for NaN/inf and build the Run."""
+    for name, values in channels.items():
+        _check_finite(values, name, path, t0, fs)
+    return Run(channels=channels, fs=fs, t0=t0, name=path.stem, source=str(path))
+
+
+# --------------------------------------------------------------------------------------------
+# checks
+
+
+def _check_length(n: int, path: Path) -> None:
+    if n == 0:
+        raise DataError(f"run '{path}': no samples")
+    if n < MIN_SAMPLES:
+        raise DataError(f"run '{path}': {n} samples; at least {MIN_SAMPLES} are needed")
+
+
+def _check_equal_lengths(channels: Mapping[str, np.ndarray], path: Path) -> None:
+    names = list(channels)
+    n0 = len(channels[names[0]])
+    for name in names[1:]:
+        if len(channels[name]) != n0:
+            raise DataError(
+                f"run '{path}': channel {name!r} has {len(channels[name])} samples, "
+                f"channel {names[0]!r} has {n0}"
+            )
+
+
+def _sample_label(k: int) -> str:
+    return f"sample {k}"
+
+
+def _check_finite_time(time: np.ndarray, path: Path, where: Callable[[int], str]) -> None:
+    bad = np.flatnonzero(~np.isfinite(time))
+    if bad.size:
+        raise DataError(
+            f"run '{path}': time has {bad.size} NaN or infinite values, the first at "
+            f"{where(int(bad[0]))}"
+        )
+
+
+def _check_finite(values: np.ndarray, name: str, path: Path, t0: float, fs: float) -> None:
+    """DataError naming the channel, the count and the time of the first bad sample."""
+    bad = ~np.isfinite(values)
+    if not bad.any():
+        return
+    n_nan = int(np.count_nonzero(np.isnan(values)))
+    n_inf = int(np.count_nonzero(bad)) - n_nan
+    what = " and ".join(
+        text for count, text in ((n_nan, f"{n_nan} NaN"), (n_inf, f"{n_inf} infinite")) if count
+    )
+    first = int(np.flatnonzero(bad)[0])
+    raise DataError(
+        f"run '{path}': channel {name!r} has {what} samples starting at t={t0 + first / fs:.6g} s"
+    )
+
+
+def _first_irregular_step(time: np.ndarray, resolution: np.ndarray) -> int | None:
+    """Index k of the first step time[k+1] - time[k] off the mean step, or None.
+
+    Allowed deviation: ``_UNIFORM_RTOL`` of the mean step, or what rounding the two stamps to
+    their ``resolution`` (n_samples,) [s] and to float64 can cause, whichever is larger; but
+    never a quarter step, so that a dropped or repeated sample (a whole step) always shows.
+    """
+    step = (time[-1] - time[0]) / (time.size - 1)
+    rounding = np.maximum(resolution[:-1], resolution[1:])
+    rounding = rounding + 4 * np.finfo(float).eps * np.maximum(np.abs(time[:-1]), np.abs(time[1:]))
+    tolerance = np.maximum(_UNIFORM_RTOL * abs(step), np.minimum(rounding, _ROUNDING_CAP * step))
+    off = np.flatnonzero(np.abs(np.diff(time) - step) > tolerance)
+    return int(off[0]) if off.size else None
+
+
+def _sampling_from_time(
+    time: np.ndarray, path: Path, resolution: np.ndarray, where: Callable[[int], str]
+) -> tuple[float, float]:
+    """(fs [Hz], t0 [s]) of uniform time stamps; DataError saying where they are not."""
+    step = (time[-1] - time[0]) / (time.size - 1)
+    if not step > 0:
+        raise DataError(f"run '{path}': time stamps do not increase")
+    k = _first_irregular_step(time, resolution)
+    if k is not None:
+        actual = time[k + 1] - time[k]
+        raise DataError(
+            f"run '{path}': time stamps are not uniform: the step of {actual:.6g} s at "
+            f"t={time[k]:.6g} s ({where(k)}) differs from the mean step {step:.6g} s by "
+            f"{100 * abs(actual - step) / step:.3g} %"
+        )
+    return 1.0 / step, float(time[0])
+
+
+def check_clipping(values: np.ndarray, name: str, source: str | Path, fs: float) -> None:
+    """Raise DataError when a channel is flat-topped (saturated) at its maximum or minimum.
+
+    A sine-like signal, quantised or not, passes through its extreme once per period and
+    rounds to the extreme value only over its smooth peak, so its extreme level holds at most
+    about 2.5 times as many samples as the level just inside it. A saturated signal sits at
+    the extreme for many consecutive samples. The channel is flagged when, at its maximum or
+    its minimum, at least 0.5 % of the samples (and at least 3 in a row) sit exactly at the
+    extreme, and more than 4 times as many as within the next quantisation step inside it.
+    Constant channels are not flagged.
+
+    Parameters
+    ----------
+    values : (n_samples,) array
+        Raw channel values; non-finite samples are ignored.
+    name : str
+        Channel name, for the message.
+    source : str or Path
+        The run file, for the message.
+    fs : float [Hz]
+        Sampling rate, to say when the first flat top starts (s after the record start).
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    v = v[np.isfinite(v)]
+    if v.size < MIN_SAMPLES or v.max() == v.min():
+        return
+    for side, level in (("maximum", v.max()), ("minimum", v.min())):
+        at_level = v == level
+        count = int(np.count_nonzero(at_level))
+        if count < max(_CLIP_RUN, _CLIP_FRACTION * v.size):
+            continue
+        longest, start = _flat_runs(at_level)
+        if longest < _CLIP_RUN or count <= _CLIP_RATIO * _count_just_inside(v, level):
+            continue
+        raise DataError(
+            f"run '{source}': channel {name!r} is clipped: {count} samples "
+            f"({100 * count / v.size:.2g} %) sit at its {side} {level:.6g}, up to {longest} in "
+            f"a row, the first flat top at {start / fs:.6g} s after the start"
+        )
+
+
+def _flat_runs(mask: np.ndarray) -> tuple[int, int]:
+    """(longest run of True, start index of the first run of at least ``_CLIP_RUN``)."""
+    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    lengths = ends - starts
+    long_enough = np.flatnonzero(lengths >= _CLIP_RUN)
+    first = int(starts[long_enough[0]]) if long_enough.size else -1
+    return int(lengths.max()), first
+
+
+def _count_just_inside(v: np.ndarray, level: float) -> int:
+    """Samples within two quantisation steps inside ``level``, ``level`` itself excluded.
+
+    The step is the distance from ``level`` to the nearest other value in the record.
+    """
+    others = v[v != level]
+    gap = float(np.min(np.abs(others - level)))
+    return int(np.count_nonzero(np.abs(others - level) < 2 * gap))
+
+
+# --------------------------------------------------------------------------------------------
+# CSV parsing
+
+
+def _parse_csv(path: Path, what: str) -> tuple[list[str], list[list[str]], list[int]]:
+    """Header names, data rows (cells as text) and their 1-based row numbers in the file."""
+    try:
+        text = path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(f"{what} '{path}': not a text (UTF-8) CSV file") from exc
+    reader = csv.reader(io.StringIO(text))
+    header: list[str] | None = None
+    cells: list[list[str]] = []
+    rows: list[int] = []
+    for row in reader:
+        if not any(cell.strip() for cell in row):
+            continue
+        if header is None:
+            header = [cell.strip() for cell in row]
+            continue
+        cells.append(row)
+        rows.append(reader.line_num)
+    if header is None:
+        raise DataError(f"{what} '{path}': the file is empty")
+    _check_header(header, path, what)
+    if not cells:
+        raise DataError(f"{what} '{path}': a header but no data rows")
+    for row, number in zip(cells, rows, strict=True):
+        if len(row) != len(header):
+            raise DataError(
+                f"{what} '{path}': row {number} has {len(row)} cells, the header {len(header)}"
+            )
+    return header, cells, rows
+
+
+def _check_header(header: list[str], path: Path, what: str) -> None:
+    if header[0].lower() != "time":
+        raise InputError(f"{what} '{path}': the first column is {header[0]!r}; expected 'time'")
+    if len(header) < 2:
+        raise DataError(f"{what} '{path}': no channel columns after 'time'")
+    seen: set[str] = set()
+    for column, name in enumerate(header, start=1):
+        if not name:
+            raise InputError(f"{what} '{path}': column {column} has no name in the header")
+        if name in seen:
+            raise InputError(f"{what} '{path}': column {name!r} appears twice in the header")
+        seen.add(name)
+
+
+def _numeric(
+    cells: list[list[str]], header: list[str], rows: list[int], path: Path, what: str
+) -> np.ndarray:
+    """(n_rows, n_columns) float array; DataError naming row and column of a bad cell."""
+    try:
+        return np.array(cells, dtype=float)
+    except ValueError:
+        pass
+    for row, number in zip(cells, rows, strict=True):
+        for cell, name in zip(row, header, strict=True):
+            try:
+                float(cell)
+            except ValueError:
+                raise DataError(
+                    f"{what} '{path}': row {number}, column {name!r}: {cell.strip()!r} is not "
+                    "a number"
+                ) from None
+    raise DataError(f"{what} '{path}': a cell is not a number")  # pragma: no cover
+
+
+def _decimal_resolution(texts: Sequence[str], values: np.ndarray) -> np.ndarray:
+    """(n,) resolution [s] of decimal numbers as the file writes them.
+
+    A writer keeps either a fixed number of decimals ('%.6f': 1e-6 everywhere) or of
+    significant digits ('%.6g', repr: 1e-5 at 9.87654, 1e-7 at 0.0123457); trailing zeros may
+    be dropped. The finest decimal step seen and the most significant digits seen bound the
+    resolution from below in either case; the larger of the two bounds is the resolution.
+    """
+    finest, digits = np.inf, 1
+    for text in texts:
+        mantissa, _, exponent = text.strip().lower().partition("e")
+        whole, _, decimals = mantissa.lstrip("+-").partition(".")
+        try:
+            finest = min(finest, 10.0 ** (int(exponent or 0) - len(decimals)))
+        except ValueError:
+            continue
+        digits = max(digits, len((whole + decimals).lstrip("0")))
+    finest = 0.0 if not np.isfinite(finest) else finest
+    with np.errstate(divide="ignore"):
+        magnitude = np.floor(np.log10(np.abs(values)))
+    relative = np.where(np.isfinite(magnitude), 10.0 ** (magnitude - digits + 1), 0.0)
+    return np.maximum(finest, relative)
+
+
+# --------------------------------------------------------------------------------------------
+# TDMS / HDF5 values
+
+
+def _tdms_values(channel, path: Path) -> np.ndarray:
+    data = np.asarray(channel[:])
+    if not np.issubdtype(data.dtype, np.number):
+        raise DataError(f"run '{path}': channel {channel.name!r} is not numeric ({data.dtype})")
+    return data.astype(float)
+
+
+def _tdms_time(channel, path: Path) -> np.ndarray:
+    """Time channel [s]; absolute timestamps become seconds since the first one."""
+    data = np.asarray(channel[:])
+    if np.issubdtype(data.dtype, np.datetime64):
+        return (data - data[0]) / np.timedelta64(1, "s") if data.size else data.astype(float)
+    return _tdms_values(channel, path)
+
+
+def _hdf5_values(value: np.ndarray, name: str, path: Path) -> np.ndarray:
+    data = np.asarray(value)
+    if data.ndim != 1 or not np.issubdtype(data.dtype, np.number):
+        raise DataError(
+            f"run '{path}': dataset {name!r} is not a numeric 1-D channel "
+            f"(shape {data.shape}, {data.dtype})"
+        )
+    return data.astype(float)
+
+
+def _rate_from_increment(increment: object, path: Path) -> float:
+    return 1.0 / _positive_number(increment, "property 'wf_increment'", path)
+
+
+def _positive_number(value: object, what: str, path: Path) -> float:
+    try:
+        number = float(np.asarray(value, dtype=float).item())
+    except (TypeError, ValueError):
+        number = float("nan")
+    if not np.isfinite(number) or number <= 0:
+        raise InputError(f"run '{path}': {what} is {value!r}; expected a positive number")
+    return number
+
+
+# --------------------------------------------------------------------------------------------
+# result tables
+
+
+def read_table_csv(path: str | Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Read a CSV table with a ``time`` column (e.g. ``NAME.forces.csv``).
+
+    Returns
+    -------
+    time : (n_rows,) array [s]
+    columns : dict name -> (n_rows,) array, in file order
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError(f"table '{path}': file does not exist")
+    header, cells, rows = _parse_csv(path, "table")
+    values = _numeric(cells, header, rows, path, "table")
+    return values[:, 0], {name: values[:, j] for j, name in enumerate(header[1:], start=1)}
+
+
+def write_table_csv(path: str | Path, time: np.ndarray, columns: Mapping[str, np.ndarray]) -> Path:
+    """Write ``time`` and named columns as CSV, atomically, every value exactly (shortest repr).
+
+    Parameters
+    ----------
+    path : str or Path
+    time : (n_rows,) array [s]
+    columns : mapping name -> (n_rows,) array
+
+    Returns
+    -------
+    Path
+    """
+    time = np.asarray(time, dtype=float).ravel()
+    names = list(columns)
+    for name in names:
+        if name.strip().lower() == "time" or not name or any(c in name for c in ',"\r\n'):
+            raise InputError(f"table '{path}': column name {name!r} cannot be written to CSV")
+    table = [time] + [np.asarray(columns[n], dtype=float).ravel() for n in names]
+    for name, column in zip(["time", *names], table, strict=True):
+        if column.size != time.size:
+            raise InputError(
+                f"table '{path}': column {name!r} has {column.size} values, time has {time.size}"
+            )
+    lines = [",".join(["time", *names])]
+    lines += [",".join(map(repr, row)) for row in np.column_stack(table).tolist()]
+    return write_text_atomic(path, "\n".join(lines) + "\n")
+
+
+# --------------------------------------------------------------------------------------------
+# writing runs
+
+
+def write_run_csv(run: Run, path: str | Path) -> Path:
+    """Write a run as CSV (``time`` then one column per channel), atomically."""
+    return write_table_csv(path, run.time, run.channels)
+
+
+def write_run_tdms(run: Run, path: str | Path, group: str = "forcecal") -> Path:
+    """Write a run as NI TDMS: one group, one float64 channel per signal, atomically.
+
+    Each channel carries ``wf_increment`` = 1/fs [s], ``wf_start_offset`` = t0 [s] and
+    ``wf_samples``.
+    """
+    properties = {
+        "wf_increment": 1.0 / run.fs,
+        "wf_start_offset": float(run.t0),
+        "wf_samples": run.n_samples,
+    }
+    objects = [
+        ChannelObject(group, name, np.asarray(values, dtype=float), properties=properties)
+        for name, values in run.channels.items()
+    ]
+    with atomic_path(path) as tmp, TdmsWriter(tmp) as writer:
+        writer.write_segment(objects)
+    return Path(path)
+
+
+def write_run_hdf5(run: Run, path: str | Path) -> Path:
+    """Write a run as HDF5: one root dataset per channel, root attributes fs, t0; atomically."""
+    for name in run.channels:
+        if not name or "/" in name or name == ".":
+            raise InputError(f"run '{path}': channel name {name!r} cannot name an HDF5 dataset")
+    with atomic_path(path) as tmp, h5py.File(tmp, "w", track_order=True) as h5:
+        h5.attrs["fs"] = float(run.fs)
+        h5.attrs["t0"] = float(run.t0)
+        for name, values in run.channels.items():
+            h5.create_dataset(name, data=np.asarray(values, dtype=float))
+    return Path(path)
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0]

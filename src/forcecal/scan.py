@@ -1,0 +1,94 @@
+"""Scan -> phase-aligned harmonic deflection shapes (METHOD.md section 3, step 1).
+
+For every scan point k the harmonics of the vibration record and of its reference (coil
+current) record are fitted by least squares at the fundamental refined from all records
+jointly. SLDV velocity becomes displacement, U_n = V_n / (j n w0). Points are measured one after
+another, each record starting at its own phase theta_k = arg I_1(k), so harmonic n is aligned by
+exp(-j n theta_k) (the corrected eq. 13), and normalized by the record's drive amplitude
+|I_1(k)| relative to the mean, which removes a drift of the drive between points.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DataError
+from .harmonics import fit_harmonics, refine_fundamental
+from .records import Scan
+
+__all__ = ["HarmonicShapes", "harmonic_shapes"]
+
+
+@dataclass(frozen=True)
+class HarmonicShapes:
+    """Measured harmonic deflection shapes at the scan points.
+
+    Attributes
+    ----------
+    points : (n_points, n_dim) [m]
+    harmonics : (n_harm,) int, 1..H
+    values : (n_harm, n_points) complex [m]: displacement phasor of harmonic n at each point,
+        phase referred to the drive's fundamental, scaled to the mean drive amplitude
+    std : (n_harm, n_points) [m]: standard uncertainty of Re and of Im of ``values``
+    f0 : [Hz] the fundamental refined from the scan
+    drive_amplitude : (n_points,) [A] |I_1| of each record's reference
+    drive_phase : (n_points,) [rad] theta_k
+    """
+
+    points: np.ndarray
+    harmonics: np.ndarray
+    values: np.ndarray
+    std: np.ndarray
+    f0: float
+    drive_amplitude: np.ndarray
+    drive_phase: np.ndarray
+    source: str = "<scan>"
+
+    def snr(self) -> np.ndarray:
+        """(n_harm,) RMS shape amplitude over the points divided by the RMS noise [1]."""
+        signal = np.sqrt(np.mean(np.abs(self.values) ** 2, axis=1))
+        noise = np.sqrt(np.mean(self.std**2, axis=1)) * np.sqrt(2)
+        return signal / noise
+
+
+def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> HarmonicShapes:
+    """Fit, convert and phase-align the harmonics of every scan record.
+
+    Parameters
+    ----------
+    scan : the SLDV scan (velocity or displacement records plus current references)
+    f0_nominal : [Hz] nominal drive frequency; the fundamental is refined from the references
+    n_harmonics : H, harmonics 1..H are returned
+
+    Raises
+    ------
+    DataError
+        When a reference record carries no drive (its fundamental is at the noise level).
+    """
+    f0 = refine_fundamental(scan.reference, scan.fs, f0_nominal, n_harmonics)
+    ref = fit_harmonics(scan.reference, scan.fs, f0, n_harmonics)
+    resp = fit_harmonics(scan.response, scan.fs, f0, n_harmonics)
+    i1 = ref.phasors[:, 1]
+    amp = np.abs(i1)
+    weak = amp < 10 * ref.phasor_std[:, 1]
+    if np.any(weak):
+        k = int(np.flatnonzero(weak)[0])
+        raise DataError(
+            f"scan '{scan.source}': the reference record of point {k + 1} (x = "
+            f"{scan.points[k, 0]:.4g} m) shows no drive at {f0:.4g} Hz "
+            f"(|I_1| = {amp[k]:.3g} A, noise {ref.phasor_std[k, 1]:.2g} A)")
+    n = np.arange(1, n_harmonics + 1)
+    u = resp.phasors[:, 1:]
+    u_std = resp.phasor_std[:, 1:]
+    if scan.quantity == "velocity":
+        jw = 1j * n * 2 * np.pi * f0
+        u = u / jw
+        u_std = u_std / np.abs(jw)
+    theta = np.angle(i1)
+    scale = amp.mean() / amp
+    values = u * np.exp(-1j * np.outer(theta, n)) * scale[:, None]
+    std = u_std * scale[:, None]
+    return HarmonicShapes(points=scan.points, harmonics=n, values=values.T, std=std.T, f0=f0,
+                          drive_amplitude=amp, drive_phase=theta, source=scan.source)

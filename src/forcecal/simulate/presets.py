@@ -1,0 +1,164 @@
+"""Built-in virtual rigs: the paper's beam, a calibration campaign, a near-resonance drive.
+
+Every preset is a complete description: structure, gauges, magnets, sensors, noise, the SLDV
+scan and the runs. The drive's true frequency deliberately differs from the nominal one written
+to the rig file, as a signal generator's does.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from .magnet import Drive, Magnet, Pole
+
+__all__ = ["PRESETS", "BeamSpec", "NoiseSpec", "Preset", "RunSpec", "ScanSpec", "get_preset"]
+
+
+@dataclass(frozen=True)
+class BeamSpec:
+    """A rectangular steel beam on two stiff force gauges."""
+
+    length: float = 0.6                         # m
+    width: float = 0.04                         # m
+    thickness: float = 0.012                    # m, in the bending direction
+    youngs_modulus: float = 210e9               # Pa
+    density: float = 7850.0                     # kg/m^3
+    n_elements: int = 60
+    damping_ratio: float = 0.01                 # of the first bending mode (stiffness-prop.)
+    masses: tuple[tuple[float, float], ...] = ((0.30, 0.25),)   # (x m, kg): the armature
+    gauges: tuple[tuple[str, float], ...] = (("R1", 0.0), ("R2", 0.6))
+    gauge_stiffness: float = 2e9                # N/m
+
+    @property
+    def ei(self) -> float:
+        """Bending stiffness [N m^2]."""
+        return self.youngs_modulus * self.width * self.thickness**3 / 12
+
+    @property
+    def mass_per_length(self) -> float:
+        """[kg/m]"""
+        return self.density * self.width * self.thickness
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """Standard deviations of the white measurement noise, in SI units."""
+
+    gauge: float = 0.01          # N
+    probe: float = 0.2e-6        # m
+    current: float = 1e-3        # A
+    flux: float = 1e-7           # Wb
+    voltage: float = 1e-3        # V
+    ldv: float = 50e-6           # m/s
+
+
+@dataclass(frozen=True)
+class RunSpec:
+    """One recorded run: the drive of every magnet, the static gap, the record length."""
+
+    name: str
+    drives: tuple[Drive, ...]
+    gap: float | None = None                   # m, overrides every pole's static gap
+    duration: float = 1.0                      # s
+    tare: bool = False
+    labels: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ScanSpec:
+    """A sequential SLDV scan along the beam."""
+
+    drives: tuple[Drive, ...]
+    n_points: int = 61
+    record: float = 0.5                        # s per point
+    gap: float | None = None
+
+
+@dataclass(frozen=True)
+class Preset:
+    name: str
+    description: str
+    beam: BeamSpec
+    magnets: tuple[Magnet, ...]
+    sensors: tuple[tuple[str, float], ...]
+    scan: ScanSpec
+    runs: tuple[RunSpec, ...]
+    nominal_frequency: float
+    fs: float = 10_000.0
+    noise: NoiseSpec = field(default_factory=NoiseSpec)
+
+
+_F_TRUE = 20.0 * (1 + 7e-4)          # the generator runs 0.07 % fast
+_MAGNET = Magnet(poles=(Pole("F1", 0.25, 1.0e-3), Pole("F2", 0.35, 1.0e-3)))
+_SENSORS = (("s1", 0.10), ("s2", 0.50))
+
+
+def _paper() -> Preset:
+    drive = Drive("voltage", dc=2.0, ac=1.0, frequency=_F_TRUE)
+    return Preset(
+        name="paper",
+        description="the paper's layout: beam on gauges at its ends, U-core poles near mid-span, "
+                    "two probes, voltage drive with a DC bias at 20 Hz",
+        beam=BeamSpec(), magnets=(_MAGNET,), sensors=_SENSORS,
+        scan=ScanSpec(drives=(drive,)),
+        runs=(RunSpec("paper", drives=(drive,), duration=1.0),),
+        nominal_frequency=20.0,
+    )
+
+
+def _resonance() -> Preset:
+    f = 36.0 * (1 - 4e-4)
+    drive = Drive("voltage", dc=2.0, ac=1.0, frequency=f)
+    return Preset(
+        name="resonance",
+        description="second harmonic of a 36 Hz drive just above the first bending mode "
+                    "(70.7 Hz): the harmonics' deflection shapes differ",
+        beam=BeamSpec(), magnets=(_MAGNET,), sensors=_SENSORS,
+        scan=ScanSpec(drives=(drive,)),
+        runs=(RunSpec("resonance", drives=(drive,), duration=1.0),),
+        nominal_frequency=36.0,
+    )
+
+
+def _campaign() -> Preset:
+    runs = []
+    for gap in (0.8e-3, 1.0e-3, 1.2e-3):
+        for dc in (0.4, 0.6, 0.8):
+            for ac in (0.1, 0.2):
+                name = f"g{gap * 1e6:04.0f}_dc{dc * 10:02.0f}_ac{ac * 10:02.0f}"
+                runs.append(RunSpec(
+                    name, drives=(Drive("current", dc, ac, _F_TRUE),), gap=gap, duration=0.5,
+                    labels={"dc": f"{dc}", "ac": f"{ac}", "repeat": "1"}))
+    for rep in (2, 3):
+        runs.append(RunSpec(
+            f"g1000_dc06_ac02_r{rep}", drives=(Drive("current", 0.6, 0.2, _F_TRUE,
+                                                     phase=0.7 * rep),),
+            gap=1.0e-3, duration=0.5, labels={"dc": "0.6", "ac": "0.2", "repeat": str(rep)}))
+    runs.append(RunSpec("tare", drives=(Drive("current", 0.0, 0.0, _F_TRUE),), gap=1.0e-3,
+                        duration=0.5, tare=True, labels={"dc": "0", "ac": "0", "repeat": "1"}))
+    return Preset(
+        name="campaign",
+        description="three static gaps x three DC currents x two AC amplitudes (current drive), "
+                    "two repeats and a zero-current tare",
+        beam=BeamSpec(), magnets=(_MAGNET,), sensors=_SENSORS,
+        scan=ScanSpec(drives=(Drive("current", 0.6, 0.2, _F_TRUE),), gap=1.0e-3),
+        runs=tuple(runs), nominal_frequency=20.0,
+    )
+
+
+PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign}
+
+
+def get_preset(name: str) -> Preset:
+    """The preset called ``name`` (see :data:`PRESETS`)."""
+    from ..errors import InputError
+
+    if name not in PRESETS:
+        raise InputError(f"preset '{name}' is unknown (choose from {', '.join(PRESETS)})")
+    return PRESETS[name]()
+
+
+def first_mode_beta(beam: BeamSpec, f1: float) -> float:
+    """Stiffness-proportional coefficient [s] giving ``damping_ratio`` at f1 [Hz]."""
+    return 2 * beam.damping_ratio / (2 * math.pi * f1)
