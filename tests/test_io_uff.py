@@ -395,6 +395,17 @@ def test_missing_and_corrupt_hdf5_npz(tmp_path, suffix):
         read_scan(path)
 
 
+def test_npz_that_is_a_single_array_or_holds_objects(tmp_path):
+    path = tmp_path / "s.npz"
+    with open(path, "wb") as fh:
+        np.save(fh, np.zeros(3))
+    with pytest.raises(InputError, match=r"s\.npz': a single array"):
+        read_scan(path)
+    np.savez(path, x=np.array([{"a": 1}], dtype=object))
+    with pytest.raises(InputError, match=r"s\.npz': not a readable NPZ archive"):
+        read_scan(path)
+
+
 def test_bad_fs_in_npz(tmp_path):
     scan = make_scan(np.random.default_rng(19), n_points=2, n_samples=32)
     path = tmp_path / "s.npz"

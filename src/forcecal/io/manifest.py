@@ -147,8 +147,8 @@ def _entry(cells: list[str], number: int, header: list[str], path: Path) -> Mani
     run_text = values.pop("run")
     if not run_text:
         raise InputError(f"{where}: the 'run' cell is empty")
-    run = (path.parent / run_text).resolve()
-    if not run.is_file():
+    run = _existing_run(path.parent / run_text)
+    if run is None:
         raise InputError(f"{where}: run {run_text!r} does not exist")
     gap_text = values.pop("gap", "")
     gap = _positive_gap(gap_text, "gap", where) if gap_text else None
@@ -160,6 +160,15 @@ def _entry(cells: list[str], number: int, header: list[str], path: Path) -> Mani
     tare = _flag(values.pop("tare", ""), where)
     labels = {k: v for k, v in values.items() if not k.startswith("gap_")}
     return ManifestEntry(run=run, gap=gap, gaps=gaps, tare=tare, labels=labels)
+
+
+def _existing_run(candidate: Path) -> Path | None:
+    """The resolved run file, or None when there is no such file (or no such path)."""
+    try:
+        run = candidate.resolve()
+        return run if run.is_file() else None
+    except (OSError, ValueError):  # e.g. a NUL byte in the cell
+        return None
 
 
 def _positive_gap(text: str, column: str, where: str) -> float:

@@ -76,8 +76,12 @@ def read_run(path: str | Path) -> Run:
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    readers = {".csv": _read_csv_run, ".tdms": _read_tdms_run, ".h5": _read_hdf5_run}
-    readers[".hdf5"] = _read_hdf5_run
+    readers = {
+        ".csv": _read_csv_run,
+        ".tdms": _read_tdms_run,
+        ".h5": _read_hdf5_run,
+        ".hdf5": _read_hdf5_run,
+    }
     if suffix not in readers:
         raise InputError(
             f"run '{path}': unknown file type '{path.suffix}'; accepted: {', '.join(RUN_SUFFIXES)}"
@@ -267,8 +271,10 @@ def check_clipping(values: np.ndarray, name: str, source: str | Path, fs: float)
     about 2.5 times as many samples as the level just inside it. A saturated signal sits at
     the extreme for many consecutive samples. The channel is flagged when, at its maximum or
     its minimum, at least 0.5 % of the samples (and at least 3 in a row) sit exactly at the
-    extreme, and more than 4 times as many as within the next quantisation step inside it.
-    Constant channels are not flagged.
+    extreme, and more than 4 times as many as lie just inside it (closer than two quantisation
+    steps, the step being the distance from the extreme to the nearest other value).
+    Constant channels are not flagged; the check is meant for sine-like channels, not for
+    square waves or trigger lines.
 
     Parameters
     ----------

@@ -61,8 +61,11 @@ def read_scan_npz(path: str | Path) -> Scan:
         raise InputError(f"scan '{path}': not a readable NPZ archive ({_first_line(exc)})") from exc
     if not isinstance(loaded, np.lib.npyio.NpzFile):
         raise InputError(f"scan '{path}': a single array (.npy content), not an NPZ archive")
-    with loaded:
-        content = {key: loaded[key] for key in loaded.files if key in _KEYS}
+    try:
+        with loaded:
+            content = {key: loaded[key] for key in loaded.files if key in _KEYS}
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise InputError(f"scan '{path}': not a readable NPZ archive ({_first_line(exc)})") from exc
     return _scan_from(content, path)
 
 

@@ -1,0 +1,343 @@
+"""The ``forcecal`` command line (INTERFACES.md section 5).
+
+``main(argv=None) -> int``: 0 on success, 2 for bad input or arguments (one line on stderr that
+names the file, key or channel), 130 when interrupted. Output files are written atomically.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+from .errors import ForcecalError
+
+__all__ = ["main"]
+
+PROG = "forcecal"
+
+
+class _ArgumentError(Exception):
+    """Bad command-line arguments (reported in one line, exit status 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line instead of usage + message
+        raise _ArgumentError(f"{self.prog}: {message} (see '{self.prog} --help')")
+
+
+def _say(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def _progress(done: int, total: int, name: str) -> None:
+    width = 24
+    filled = int(width * done / max(total, 1))
+    _say(f"  [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name}")
+
+
+# --------------------------------------------------------------------------------- commands
+
+
+def _cmd_simulate(args) -> int:
+    from .simulate.export import write_simulation
+
+    out = write_simulation(args.out, args.preset, seed=args.seed,
+                           progress=lambda m: _say(f"  simulating {m}"),
+                           binary_uff=args.binary_uff)
+    print(out)
+    return 0
+
+
+def _load_model_inputs(rig_path, scan_path, reference_label="Ref"):
+    from .io.scan_files import read_scan
+    from .rig import load_rig
+
+    rig = load_rig(rig_path)
+    scan = read_scan(scan_path, reference_label=reference_label)
+    return rig, scan
+
+
+def _build_model(rig, scan, args):
+    from .spatial import build_spatial_model
+
+    return build_spatial_model(rig, scan, n_harmonics=args.harmonics, criterion=args.criterion)
+
+
+def _model_for(args, rig):
+    """The spatial model: from a saved MODEL.json, or built from the scan."""
+    from .spatial import load_model
+
+    if str(args.scan).endswith(".json"):
+        return load_model(args.scan)
+    from .io.scan_files import read_scan
+
+    scan = read_scan(args.scan, reference_label=args.reference_label)
+    return _build_model(rig, scan, args)
+
+
+def _cmd_scan(args) -> int:
+    rig, scan = _load_model_inputs(args.rig, args.scan, args.reference_label)
+    model = _build_model(rig, scan, args)
+    model.save(args.output)
+    mac = model.similarity.min()
+    print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
+          f"{', '.join(str(n) for n in model.harmonics)} (orders "
+          f"{', '.join(str(s.order) for s in model.shapes)}); lowest MAC between harmonics "
+          f"{mac:.5f}: {'one shape serves all' if model.one_shape else 'shapes differ'}")
+    return 0
+
+
+def _read_runs(paths):
+    from .io.run_files import read_run
+
+    return [read_run(p) for p in paths]
+
+
+def _cmd_reconstruct(args) -> int:
+    from .forces import reconstruct
+    from .io.results import write_estimate
+    from .rig import load_rig
+
+    rig = load_rig(args.rig)
+    model = _model_for(args, rig)
+    runs = _read_runs(args.runs)
+    tare = _read_runs([args.tare])[0] if args.tare else None
+    estimates = []
+    for k, run in enumerate(runs):
+        estimates.append(reconstruct(rig, model, run, tare=tare, ac_coupled=args.ac_coupled))
+        if len(runs) > 1:
+            _progress(k + 1, len(runs), run.name)
+    for est in estimates:
+        csv, _ = write_estimate(est, args.output)
+        print(f"{csv}: f0 {est.f0:.6g} Hz, total AC uncertainty {est.waveform_std:.3g} N, "
+              f"inertia share {est.inertia_share:.1%}")
+    return 0
+
+
+def _cmd_calibrate(args) -> int:
+    from .campaign import calibrate_campaign, write_calibration
+    from .rig import load_rig
+
+    rig = load_rig(args.rig)
+    model = _model_for(args, rig)
+    result = calibrate_campaign(rig, model, args.manifest, progress=_progress,
+                                ac_only=args.ac_coupled)
+    path = write_calibration(result, args.output)
+    if not args.no_report:
+        from .report.pipeline import calibration_report
+
+        calibration_report(rig, model, result, args.output)
+    print(path)
+    return 0
+
+
+def _cmd_predict(args) -> int:
+    from .actuator import predict
+    from .campaign import load_calibration
+
+    cal = load_calibration(args.calibration)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        pred = predict(cal, [args.current], args.gap)
+    for w in caught:
+        _say(f"{PROG}: warning: {w.message}")
+    if args.json:
+        print(json.dumps({"total_n": float(pred.total[0]), "std_n": float(pred.std[0]),
+                          "per_pole_n": [float(v) for v in pred.per_pole[0]],
+                          "law": cal.law}))
+    else:
+        print(f"{pred.total[0]:.6g}")
+    return 0
+
+
+def _cmd_stream(args) -> int:
+    from .io.run_files import read_run
+    from .rig import load_rig
+    from .stream import replay, write_stream_csv
+
+    rig = load_rig(args.rig)
+    model = _model_for(args, rig)
+    run = read_run(args.run)
+    t, forces, static = replay(rig, model, run, block=args.block)
+    write_stream_csv(args.output, t, forces, static)
+    print(args.output)
+    return 0
+
+
+def _cmd_report(args) -> int:
+    from .report.pipeline import run_report
+    from .rig import load_rig
+
+    rig = load_rig(args.rig)
+    from .io.scan_files import read_scan
+
+    scan = read_scan(args.scan, reference_label=args.reference_label)
+    runs = _read_runs(args.runs)
+    path = run_report(rig, scan, runs, args.output, truth_dir=args.truth,
+                      n_harmonics=args.harmonics)
+    print(path)
+    return 0
+
+
+def _cmd_demo(args) -> int:
+    from .demo import run_demo
+
+    start = time.perf_counter()
+    report = run_demo(Path(args.out), progress=_say)
+    _say(f"  done in {time.perf_counter() - start:.1f} s")
+    print(f"report: {report}")
+    return 0
+
+
+# --------------------------------------------------------------------------------- parser
+
+
+def _model_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--harmonics", type=int, default=6, metavar="H",
+                   help="harmonics 1..H considered (default 6)")
+    p.add_argument("--criterion", choices=("gcv", "bic"), default="gcv",
+                   help="how each shape's order is chosen (default gcv)")
+    p.add_argument("--reference-label", default="Ref",
+                   help="text in id line 2 of the scan's reference records (default 'Ref')")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    fmt = argparse.RawDescriptionHelpFormatter
+    parser = _Parser(prog=PROG, description="External forces on a vibrating structure from "
+                     "force gauges, inertia and an SLDV scan; electromagnet calibration.",
+                     formatter_class=fmt)
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+
+    p = sub.add_parser("demo", help="simulate the built-in rig and run every stage",
+                       formatter_class=fmt, epilog="example:\n  forcecal demo demo-output")
+    p.add_argument("out", nargs="?", default="forcecal-demo", help="output folder")
+    p.set_defaults(func=_cmd_demo)
+
+    p = sub.add_parser("simulate", help="write a virtual rig's files", formatter_class=fmt,
+                       epilog="example:\n  forcecal simulate lab --preset campaign --seed 1")
+    p.add_argument("out", help="output folder")
+    p.add_argument("--preset", default="paper", help="paper, resonance or campaign")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--binary-uff", action="store_true", help="write the scan as dataset 58b")
+    p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("scan", help="build the spatial model from an SLDV scan",
+                       formatter_class=fmt,
+                       epilog="example:\n  forcecal scan lab/rig.toml lab/scan.uff -o model.json")
+    p.add_argument("rig")
+    p.add_argument("scan", help="UFF (.uff/.unv), HDF5 (.h5) or NPZ scan")
+    p.add_argument("-o", "--output", required=True, help="MODEL.json")
+    _model_options(p)
+    p.set_defaults(func=_cmd_scan)
+
+    p = sub.add_parser("reconstruct", help="forces of each run", formatter_class=fmt,
+                       epilog="example:\n  forcecal reconstruct lab/rig.toml lab/scan.uff "
+                              "lab/runs/paper.csv -o forces")
+    p.add_argument("rig")
+    p.add_argument("scan", help="scan file, or a MODEL.json written by 'forcecal scan'")
+    p.add_argument("runs", nargs="+", metavar="RUN", help="CSV, TDMS or HDF5 recordings")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--tare", help="zero-current record whose gauge DC is subtracted")
+    p.add_argument("--ac-coupled", action="store_true",
+                   help="gauges without DC (piezoelectric): estimate the harmonics only")
+    _model_options(p)
+    p.set_defaults(func=_cmd_reconstruct)
+
+    p = sub.add_parser("calibrate", help="fit the actuator law over a campaign",
+                       formatter_class=fmt,
+                       epilog="example:\n  forcecal calibrate lab/rig.toml lab/scan.uff "
+                              "--manifest lab/manifest.csv -o calibration")
+    p.add_argument("rig")
+    p.add_argument("scan", help="scan file, or a MODEL.json")
+    p.add_argument("--manifest", required=True, help="campaign manifest CSV")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--ac-coupled", action="store_true",
+                   help="fit the law on the harmonics alone (gauges without DC)")
+    p.add_argument("--no-report", action="store_true", help="skip the figures and HTML")
+    _model_options(p)
+    p.set_defaults(func=_cmd_calibrate)
+
+    p = sub.add_parser("predict", help="actuator force from a calibration",
+                       formatter_class=fmt,
+                       epilog="example:\n  forcecal predict calibration/calibration.json "
+                              "--current 0.6 --gap 0.001")
+    p.add_argument("calibration")
+    p.add_argument("--current", type=float, required=True, help="coil current, A")
+    p.add_argument("--gap", type=float, required=True, help="air gap at every pole, m")
+    p.add_argument("--json", action="store_true", help="uncertainty and per-pole split")
+    p.set_defaults(func=_cmd_predict)
+
+    p = sub.add_parser("stream", help="replay a run through the real-time estimator",
+                       formatter_class=fmt,
+                       epilog="example:\n  forcecal stream lab/rig.toml model.json "
+                              "lab/runs/paper.csv -o paper.stream.csv --block 256")
+    p.add_argument("rig")
+    p.add_argument("scan", metavar="MODEL", help="MODEL.json (or a scan file)")
+    p.add_argument("run")
+    p.add_argument("-o", "--output", required=True, help="output CSV")
+    p.add_argument("--block", type=int, default=256, help="samples per block (default 256)")
+    _model_options(p)
+    p.set_defaults(func=_cmd_stream)
+
+    p = sub.add_parser("report", help="figures and an HTML report for runs",
+                       formatter_class=fmt,
+                       epilog="example:\n  forcecal report lab/rig.toml lab/scan.uff "
+                              "lab/runs/paper.csv -o report --truth lab/truth")
+    p.add_argument("rig")
+    p.add_argument("scan")
+    p.add_argument("runs", nargs="+", metavar="RUN")
+    p.add_argument("-o", "--output", required=True, help="output folder")
+    p.add_argument("--truth", help="folder of NAME.forces.csv ground truth to overlay")
+    _model_options(p)
+    p.set_defaults(func=_cmd_report)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+        if not getattr(args, "func", None):
+            parser.print_help(sys.stderr)
+            return 2
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = _show_warning
+            return args.func(args)
+    except _ArgumentError as exc:
+        _say(str(exc))
+        return 2
+    except ForcecalError as exc:
+        _say(f"{PROG}: {exc}")
+        return 2
+    except KeyboardInterrupt:
+        _say(f"{PROG}: interrupted; no output file was left half-written")
+        return 130
+    except OSError as exc:
+        _say(f"{PROG}: {exc.filename or ''}: {exc.strerror or exc}")
+        return 2
+    except Exception as exc:  # a bug: say so in one line; the traceback on demand
+        if os.environ.get("FORCECAL_DEBUG"):
+            raise
+        _say(f"{PROG}: internal error ({type(exc).__name__}: {exc}); "
+             "set FORCECAL_DEBUG=1 for the traceback and please report it")
+        return 1
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    _say(f"{PROG}: warning: {message}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
+

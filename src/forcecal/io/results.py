@@ -1,0 +1,74 @@
+"""Output files of ``reconstruct`` (INTERFACES.md section 5)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from ..forces import ForceEstimate
+from .atomic import write_text_atomic
+from .run_files import write_table_csv
+
+__all__ = ["estimate_summary", "write_estimate"]
+
+
+def estimate_summary(est: ForceEstimate) -> dict:
+    """The JSON document of one run's forces: fundamental, per-harmonic phasors with standard
+    uncertainties, inertia share and conditioning figures."""
+
+    def harmonics(ph: np.ndarray, std: np.ndarray, static: np.ndarray) -> list[dict]:
+        rows = []
+        for n in est.harmonics:
+            if not est.kept[n]:
+                continue
+            rows.append({
+                "harmonic": int(n),
+                "frequency_hz": float(n * est.f0),
+                "amplitude_n": float(abs(ph[n])),
+                "phase_rad": float(np.angle(ph[n])),
+                "std_n": float(std[n]),
+                "static_amplitude_n": float(abs(static[n])),
+                "inertia_compensated": bool(est.with_inertia[n]),
+            })
+        return rows
+
+    forces = {name: harmonics(est.force[k], est.force_std[k], est.static[k])
+              for k, name in enumerate(est.force_names)}
+    forces["total"] = harmonics(est.total, est.total_std, est.static.sum(axis=0))
+    c = est.coordinates
+    return {
+        "run": est.run_name,
+        "fundamental_hz": est.f0,
+        "dc_observed": est.dc_observed,
+        "forces": forces,
+        "inertia_share": est.inertia_share,
+        "waveform_std_n": est.waveform_std,
+        "conditioning": {
+            "psi_condition_number": est.psi_condition,
+            "force_consistency_residual_n": est.consistency.tolist(),
+            "sensor_gain": {str(int(n)): float(g) for n, g in zip(c.harmonics, c.gain, strict=True)},
+            "sensor_chi2": {str(int(n)): (None if not np.isfinite(x) else float(x))
+                            for n, x in zip(c.harmonics, c.chi2, strict=True)},
+        },
+        "generalized_coordinates": [
+            {"harmonic": int(n), "re": float(q.real), "im": float(q.imag), "std": float(s)}
+            for n, q, s in zip(c.harmonics, c.q, c.q_std, strict=True)
+        ],
+        "notes": list(est.notes),
+    }
+
+
+def write_estimate(est: ForceEstimate, out_dir: str | Path) -> tuple[Path, Path]:
+    """Write ``OUT/NAME.forces.csv`` and ``OUT/NAME.json`` atomically."""
+    out_dir = Path(out_dir)
+    cols = {name: est.series[k] for k, name in enumerate(est.force_names)}
+    cols["total"] = est.total_series
+    for k, name in enumerate(est.force_names):
+        cols[f"{name}_static"] = est.static_series[k]
+    cols["total_static"] = est.static_series.sum(axis=0)
+    csv = write_table_csv(out_dir / f"{est.run_name}.forces.csv", est.time, cols)
+    js = write_text_atomic(out_dir / f"{est.run_name}.json",
+                           json.dumps(estimate_summary(est), indent=1))
+    return csv, js
