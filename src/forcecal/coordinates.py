@@ -82,7 +82,7 @@ def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
                 f"run '{run_name}': sensors {', '.join(rig.sensor_names)} sit near a node of the "
                 f"harmonic-{n} shape (they see {gain:.1%} of its peak; at least "
                 f"{MIN_SENSOR_GAIN:.0%} is needed): move a sensor")
-        w = 1.0 / sig**2
+        w = 1.0 / np.maximum(sig, 1e-150) ** 2             # noise-free data: finite weights
         info = np.sum(w * np.abs(phi) ** 2)
         q = np.sum(w * np.conj(phi) * s) / info
         resid = s - phi * q

@@ -14,13 +14,13 @@ __all__ = ["run_demo"]
 
 def run_demo(out: Path, progress: Callable[[str], None] = lambda _m: None) -> Path:
     """Run every stage into ``out`` and return the path of the HTML report."""
-    from .io.scan_files import read_scan
+    from .campaign import calibrate_campaign, write_calibration
     from .io.run_files import read_run
+    from .io.scan_files import read_scan
     from .report.pipeline import calibration_report, run_report
     from .rig import load_rig
     from .simulate.export import write_simulation
     from .spatial import build_spatial_model
-    from .campaign import calibrate_campaign, write_calibration
 
     out = Path(out)
     progress("simulating the 'paper' rig (scan and one run)")

@@ -133,7 +133,7 @@ def _shape_jacobian(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit,
     c = weights @ fit.basis.evaluate(pts)                          # (n_g, nf)
     bs = fit.basis.evaluate(rig.sensor_points[:, 0])               # (n_s, nf)
     s = sensors.phasors[:, n]
-    w = 1.0 / sensors.phasor_std[:, n] ** 2
+    w = 1.0 / np.maximum(sensors.phasor_std[:, n], 1e-150) ** 2
 
     def inertia_force(p: np.ndarray) -> np.ndarray:
         phi = bs @ p
@@ -184,7 +184,11 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     current = sig[rig.actuator.current]
     sensors = np.stack([sig[s] for s in rig.sensor_names])
     gauges = np.stack([sig[g] for g in rig.gauge_names])
-    f0 = refine_fundamental(np.vstack([current, sensors]), run.fs, rig.frequency, h, t0=run.t0)
+    records = [r for r in np.vstack([current, sensors, gauges])
+               if np.std(r) > 1e-9 * (np.max(np.abs(r)) + 1e-300)]     # constant ones say nothing
+    if not records:
+        raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
+    f0 = refine_fundamental(records, run.fs, rig.frequency, h, t0=run.t0)
     notes = []
     if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
         msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "

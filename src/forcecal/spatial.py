@@ -175,9 +175,8 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
         if snr[k] < MIN_SNR:
             dropped[int(n)] = f"scan signal-to-noise {snr[k]:.1f} < {MIN_SNR:g}"
             continue
-        w = 1.0 / np.maximum(hs.std[k], 1e-300) ** 2
         fits.append(fit_shape(hs.points[:, 0], hs.values[k], extent, criterion=criterion,
-                              weights=w / w.mean()))
+                              weights=_inverse_variance(hs.std[k])))
         kept.append(int(n))
     if not kept:
         raise InputError(f"scan '{scan.source}': no harmonic rises above the noise "
@@ -190,6 +189,15 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
                         couplings=couplings, similarity=mac, snr=snr,
                         gauge_names=tuple(rig.gauge_names), dropped=dropped,
                         n_points=len(grid), source=scan.source)
+
+
+def _inverse_variance(std: np.ndarray) -> np.ndarray:
+    """Relative weights 1/std^2 scaled to mean 1 (equal weights for noise-free data)."""
+    top = float(np.max(std))
+    if top <= 0:
+        return np.ones_like(std)
+    w = 1.0 / np.maximum(std / top, 1e-6) ** 2
+    return w / w.mean()
 
 
 def _check_points_on_structure(rig: Rig, scan: Scan) -> None:

@@ -48,7 +48,8 @@ def estimate_summary(est: ForceEstimate) -> dict:
         "conditioning": {
             "psi_condition_number": est.psi_condition,
             "force_consistency_residual_n": est.consistency.tolist(),
-            "sensor_gain": {str(int(n)): float(g) for n, g in zip(c.harmonics, c.gain, strict=True)},
+            "sensor_gain": {str(int(n)): float(g)
+                            for n, g in zip(c.harmonics, c.gain, strict=True)},
             "sensor_chi2": {str(int(n)): (None if not np.isfinite(x) else float(x))
                             for n, x in zip(c.harmonics, c.chi2, strict=True)},
         },
