@@ -18,7 +18,17 @@ from .integrate import Response, integrate
 from .magnet import Drive, Magnet
 from .presets import Preset, RunSpec, first_mode_beta
 
-__all__ = ["Truth", "build_model", "public_rig", "record_run", "record_scan"]
+__all__ = [
+    "Truth",
+    "build_model",
+    "measure_run",
+    "measure_scan",
+    "public_rig",
+    "record_run",
+    "record_scan",
+    "run_truth",
+    "scan_response",
+]
 
 
 @dataclass(frozen=True)
@@ -115,6 +125,12 @@ def record_run(preset: Preset, spec: RunSpec, rng: np.random.Generator,
     """Simulate one run and return what the DAQ recorded (noisy) and the truth."""
     model = model or build_model(preset)
     r = simulate_response(preset, spec.drives, spec.gap, spec.duration, model)
+    return measure_run(preset, spec, model, r, rng), run_truth(preset, model, r)
+
+
+def measure_run(preset: Preset, spec: RunSpec, model: BeamModel, r: Response,
+                rng: np.random.Generator) -> Run:
+    """What the DAQ records of a simulated response: every channel with its white noise."""
     noise = preset.noise
     n = len(r.t)
     gauges = _gauge_forces(model, preset, r.u, r.v)
@@ -128,14 +144,17 @@ def record_run(preset: Preset, spec: RunSpec, rng: np.random.Generator,
         channels[mag.current_channel] = r.current[k] + noise.current * rng.standard_normal(n)
         channels[mag.flux_channel] = r.flux[k] + noise.flux * rng.standard_normal(n)
         channels[mag.voltage_channel] = r.voltage[k] + noise.voltage * rng.standard_normal(n)
-    run = Run(channels=channels, fs=preset.fs, t0=0.0, name=spec.name,
-              source=f"{spec.name}.csv", labels=dict(spec.labels))
-    truth = Truth(
+    return Run(channels=channels, fs=preset.fs, t0=0.0, name=spec.name,
+               source=f"{spec.name}.csv", labels=dict(spec.labels))
+
+
+def run_truth(preset: Preset, model: BeamModel, r: Response) -> Truth:
+    """The ground truth of a simulated response."""
+    return Truth(
         t=r.t, pole_names=tuple(p.name for m in preset.magnets for p in m.poles),
         pole_force=r.pole_force, gap=r.gap, nodes=model.nodes, w=r.u[0::2],
         inertia=_inertia(model, preset, r.a), current=r.current, flux=r.flux,
     )
-    return run, truth
 
 
 def record_scan(preset: Preset, rng: np.random.Generator,
@@ -147,14 +166,26 @@ def record_scan(preset: Preset, rng: np.random.Generator,
     as reference.
     """
     model = model or build_model(preset)
+    return measure_scan(preset, model, scan_response(preset, model), rng)
+
+
+def scan_response(preset: Preset, model: BeamModel) -> Response:
+    """The steady-state response the scan samples: one record plus one drive period."""
     spec = preset.scan
-    f0 = spec.drives[0].frequency
     n_rec = int(round(spec.record * preset.fs))
-    per_period = int(np.ceil(preset.fs / f0))
-    r = simulate_response(preset, spec.drives, spec.gap, (n_rec + per_period) / preset.fs, model)
+    per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
+    return simulate_response(preset, spec.drives, spec.gap, (n_rec + per_period) / preset.fs,
+                             model)
+
+
+def measure_scan(preset: Preset, model: BeamModel, r: Response,
+                 rng: np.random.Generator) -> Scan:
+    """The scan's records: a window per point at a random start within one drive period."""
+    spec = preset.scan
+    n_rec = int(round(spec.record * preset.fs))
+    per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
     x = np.linspace(0.0, preset.beam.length, spec.n_points)
-    rows = model.row(x)
-    velocity = rows @ r.v                                    # (n_points, n_total)
+    velocity = model.row(x) @ r.v                            # (n_points, n_total)
     starts = rng.integers(0, per_period, size=spec.n_points)
     idx = starts[:, None] + np.arange(n_rec)[None, :]
     response = np.take_along_axis(velocity, idx, axis=1)

@@ -1,0 +1,172 @@
+"""Accuracy of the force reconstruction against the virtual rig's ground truth.
+
+For the `paper`, `resonance` and one `campaign` run: the error of the total-force waveform and
+of each force as % of the true AC RMS, beside the reactions-only error; per-harmonic errors;
+and, over independent noise seeds (scan and run noise both redrawn, physics simulated once),
+the ratio of the observed error to the stated standard uncertainty.
+
+Usage: python benchmarks/accuracy.py [--seeds 50]   (prints a table, writes
+benchmarks/results/accuracy.json)
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+from forcecal.forces import reconstruct
+from forcecal.harmonics import fit_harmonics
+from forcecal.simulate.presets import get_preset
+from forcecal.simulate.virtual_rig import (
+    build_model,
+    measure_run,
+    measure_scan,
+    public_rig,
+    run_truth,
+    scan_response,
+    simulate_response,
+)
+from forcecal.spatial import build_spatial_model
+
+CASES = (("paper", "paper", 0.1), ("resonance", "resonance", 0.5),
+         ("campaign", "g1000_dc06_ac02", None))
+
+
+def rms(x):
+    return float(np.sqrt(np.mean(np.square(x))))
+
+
+def study(preset_name: str, run_name: str, seeds: int) -> dict:
+    preset = get_preset(preset_name)
+    model_fe = build_model(preset)
+    spec = next(r for r in preset.runs if r.name == run_name)
+    rig = public_rig(preset)
+    t0 = time.perf_counter()
+    scan_r = scan_response(preset, model_fe)
+    run_r = simulate_response(preset, spec.drives, spec.gap, spec.duration, model_fe)
+    t_sim = time.perf_counter() - t0
+    truth = run_truth(preset, model_fe, run_r)
+    true_total = truth.pole_force.sum(axis=0)
+    ac_rms = rms(true_total - true_total.mean())
+    f_true = spec.drives[0].frequency
+    h = 6
+
+    errors, stated, wave_err, wave_std, times, static_err = [], [], [], [], [], []
+    first = None
+    for seed in range(seeds):
+        rng = np.random.default_rng(1000 + seed)
+        t1 = time.perf_counter()
+        scan = measure_scan(preset, model_fe, scan_r, rng)
+        run = measure_run(preset, spec, model_fe, run_r, rng)
+        if spec.gap is not None:
+            import dataclasses
+            rig_run = dataclasses.replace(rig, forces=tuple(
+                dataclasses.replace(f, gap=spec.gap) for f in rig.forces))
+        else:
+            rig_run = rig
+        model = build_spatial_model(rig_run, scan)
+        est = reconstruct(rig_run, model, run)
+        times.append(time.perf_counter() - t1)
+        # the truth's phasors on the estimate's own basis (same fundamental, same window)
+        true_total_ph = fit_harmonics(true_total, preset.fs, est.f0, h).phasors
+        err_ph = est.total - true_total_ph
+        errors.append(err_ph)
+        stated.append(est.total_std)
+        e = est.total_series - true_total
+        wave_err.append(rms(e - e.mean()))
+        wave_std.append(est.waveform_std)
+        es = est.static_series.sum(axis=0) - true_total
+        static_err.append(rms(es - es.mean()))
+        if first is None:
+            per_force = {}
+            for k, name in enumerate(est.force_names):
+                ef = est.series[k] - truth.pole_force[k]
+                tf = truth.pole_force[k]
+                sf = est.static_series[k] - tf
+                per_force[name] = {
+                    "error_pct": 100 * rms(ef - ef.mean()) / rms(tf - tf.mean()),
+                    "static_error_pct": 100 * rms(sf - sf.mean()) / rms(tf - tf.mean()),
+                }
+            first = {
+                "f0_est_hz": est.f0, "f0_true_hz": f_true,
+                "harmonics_with_shape": [int(n) for n in model.harmonics],
+                "one_shape": model.one_shape, "inertia_share": est.inertia_share,
+                "total_error_pct": 100 * wave_err[-1] / ac_rms,
+                "static_error_pct": 100 * static_err[-1] / ac_rms,
+                "stated_pct": 100 * wave_std[-1] / ac_rms,
+                "dc_error_n": float(e.mean()),
+                "per_force": per_force,
+                "per_harmonic": [
+                    {"n": n, "true_amplitude_n": float(abs(true_total_ph[n])),
+                     "error_n": float(abs(err_ph[n])), "std_n": float(est.total_std[n])}
+                    for n in range(h + 1) if est.kept[n]],
+                "notes": list(est.notes),
+            }
+    errors = np.array(errors)
+    stated = np.array(stated)
+    kept = stated.mean(axis=0) > 0
+    ratios = {}
+    for n in np.flatnonzero(kept):
+        comp = np.concatenate([errors[:, n].real, errors[:, n].imag] if n else [errors[:, n].real])
+        ratios[int(n)] = {
+            "observed_rms_n": rms(comp), "observed_scatter_n": float(np.std(comp)),
+            "stated_n": float(np.sqrt(np.mean(stated[:, n] ** 2))),
+        }
+        ratios[int(n)]["ratio_rms"] = ratios[int(n)]["observed_rms_n"] / ratios[int(n)]["stated_n"]
+        ratios[int(n)]["ratio_scatter"] = (ratios[int(n)]["observed_scatter_n"]
+                                           / ratios[int(n)]["stated_n"])
+    wave_ratio = rms(wave_err) / rms(wave_std)
+    return {
+        "preset": preset_name, "run": run_name, "seeds": seeds, "ac_rms_n": ac_rms,
+        "first_seed": first,
+        "over_seeds": {
+            "total_error_pct_mean": 100 * float(np.mean(wave_err)) / ac_rms,
+            "total_error_pct_max": 100 * float(np.max(wave_err)) / ac_rms,
+            "static_error_pct_mean": 100 * float(np.mean(static_err)) / ac_rms,
+            "waveform_ratio_observed_to_stated": wave_ratio,
+            "per_harmonic": ratios,
+        },
+        "seconds_simulation": t_sim,
+        "seconds_per_estimate": float(np.median(times)),
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--seeds", type=int, default=50)
+    args = ap.parse_args()
+    results = []
+    for preset, run, target in CASES:
+        res = study(preset, run, args.seeds)
+        res["target_pct"] = target
+        results.append(res)
+    print(f"\nforce reconstruction vs truth ({args.seeds} noise seeds; errors in % of true AC RMS)")
+    hdr = (f"{'case':<22}{'total %':>9}{'max %':>8}{'F1 %':>8}{'F2 %':>8}{'static %':>10}"
+           f"{'target':>8}{'obs/stated':>11}{'inertia':>9}{'s/run':>7}")
+    print(hdr)
+    print("-" * len(hdr))
+    for r in results:
+        f, o = r["first_seed"], r["over_seeds"]
+        tgt = f"{r['target_pct']:.1f}" if r["target_pct"] else "-"
+        print(f"{r['preset'] + ':' + r['run']:<22}{o['total_error_pct_mean']:9.4f}"
+              f"{o['total_error_pct_max']:8.4f}{f['per_force']['F1']['error_pct']:8.3f}"
+              f"{f['per_force']['F2']['error_pct']:8.3f}{o['static_error_pct_mean']:10.3f}"
+              f"{tgt:>8}{o['waveform_ratio_observed_to_stated']:11.2f}"
+              f"{f['inertia_share']:9.1%}{r['seconds_per_estimate']:7.2f}")
+    print("\nper harmonic of the total force: observed RMS error / stated uncertainty")
+    for r in results:
+        parts = [f"n={n}: {v['ratio_rms']:.2f} (scatter {v['ratio_scatter']:.2f})"
+                 for n, v in r["over_seeds"]["per_harmonic"].items()]
+        print(f"  {r['preset']:<10} " + ";  ".join(parts))
+    out = Path(__file__).resolve().parent / "results" / "accuracy.json"
+    out.parent.mkdir(exist_ok=True)
+    out.write_text(json.dumps(results, indent=1, default=float))
+    print(f"\nwritten {out}")
+
+
+if __name__ == "__main__":
+    main()
