@@ -4,6 +4,12 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
+# Small dense matrices: one BLAS thread each is fastest, and keeps parallel runs from
+# oversubscribing the cores.
+export OMP_NUM_THREADS ?= 1
+export OPENBLAS_NUM_THREADS ?= 1
+export MKL_NUM_THREADS ?= 1
+
 .PHONY: demo test lint bench clean
 
 $(STAMP): pyproject.toml
@@ -20,8 +26,10 @@ test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/accuracy.py
 	$(BIN)/python benchmarks/simulator.py
+	$(BIN)/python benchmarks/accuracy.py
+	$(BIN)/python benchmarks/calibration.py
+	$(BIN)/python benchmarks/speed.py
 
 clean:
 	rm -rf $(VENV) demo-output

@@ -1,0 +1,215 @@
+"""Benchmark: actuator calibration over the simulated `campaign` preset, checked on held-out points.
+
+Simulates the full `campaign` preset (seed 0), calibrates it the way ``forcecal calibrate``
+does (rig file, UFF scan, spatial model, manifest), then simulates HELD-OUT runs that are not in
+the campaign but inside its range (static gaps 0.9 and 1.1 mm, DC 0.5 and 0.7 A, AC 0.15 A) and
+compares, for every candidate law of the inertia-corrected calibration, of the reactions-only
+calibration and of the AC-only calibration:
+
+- the predicted mean total force of each held-out run, the law evaluated on the simulator's true
+  current and pole gaps sample by sample, against the simulator's true mean total force;
+- the predicted static force at the same (DC current, static gap) points against the
+  simulator's closed-form static force (every pole at that gap, no vibration).
+
+Also reports the recovered s_fe against l_fe / (2 mu_r) and K_total against the ideal, and the
+time taken. Targets: chosen law within 0.1 % at every held-out point; s_fe within 5 um.
+
+Run:  .venv/bin/python benchmarks/calibration.py
+Writes benchmarks/results/calibration.json.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import tempfile
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from forcecal.actuator import Calibration, ExtrapolationWarning, Selection, predict
+from forcecal.campaign import CampaignResult, calibrate_campaign, calibrate_runs
+from forcecal.io.uff import read_scan_uff
+from forcecal.rig import load_rig
+from forcecal.simulate.export import write_simulation
+from forcecal.simulate.magnet import Drive
+from forcecal.simulate.presets import RunSpec, get_preset
+from forcecal.simulate.virtual_rig import build_model, record_run
+from forcecal.spatial import build_spatial_model
+
+HELD_OUT_GAPS = (0.9e-3, 1.1e-3)  # [m]
+HELD_OUT_DC = (0.5, 0.7)  # [A]
+HELD_OUT_AC = 0.15  # [A]
+HELD_OUT_DURATION = 0.5  # [s]
+TARGET_CHOSEN = 0.001  # relative error of the chosen law at every held-out point
+TARGET_SFE = 5e-6  # [m]
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def held_out_points(seed: int = 1) -> list[dict]:
+    """Simulate the held-out runs; their truth (current, gaps, mean force, static force)."""
+    preset = get_preset("campaign")
+    magnet = preset.magnets[0]
+    f = preset.runs[0].drives[0].frequency
+    model = build_model(preset)
+    rng = np.random.default_rng(seed)
+    points = []
+    for gap in HELD_OUT_GAPS:
+        for dc in HELD_OUT_DC:
+            spec = RunSpec(f"held_g{gap * 1e6:04.0f}_dc{dc * 10:02.0f}",
+                           drives=(Drive("current", dc, HELD_OUT_AC, f),), gap=gap,
+                           duration=HELD_OUT_DURATION)
+            _, truth = record_run(preset, spec, rng, model)
+            n_poles = truth.gap.shape[0]
+            points.append({
+                "name": spec.name, "gap": gap, "dc": dc, "ac": HELD_OUT_AC,
+                "current": truth.current[0], "gaps": truth.gap.T,
+                "mean_force": float(truth.pole_force.sum(axis=0).mean()),
+                "static_force": n_poles * magnet.static_force(dc, gap),
+            })
+    return points
+
+
+def errors(cal: Calibration, points: list[dict]) -> tuple[list[float], list[float], int]:
+    """Relative errors of the mean force of each held-out run and of the static force."""
+    dyn, stat = [], []
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", ExtrapolationWarning)
+        for p in points:
+            mean = float(predict(cal, p["current"], p["gaps"]).total.mean())
+            dyn.append(mean / p["mean_force"] - 1.0)
+            stat.append(float(predict(cal, p["dc"], p["gap"]).total[0]) / p["static_force"] - 1)
+    return dyn, stat, len(caught)
+
+
+def candidate_rows(label: str, selection: Selection, points: list[dict]) -> list[dict]:
+    rows = []
+    for c in selection.candidates:
+        cal = Calibration.from_fit(c.fit)
+        dyn, stat, n_warn = errors(cal, points)
+        rows.append({
+            "calibration": label, "law": c.name, "chosen": c.name == selection.chosen,
+            "params": c.fit.params_dict, "held_out_cv": c.held_out.rms,
+            "run_mean_error": dyn, "static_error": stat,
+            "max_abs_error": float(np.max(np.abs(dyn + stat))),
+            "extrapolation_warnings": n_warn,
+        })
+    return rows
+
+
+def summary(result: CampaignResult, sfe_true: float) -> dict:
+    return {
+        "law": result.law,
+        "k_total": result.k_total, "k_total_std": result.k_total_std,
+        "ideal_k": result.ideal_k,
+        "k_total_error": None if result.k_total is None else result.k_total / result.ideal_k - 1,
+        "s_fe": result.s_fe, "s_fe_true": sfe_true,
+        "s_fe_error": None if result.s_fe is None else result.s_fe - sfe_true,
+    }
+
+
+def main() -> int:
+    t_start = time.perf_counter()
+    timings = {}
+    with tempfile.TemporaryDirectory(prefix="forcecal-calibration-") as tmp:
+        folder = Path(tmp)
+        t = time.perf_counter()
+        write_simulation(folder, "campaign", seed=0)
+        timings["simulate_campaign_s"] = time.perf_counter() - t
+        facts = json.loads((folder / "truth" / "simulator.json").read_text())
+        sfe_true = facts["magnet"]["gap_offset_m"]
+
+        t = time.perf_counter()
+        rig = load_rig(folder / "rig.toml")
+        model = build_spatial_model(rig, read_scan_uff(folder / "scan.uff"))
+        timings["spatial_model_s"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+
+        def progress(done: int, total: int, name: str) -> None:
+            print(f"\r  reconstructed {done}/{total} {name:<24}", end="", file=sys.stderr)
+
+        result = calibrate_campaign(rig, model, folder / "manifest.csv", progress=progress)
+        print(file=sys.stderr)
+        timings["reconstruct_and_calibrate_s"] = time.perf_counter() - t
+        t = time.perf_counter()
+        ac_only = calibrate_runs(rig, result.runs, ac_only=True, manifest="campaign (AC only)")
+        timings["ac_only_calibrate_s"] = time.perf_counter() - t
+
+    t = time.perf_counter()
+    points = held_out_points()
+    timings["simulate_held_out_s"] = time.perf_counter() - t
+
+    rows = candidate_rows("corrected", result.selection, points)
+    if result.reactions_only.selection is not None:
+        rows += candidate_rows("reactions-only", result.reactions_only.selection, points)
+    rows += candidate_rows("ac-only", ac_only.selection, points)
+    timings["total_s"] = time.perf_counter() - t_start
+
+    names = [f"{1e3 * p['gap']:.1f}mm/{p['dc']:.1f}A" for p in points]
+    head = (f"{'calibration':<15}{'law':<11}{'':2}"
+            + "".join(f"{n:>13}" for n in names) + f"{'static max':>12}{'max |err|':>11}")
+    print("Held-out prediction error (%) of the mean total force of simulated runs "
+          f"(AC {HELD_OUT_AC} A), law on the true current and gaps")
+    print(head)
+    print("-" * len(head))
+    for r in rows:
+        mark = " *" if r["chosen"] else "  "
+        static_max = float(np.max(np.abs(r["static_error"])))
+        print(f"{r['calibration']:<15}{r['law']:<11}{mark}"
+              + "".join(f"{100 * e:>13.4f}" for e in r["run_mean_error"])
+              + f"{100 * static_max:>12.4f}{100 * r['max_abs_error']:>11.4f}")
+    print("(* = chosen; 'static max' = largest error against the closed-form static force at the"
+          " same DC points)")
+    print()
+    for label, res in (("corrected", result), ("ac-only", ac_only)):
+        s = summary(res, sfe_true)
+        print(f"{label:<10} law {s['law']}: K_total = {s['k_total']:.6g} +/- "
+              f"{s['k_total_std']:.2g} N m^2/A^2, ideal {s['ideal_k']:.6g} "
+              f"({100 * s['k_total_error']:+.3f} %); s_fe = {1e6 * s['s_fe']:.2f} um, "
+              f"l_fe/(2 mu_r) = {1e6 * sfe_true:.2f} um ({1e6 * s['s_fe_error']:+.2f} um)")
+    ro = result.reactions_only
+    if ro.selection is not None:
+        print(f"reactions-only chooses '{ro.selection.chosen}'; with '{result.law}': K_total "
+              f"{100 * ro.k_total_error:+.2f} % vs corrected, s_fe = {1e6 * ro.s_fe:.2f} um, "
+              f"force off by {100 * ro.force_error:.2f} % RMS over the campaign")
+    rep = result.repeatability
+    print(f"repeatability (repeated setpoint): K {100 * rep.k_total_rel_std:.4f} %, "
+          f"mean force {100 * rep.mean_force_rel_std:.4f} %")
+    print("time: " + ", ".join(f"{k} {v:.1f}" for k, v in timings.items()))
+
+    chosen = next(r for r in rows if r["calibration"] == "corrected" and r["chosen"])
+    checks = {
+        "chosen_within_0.1pct": chosen["max_abs_error"] < TARGET_CHOSEN,
+        "s_fe_within_5um": abs(result.s_fe - sfe_true) < TARGET_SFE,
+    }
+    print("targets: " + ", ".join(f"{k} {'met' if v else 'MISSED'}" for k, v in checks.items()))
+
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    doc = {
+        "benchmark": "calibration",
+        "preset": "campaign", "seed": 0,
+        "held_out": [{k: p[k] for k in ("name", "gap", "dc", "ac", "mean_force", "static_force")}
+                     for p in points],
+        "rows": rows,
+        "corrected": summary(result, sfe_true),
+        "ac_only": summary(ac_only, sfe_true),
+        "reactions_only": {
+            "chosen": None if ro.selection is None else ro.selection.chosen,
+            "k_total_error_vs_corrected": ro.k_total_error, "s_fe": ro.s_fe,
+            "force_error_rms": ro.force_error, "error": ro.error,
+        },
+        "repeatability": {"k_total_rel_std": rep.k_total_rel_std,
+                          "mean_force_rel_std": rep.mean_force_rel_std},
+        "targets": checks,
+        "timings_s": timings,
+    }
+    (RESULTS / "calibration.json").write_text(json.dumps(doc, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
