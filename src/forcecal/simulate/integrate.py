@@ -16,7 +16,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.linalg
 
 from .beam import BeamModel
 from .magnet import MU0, Drive, Magnet
@@ -52,6 +51,43 @@ class Response:
     gap: np.ndarray
 
 
+def _scalar_drive(drive: Drive):
+    """``drive.value`` for one float time, on plain floats (the per-step hot path)."""
+    w = 2 * math.pi * drive.frequency
+    dc, ac, phase = float(drive.dc), float(drive.ac), float(drive.phase)
+    extra = tuple((n * w, float(amp), float(ph)) for n, amp, ph in drive.harmonics)
+    sin = math.sin
+
+    def value(t: float) -> float:
+        out = dc + ac * sin(w * t + phase)
+        for nw, amp, ph in extra:
+            out = out + amp * sin(nw * t + ph)
+        return out
+
+    return value
+
+
+def _new_record(n_modes: int, n_m: int, n_keep: int) -> dict | None:
+    """Row-per-sample storage of the kept states (transposed by :func:`_finish_record`)."""
+    if not n_keep:
+        return None
+    out = {k: np.empty((n_keep, n_modes)) for k in ("q", "qd", "qdd")}
+    out.update({k: np.empty((n_keep, n_m)) for k in ("lam", "i", "f", "d")})
+    return out
+
+
+def _keep(out, k, q, qd, qdd, lam, cur, f, d) -> None:
+    out["q"][k], out["qd"][k], out["qdd"][k] = q, qd, qdd
+    out["lam"][k], out["i"][k], out["f"][k], out["d"][k] = lam, cur, f, d
+
+
+def _finish_record(out: dict | None) -> dict | None:
+    """Time on the last axis: (n_modes or n_m, n_keep)."""
+    if out is None:
+        return None
+    return {k: np.ascontiguousarray(v.T) for k, v in out.items()}
+
+
 class _Stepper:
     """Newmark stepping of the coupled system in modal coordinates.
 
@@ -64,8 +100,7 @@ class _Stepper:
         if len(magnets) > 2:
             raise ValueError("at most two independent magnets")
         self.model, self.magnets, self.drives, self.dt = model, magnets, drives, dt
-        w2, phi = scipy.linalg.eigh(model.stiffness, model.mass)
-        w2 = np.clip(w2, 0.0, None)
+        w2, phi = model.modes
         self.phi = phi                                                      # mass-normalised
         self.w2 = w2
         self.c = beta * w2                                                  # 2 zeta w
@@ -85,6 +120,7 @@ class _Stepper:
         self.pole_modal = self.pole_rows @ phi                              # (n_poles, n_modes)
         self.Hp = self.pole_modal @ self.G                                  # (n_poles, n_m)
         self.HS = self.S @ self.Hp                                          # (n_m, n_m)
+        self.hs = self.HS.tolist()
         self.turns2 = [mg.turns**2 for mg in magnets]
         self.mu_a = [MU0 * mg.pole_area for mg in magnets]
         self.iron = [mg.iron_gap for mg in magnets]
@@ -92,9 +128,10 @@ class _Stepper:
         self.voltage_driven = [d.kind == "voltage" for d in drives]
         self.fscale = [1.0 / (2 * mg.turns**2 * MU0 * mg.pole_area) for mg in magnets]
         self.n_m = n_m
+        self._drive_fns = [_scalar_drive(d) for d in drives]
 
     def drive(self, t: float) -> list[float]:
-        return [float(d.value(t)) for d in self.drives]
+        return [fn(t) for fn in self._drive_fns]
 
     def solve_flux(self, lam, lam_old, d_old, d_new, i_old, gsum_lin):
         """Newton on the flux linkages of step n+1 (plain floats: one or two magnets).
@@ -102,7 +139,11 @@ class _Stepper:
         ``gsum_lin[m]`` is the sum of magnet m's pole gaps if no magnetic force acted in the
         step. Returns (lam, current, force).
         """
-        n_m, hs, dt = self.n_m, self.HS, self.dt
+        if self.n_m == 1:
+            lam1, cur1, f1 = self._solve_flux_1(lam[0], lam_old[0], d_old[0], d_new[0],
+                                                i_old[0], gsum_lin[0])
+            return [lam1], [cur1], [f1]
+        n_m, hs, dt = self.n_m, self.hs, self.dt
         for _ in range(40):
             f = [lam[m] ** 2 * self.fscale[m] for m in range(n_m)]
             r, jac, cur = [], [], []
@@ -126,12 +167,9 @@ class _Stepper:
                     jac.append([(1.0 if k == m else 0.0)
                                 + self.turns2[m] * i_m / rel**2 * drel[k] for k in range(n_m)])
                 cur.append(i_m)
-            if n_m == 1:
-                step = [r[0] / jac[0][0]]
-            else:
-                det = jac[0][0] * jac[1][1] - jac[0][1] * jac[1][0]
-                step = [(jac[1][1] * r[0] - jac[0][1] * r[1]) / det,
-                        (jac[0][0] * r[1] - jac[1][0] * r[0]) / det]
+            det = jac[0][0] * jac[1][1] - jac[0][1] * jac[1][0]
+            step = [(jac[1][1] * r[0] - jac[0][1] * r[1]) / det,
+                    (jac[0][0] * r[1] - jac[1][0] * r[0]) / det]
             lam = [lam[m] - step[m] for m in range(n_m)]
             if all(abs(step[m]) <= 1e-15 * abs(lam[m]) + 1e-30 for m in range(n_m)):
                 break
@@ -147,31 +185,61 @@ class _Stepper:
                 cur.append(d_new[m])
         return lam, cur, f
 
+    def _solve_flux_1(self, lam, lam_old, d_old, d_new, i_old, gsum_lin):
+        """:meth:`solve_flux` for a single magnet on plain floats; returns (lam, i, f).
+
+        The same arithmetic, operation for operation, as the general path.
+        """
+        hs, fscale, mu_a = self.hs[0][0], self.fscale[0], self.mu_a[0]
+        iron, n2, dt = self.iron[0], self.turns2[0], self.dt
+        voltage = self.voltage_driven[0]
+        g = dt / 2 * self.res[0]
+        for _ in range(40):
+            gs = gsum_lin - hs * (lam**2 * fscale)
+            if gs <= 0:
+                raise SimulationError("a pole closed its air gap (pull-in): lower the drive")
+            rel = (gs + iron) / mu_a
+            drel = -hs * 2 * lam * fscale / mu_a
+            if voltage:
+                i_m = lam * rel / n2
+                r = lam - lam_old - dt / 2 * (d_old + d_new) + g * (i_old + i_m)
+                jac = (1.0 + g * rel / n2) + g * lam / n2 * drel
+            else:
+                r = lam - n2 * d_new / rel
+                jac = 1.0 + n2 * d_new / rel**2 * drel
+            step = r / jac
+            lam = lam - step
+            if abs(step) <= 1e-15 * abs(lam) + 1e-30:
+                break
+        else:
+            raise SimulationError("the magnetic circuit did not converge within a time step")
+        f = lam**2 * fscale
+        cur = lam * (gsum_lin - hs * f + iron) / mu_a / n2 if voltage else d_new
+        return lam, cur, f
+
     def run(self, t0, n_steps, q, qd, qdd, lam, cur, keep_every=0):
         """Advance n_steps from time t0 (modal state q, qd, qdd; coil state lam, cur).
 
         Returns the final state, the magnet forces of every step (n_m, n_steps) and, when
-        ``keep_every`` > 0, every keep_every-th sample of the state.
+        ``keep_every`` > 0, every keep_every-th sample of the state (time on the last axis).
         """
+        if self.n_m == 1:
+            return self._run_1(t0, n_steps, q, qd, qdd, lam, cur, keep_every)
         dt = self.dt
-        a0, a1 = 4 / dt**2, 2 / dt
+        a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
         c, keff, G = self.c, self.keff, self.G
         gsum0 = self.S @ self.static_gap
         sp = self.S @ self.pole_modal                                       # (n_m, n_modes)
         n_m = self.n_m
         d_old = self.drive(t0)
         n_keep = n_steps // keep_every if keep_every else 0
-        out = None
-        if n_keep:
-            n = len(q)
-            out = {k: np.empty((n, n_keep)) for k in ("q", "qd", "qdd")}
-            out.update({k: np.empty((n_m, n_keep)) for k in ("lam", "i", "f", "d")})
+        out = _new_record(len(q), n_m, n_keep)
         forces = np.empty((n_m, n_steps))
         lam_prev = list(lam)
         for n in range(n_steps):
             t = t0 + (n + 1) * dt
             d_new = self.drive(t)
-            q_lin = (a0 * q + (4 / dt) * qd + qdd + c * (a1 * q + qd)) / keff
+            q_lin = (a0 * q + v4 * qd + qdd + c * (a1 * q + qd)) / keff
             gsum_lin = (gsum0 - sp @ q_lin).tolist()
             guess = [2 * lam[m] - lam_prev[m] for m in range(n_m)]
             lam_prev = lam
@@ -179,16 +247,48 @@ class _Stepper:
             q_new = q_lin + G @ np.asarray(f)
             dq = q_new - q
             qd_new = a1 * dq - qd
-            qdd = a0 * dq - (4 / dt) * qd - qdd
+            qdd = a0 * dq - v4 * qd - qdd
             q, qd = q_new, qd_new
             d_old = d_new
             forces[:, n] = f
             if n_keep and (n + 1) % keep_every == 0:
-                k = (n + 1) // keep_every - 1
-                out["q"][:, k], out["qd"][:, k], out["qdd"][:, k] = q, qd, qdd
-                out["lam"][:, k], out["i"][:, k], out["f"][:, k] = lam, cur, f
-                out["d"][:, k] = d_new
-        return (q, qd, qdd, lam, cur), forces, out
+                _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, lam, cur, f, d_new)
+        return (q, qd, qdd, lam, cur), forces, _finish_record(out)
+
+    def _run_1(self, t0, n_steps, q, qd, qdd, lam, cur, keep_every):
+        """:meth:`run` for a single magnet: scalar coil state, numpy modal update."""
+        dt = self.dt
+        a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
+        c, keff = self.c, self.keff
+        g0 = np.ascontiguousarray(self.G[:, 0])
+        sp = self.S @ self.pole_modal                                       # (1, n_modes)
+        gsum0 = float((self.S @ self.static_gap)[0])
+        drive = self._drive_fns[0]
+        solve = self._solve_flux_1
+        d_old = drive(t0)
+        lam, cur = float(lam[0]), float(cur[0])
+        lam_prev = lam
+        n_keep = n_steps // keep_every if keep_every else 0
+        out = _new_record(len(q), 1, n_keep)
+        forces = np.empty((1, n_steps))
+        fr = forces[0]
+        for n in range(n_steps):
+            d_new = drive(t0 + (n + 1) * dt)
+            q_lin = (a0 * q + v4 * qd + qdd + c * (a1 * q + qd)) / keff
+            gsum_lin = gsum0 - (sp @ q_lin).item()
+            guess = 2 * lam - lam_prev
+            lam_prev = lam
+            lam, cur, f = solve(guess, lam, d_old, d_new, cur, gsum_lin)
+            q_new = q_lin + g0 * f
+            dq = q_new - q
+            qd_new = a1 * dq - qd
+            qdd = a0 * dq - v4 * qd - qdd
+            q, qd = q_new, qd_new
+            d_old = d_new
+            fr[n] = f
+            if n_keep and (n + 1) % keep_every == 0:
+                _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, (lam,), (cur,), (f,), (d_new,))
+        return (q, qd, qdd, [lam], [cur]), forces, _finish_record(out)
 
     # ---------------------------------------------------------------- steady state
 
@@ -222,8 +322,12 @@ class _Stepper:
         n = np.arange(1, n_harm + 1)
         basis = np.hstack([np.ones((len(t), 1)), np.cos(np.outer(t, n * w0)),
                            -np.sin(np.outer(t, n * w0))])
-        qb, rb = np.linalg.qr(basis)
-        coef = np.linalg.solve(rb, qb.T @ forces.T)                         # (2H+1, n_m)
+        # normal equations: the harmonics over two periods are nearly orthogonal (condition
+        # ~1), and the Gram product by einsum stays off the multithreaded BLAS, which a QR of
+        # this tall matrix would enter (seconds per call on a loaded machine)
+        gram = np.einsum("ti,tj->ij", basis, basis)
+        rhs = np.einsum("ti,mt->im", basis, forces)
+        coef = np.linalg.solve(gram, rhs)                                   # (2H+1, n_m)
         fh = np.vstack([coef[:1] + 0j, coef[1:n_harm + 1] + 1j * coef[n_harm + 1:]])
         fm = fh @ self.modal_force.T                                        # (H+1, n_modes)
         s = 2j / self.dt * np.tan(np.arange(n_harm + 1) * w0 * self.dt / 2)[:, None]
