@@ -7,6 +7,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -27,6 +28,7 @@ from .figures import (
     fig_residuals,
     fig_shapes,
     fig_signals,
+    law_harmonics,
     save_png,
 )
 from .html import Image, Preformatted, Section, Table, estimate_table, write_report
@@ -136,6 +138,12 @@ def calibration_report(rig: Rig, model: SpatialModel, result, out_dir: str | Pat
     gaps = [r.entry.gap if r.entry.gap is not None else rig.forces[0].gap for r, _ in pairs]
     points = CalibrationPoints.from_estimates(rig, [run for _, run in pairs],
                                               [r.estimate for r, _ in pairs], gaps=gaps)
+    # the law at each run's own current and instantaneous gaps (the structure moves)
+    law = [law_harmonics(result.calibration, r.samples.current, r.samples.gaps,
+                         r.samples.n * r.estimate.f0, r.estimate.f0, t0=r.samples.time[0])
+           for r, _ in pairs]
+    points = dataclasses.replace(points, law_dc=np.array([a for a, _ in law]),
+                                 law_ac=np.array([b for _, b in law]))
     fig = fig_calibration(points, result.calibration)
     png = save_png(fig, out / "figures" / "calibration.png")
     sections = [

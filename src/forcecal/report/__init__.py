@@ -1,0 +1,48 @@
+"""Figures and an HTML report of forcecal's results.
+
+The core stages never import this package; it draws their results. Every figure function is
+pure, ``(data...) -> matplotlib.figure.Figure``, built without pyplot (no global figure state),
+and :func:`build_report` assembles one self-contained HTML page.
+"""
+
+from .figures import (
+    CalibrationPoints,
+    fig_calibration,
+    fig_coordinates,
+    fig_forces,
+    fig_residuals,
+    fig_shapes,
+    fig_signals,
+    law_harmonics,
+    png_bytes,
+    save_png,
+)
+from .html import (
+    Image,
+    Preformatted,
+    Section,
+    Table,
+    build_report,
+    estimate_table,
+    write_report,
+)
+
+__all__ = [
+    "CalibrationPoints",
+    "Image",
+    "Preformatted",
+    "Section",
+    "Table",
+    "build_report",
+    "estimate_table",
+    "fig_calibration",
+    "fig_coordinates",
+    "fig_forces",
+    "fig_residuals",
+    "fig_shapes",
+    "fig_signals",
+    "law_harmonics",
+    "png_bytes",
+    "save_png",
+    "write_report",
+]

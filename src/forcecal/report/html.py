@@ -1,0 +1,276 @@
+"""One self-contained HTML page of results: headings, paragraphs, tables and figures.
+
+Figures are embedded as base64 PNG data URIs, the style sheet is inline: the page needs no
+other file and no network. Every text is escaped with :func:`html.escape`, so a run or channel
+name can never inject markup.
+
+A page is a title and a sequence of :class:`Section`; a section's content is a sequence of
+blocks:
+
+- ``str``: a paragraph (blank lines separate paragraphs);
+- :class:`Table`, or a bare list of rows (the first row is the header);
+- a :class:`matplotlib.figure.Figure`, PNG ``bytes``, or an :class:`Image` with a caption;
+- :class:`Preformatted` text (e.g. :func:`forcecal.actuator.report_text`);
+- a nested :class:`Section` (one heading level down).
+
+:func:`estimate_table` formats a :class:`~forcecal.forces.ForceEstimate` as table rows.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from matplotlib.figure import Figure
+
+from ..errors import InputError
+from ..forces import ForceEstimate
+from ..io.atomic import write_text_atomic
+from .figures import png_bytes
+
+__all__ = [
+    "Image",
+    "Preformatted",
+    "Section",
+    "Table",
+    "build_report",
+    "estimate_table",
+    "write_report",
+]
+
+_PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+_STYLE = """
+body { font-family: system-ui, sans-serif; max-width: 75em; margin: 2em auto; padding: 0 1em;
+       color: #222; line-height: 1.45; }
+h1 { border-bottom: 2px solid #444; padding-bottom: .2em; }
+h2 { border-bottom: 1px solid #bbb; padding-bottom: .1em; margin-top: 2em; }
+table { border-collapse: collapse; margin: 1em 0; font-size: .92em; }
+caption { text-align: left; font-weight: bold; padding-bottom: .3em; }
+th, td { border: 1px solid #ccc; padding: .25em .6em; }
+th { background: #f0f0f0; text-align: left; }
+td.num { text-align: right; font-variant-numeric: tabular-nums; }
+figure { margin: 1em 0; }
+figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
+figcaption { font-size: .92em; color: #444; }
+pre { background: #f7f7f7; border: 1px solid #ddd; padding: .6em; overflow-x: auto; }
+footer { margin-top: 3em; font-size: .85em; color: #777; }
+""".strip()
+
+
+@dataclass(frozen=True)
+class Table:
+    """A table of text cells.
+
+    Attributes
+    ----------
+    rows : rows of cells (any value; formatted with ``str``), the body of the table
+    header : the column names, or None for a table without a header row
+    caption : a title above the table
+    """
+
+    rows: Sequence[Sequence[Any]]
+    header: Sequence[Any] | None = None
+    caption: str = ""
+
+
+@dataclass(frozen=True)
+class Image:
+    """A figure with a caption: a matplotlib Figure (rendered at ``dpi``) or PNG bytes."""
+
+    figure: Figure | bytes
+    caption: str = ""
+    alt: str = ""
+    dpi: float = 100
+
+
+@dataclass(frozen=True)
+class Preformatted:
+    """Text shown as written, in a monospace font (tables of plain text, logs)."""
+
+    text: str
+
+
+@dataclass(frozen=True)
+class Section:
+    """A heading and its content (see the module docstring for the kinds of block)."""
+
+    title: str
+    content: Sequence[Any] = ()
+
+
+def _e(value: Any) -> str:
+    return html.escape(str(value), quote=True)
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def _table(table: Table) -> str:
+    parts = ["<table>"]
+    if table.caption:
+        parts.append(f"<caption>{_e(table.caption)}</caption>")
+    if table.header is not None:
+        parts.append("<thead><tr>" + "".join(f"<th>{_e(c)}</th>" for c in table.header)
+                     + "</tr></thead>")
+    parts.append("<tbody>")
+    for row in table.rows:
+        cells = []
+        for cell in row:
+            text = str(cell)
+            cls = ' class="num"' if _is_number(text) else ""
+            cells.append(f"<td{cls}>{_e(text)}</td>")
+        parts.append("<tr>" + "".join(cells) + "</tr>")
+    parts.append("</tbody></table>")
+    return "\n".join(parts)
+
+
+def data_uri(png: bytes) -> str:
+    """A ``data:image/png;base64,...`` URI of PNG bytes."""
+    if not png.startswith(_PNG_SIGNATURE):
+        raise InputError("an embedded image must be PNG data (the PNG signature is missing)")
+    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+
+
+def _image(image: Image) -> str:
+    png = image.figure if isinstance(image.figure, bytes) else png_bytes(image.figure,
+                                                                         dpi=image.dpi)
+    alt = image.alt or image.caption or "figure"
+    out = f'<figure><img src="{data_uri(png)}" alt="{_e(alt)}">'
+    if image.caption:
+        out += f"<figcaption>{_e(image.caption)}</figcaption>"
+    return out + "</figure>"
+
+
+def _paragraphs(text: str) -> str:
+    blocks = [b.strip() for b in text.split("\n\n") if b.strip()]
+    return "\n".join(f"<p>{_e(b)}</p>" for b in blocks)
+
+
+def _block(block: Any, level: int) -> str:
+    if isinstance(block, str):
+        return _paragraphs(block)
+    if isinstance(block, Section):
+        return _section(block, level + 1)
+    if isinstance(block, Table):
+        return _table(block)
+    if isinstance(block, Preformatted):
+        return f"<pre>{_e(block.text)}</pre>"
+    if isinstance(block, Image):
+        return _image(block)
+    if isinstance(block, Figure | bytes):
+        return _image(Image(block))
+    if isinstance(block, list | tuple) and all(isinstance(r, list | tuple) for r in block):
+        rows = list(block)
+        return _table(Table(rows=rows[1:], header=rows[0] if rows else None))
+    raise InputError(f"report: cannot show a block of type {type(block).__name__} (expected "
+                     "str, Table, list of rows, Figure, PNG bytes, Image, Preformatted or "
+                     "Section)")
+
+
+def _section(section: Section, level: int) -> str:
+    h = min(level, 6)
+    parts = [f"<section>\n<h{h}>{_e(section.title)}</h{h}>"]
+    parts += [_block(b, level) for b in section.content]
+    parts.append("</section>")
+    return "\n".join(parts)
+
+
+def build_report(title: str, sections: Sequence[Section]) -> str:
+    """The HTML page: the title as <h1>, each section as <h2> with its content.
+
+    Parameters
+    ----------
+    title : the page title
+    sections : the sections, in order (a bare block is accepted as a section's content too)
+
+    Returns
+    -------
+    str: a complete, self-contained HTML5 document (UTF-8)
+    """
+    body = [_section(s, 2) if isinstance(s, Section) else _block(s, 1) for s in sections]
+    return "\n".join([
+        "<!DOCTYPE html>",
+        '<html lang="en">',
+        "<head>",
+        '<meta charset="utf-8">',
+        '<meta name="viewport" content="width=device-width, initial-scale=1">',
+        f"<title>{_e(title)}</title>",
+        f"<style>\n{_STYLE}\n</style>",
+        "</head>",
+        "<body>",
+        f"<h1>{_e(title)}</h1>",
+        *body,
+        "<footer>written by forcecal</footer>",
+        "</body>",
+        "</html>",
+        "",
+    ])
+
+
+def write_report(path: str | Path, title: str, sections: Sequence[Section]) -> Path:
+    """Write :func:`build_report`'s page to ``path`` atomically; returns the path."""
+    return write_text_atomic(path, build_report(title, sections))
+
+
+# --------------------------------------------------------------------------------------------
+# tables of results
+
+ESTIMATE_HEADER = ("force", "harmonic", "frequency [Hz]", "amplitude [N]", "phase [rad]",
+                   "std. uncertainty [N]", "reactions only [N]")
+
+
+def _sig(value: float, digits: int) -> str:
+    if not math.isfinite(value):
+        return "n/a"
+    text = f"{value:#.{digits}g}"               # keeps trailing zeros: 4.2880, 0.00050
+    return text[:-1] if text.endswith(".") else text
+
+
+def estimate_table(estimate: ForceEstimate) -> list[list[str]]:
+    """The forces of a run as text rows, header first.
+
+    One row per force (and "total") per harmonic the estimate kept: harmonic n, its frequency,
+    the amplitude |F_n|, the phase arg F_n (convention of :mod:`forcecal.harmonics`), the
+    standard uncertainty of Re and of Im of F_n, and the reactions-only amplitude. For n = 0 the
+    amplitude column holds the signed mean force and the phase is empty; without DC-capable
+    gauges (``dc_observed`` false) the DC row says "not observed". Amplitudes carry 5
+    significant digits, uncertainties 2.
+
+    Returns
+    -------
+    list of rows of str, the first row being :data:`ESTIMATE_HEADER`
+    """
+    rows = [list(ESTIMATE_HEADER)]
+    names = [*estimate.force_names, "total"]
+    force = np.vstack([estimate.force, estimate.total[None, :]])
+    std = np.vstack([estimate.force_std, estimate.total_std[None, :]])
+    static = np.vstack([estimate.static, estimate.static.sum(axis=0)[None, :]])
+    for k, name in enumerate(names):
+        for n in estimate.harmonics:
+            n = int(n)
+            if not estimate.kept[n]:
+                continue
+            freq = f"{n * estimate.f0:.4f}"
+            if n == 0:
+                if not estimate.dc_observed:
+                    rows.append([name, "0", freq, "not observed", "", "", ""])
+                    continue
+                rows.append([name, "0", freq, _sig(force[k, 0].real, 5), "",
+                             _sig(std[k, 0], 2), _sig(static[k, 0].real, 5)])
+                continue
+            rows.append([name, str(n), freq, _sig(abs(force[k, n]), 5),
+                         f"{np.angle(force[k, n]):.4f}", _sig(std[k, n], 2),
+                         _sig(abs(static[k, n]), 5)])
+    return rows

@@ -1,0 +1,421 @@
+"""Tests of the report: figures draw exactly the stage results they are given, PNGs are written
+atomically, and the HTML page is self-contained and escaped.
+
+The data are the simulated 'paper' rig (simulated once per session); every drawn line is read
+back from its Line2D and compared with the result it should show.
+"""
+
+from __future__ import annotations
+
+import base64
+import dataclasses
+import html
+import re
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from matplotlib.figure import Figure
+
+from forcecal.actuator import Calibration
+from forcecal.errors import DimensionError, InputError
+from forcecal.forces import channels_si, reconstruct
+from forcecal.harmonics import fit_harmonics
+from forcecal.io.run_files import read_run, read_table_csv
+from forcecal.io.uff import read_scan_uff
+from forcecal.report import (
+    CalibrationPoints,
+    Image,
+    Preformatted,
+    Section,
+    Table,
+    build_report,
+    estimate_table,
+    fig_calibration,
+    fig_coordinates,
+    fig_forces,
+    fig_residuals,
+    fig_shapes,
+    fig_signals,
+    law_harmonics,
+    save_png,
+    write_report,
+)
+from forcecal.rig import load_rig
+from forcecal.scan import harmonic_shapes
+from forcecal.simulate.export import write_simulation
+from forcecal.spatial import build_spatial_model
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+PERIODS = 3.0
+"""Periods drawn by the time-history figures (their default)."""
+_FACTOR = {"m": 1.0, "mm": 1e3, "µm": 1e6, "nm": 1e9, "A": 1.0, "N": 1.0}
+
+
+@pytest.fixture(scope="session")
+def case(tmp_path_factory):
+    """The simulated 'paper' rig: rig, shapes, model, run, estimate and truth."""
+    out = tmp_path_factory.mktemp("report_paper")
+    write_simulation(out, "paper", seed=0)
+    rig = load_rig(out / "rig.toml")
+    scan = read_scan_uff(out / "scan.uff")
+    shapes = harmonic_shapes(scan, rig.frequency, 6)
+    model = build_spatial_model(rig, scan, 6, shapes=shapes)
+    run = read_run(out / "runs" / "paper.csv")
+    estimate = reconstruct(rig, model, run)
+    _, truth = read_table_csv(out / "truth" / "paper.forces.csv")
+    return SimpleNamespace(rig=rig, shapes=shapes, model=model, run=run, estimate=estimate,
+                           truth=truth)
+
+
+def unit_factor(label: str) -> float:
+    """The factor from SI to the unit in a label's last [...]."""
+    return _FACTOR[label[label.rindex("[") + 1:label.rindex("]")]]
+
+
+def line(ax, label: str):
+    """The one Line2D of ``ax`` with this label."""
+    hits = [ln for ln in ax.get_lines() if ln.get_label() == label]
+    assert len(hits) == 1, f"{len(hits)} lines labelled {label!r}: " + ", ".join(
+        ln.get_label() for ln in ax.get_lines())
+    return hits[0]
+
+
+def markers(ax, label: str):
+    """The data line of the errorbar container with this label."""
+    hits = [c for c in ax.containers if c.get_label() == label]
+    assert len(hits) == 1, f"{len(hits)} error bar sets labelled {label!r}"
+    return hits[0].lines[0]
+
+
+def window(t: np.ndarray, f0: float) -> int:
+    return int(np.searchsorted(t, t[0] + PERIODS / f0, side="right"))
+
+
+def series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
+    n = np.arange(phasors.shape[-1])
+    return (phasors @ np.exp(2j * np.pi * f0 * np.outer(n, t))).real
+
+
+# ------------------------------------------------------------------------------------ figures
+
+
+def test_fig_shapes_draws_the_measured_and_fitted_shapes(case):
+    fig = fig_shapes(case.shapes, case.model)
+    harmonics = [int(n) for n in case.model.harmonics]
+    assert isinstance(fig, Figure)
+    assert len(fig.axes) == len(harmonics) + 1
+    x = case.shapes.points[:, 0]
+    for ax, n in zip(fig.axes[:-1], harmonics, strict=True):
+        k = int(np.flatnonzero(case.shapes.harmonics == n)[0])
+        f = unit_factor(ax.get_ylabel())
+        re_fit, im_fit = line(ax, "Re fitted"), line(ax, "Im fitted")
+        xf = re_fit.get_xdata() / 1e3
+        assert xf[0] == pytest.approx(x.min()) and xf[-1] == pytest.approx(x.max())
+        expected = case.model.shape_values(n, xf)
+        np.testing.assert_allclose(re_fit.get_ydata() / f, expected.real, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(im_fit.get_ydata() / f, expected.imag, rtol=1e-12, atol=0)
+        meas = markers(ax, "Re measured")
+        np.testing.assert_allclose(meas.get_xdata() / 1e3, x)
+        np.testing.assert_allclose(meas.get_ydata() / f, case.shapes.values[k].real, rtol=1e-12)
+        np.testing.assert_allclose(markers(ax, "Im measured").get_ydata() / f,
+                                   case.shapes.values[k].imag, rtol=1e-12)
+        # the unit keeps the numbers readable (1 to 1000)
+        assert 1 <= np.abs(f * case.shapes.values[k]).max() < 1000
+        assert ax.get_ylabel().startswith(f"$H_{{{n}}}$")
+
+    right = fig.axes[-1]
+    for n in harmonics:
+        (norm,) = [ln for ln in right.get_lines() if ln.get_label().startswith(f"n = {n} ")]
+        xf = norm.get_xdata() / 1e3
+        phi = case.model.shape_values(n, xf)
+        expected = (phi / phi[np.argmax(np.abs(phi))]).real
+        np.testing.assert_allclose(norm.get_ydata(), expected, rtol=1e-12)
+        assert norm.get_ydata().max() == pytest.approx(1.0)
+    legend = right.get_legend().get_title().get_text()
+    assert f"one shape serves all: {'yes' if case.model.one_shape else 'no'}" in legend
+    assert f"{case.model.similarity[0, 1]:.4f}" in legend
+
+
+def test_fig_shapes_refuses_a_plate_scan(case):
+    plate = dataclasses.replace(case.shapes, points=np.column_stack([case.shapes.points] * 2))
+    with pytest.raises(DimensionError, match="1-D points"):
+        fig_shapes(plate, case.model)
+
+
+def test_fig_signals_overlays_the_fitted_fourier_series(case):
+    rig, run, est = case.rig, case.run, case.estimate
+    fig = fig_signals(run, rig, est)
+    assert len(fig.axes) == 2
+    ax_i, ax_s = fig.axes
+    m = window(run.time, est.f0)
+    sig = channels_si(rig, run)
+    h = len(est.harmonics) - 1
+    measured = line(ax_i, "i measured")
+    np.testing.assert_allclose(measured.get_xdata(), run.time[:m] * 1e3)
+    np.testing.assert_array_equal(measured.get_ydata(), sig["i"][:m])
+    fitted = [ln for ln in ax_i.get_lines() if ln.get_label().startswith("i Fourier series")]
+    fit = fit_harmonics(sig["i"], run.fs, est.f0, h, t0=run.t0)
+    np.testing.assert_allclose(fitted[0].get_ydata(), fit.evaluate(run.time[:m]), rtol=1e-12)
+    assert "[A]" in ax_i.get_ylabel() and ax_s.get_xlabel() == "time [ms]"
+    f = unit_factor(ax_s.get_ylabel())
+    for s in rig.sensor_names:
+        np.testing.assert_allclose(line(ax_s, f"{s} measured").get_ydata() / f, sig[s][:m],
+                                   rtol=1e-12)
+        (fit_line,) = [ln for ln in ax_s.get_lines()
+                       if ln.get_label().startswith(f"{s} Fourier series")]
+        fit = fit_harmonics(sig[s], run.fs, est.f0, h, t0=run.t0)
+        np.testing.assert_allclose(fit_line.get_ydata() / f, fit.evaluate(run.time[:m]),
+                                   rtol=1e-9)
+
+
+def test_fig_coordinates_draws_q_per_harmonic_and_the_inertia(case):
+    rig, run, est = case.rig, case.run, case.estimate
+    fig = fig_coordinates(run, rig, est)
+    assert len(fig.axes) == 3
+    _, ax_q, ax_j = fig.axes
+    t = run.time[:window(run.time, est.f0)]
+    c = est.coordinates
+    for j, n in enumerate(c.harmonics):
+        (q_line,) = [ln for ln in ax_q.get_lines() if ln.get_label().startswith(f"n = {n}:")]
+        expected = (c.q[j] * np.exp(2j * np.pi * n * est.f0 * t)).real
+        np.testing.assert_allclose(q_line.get_ydata(), expected, rtol=1e-9, atol=1e-12)
+    # J_r(t) = sum_n Re(m_rn (-(n w0)^2) Q_n e^{j n w0 t})
+    w0 = 2 * np.pi * est.f0
+    for r, g in enumerate(est.gauge_names):
+        j_n = np.zeros(len(est.harmonics), dtype=complex)
+        for k, n in enumerate(case.model.harmonics):
+            j_n[n] = case.model.couplings[k, r] * (-((n * w0) ** 2)) * c.q[k]
+        np.testing.assert_allclose(line(ax_j, f"J {g}").get_ydata(), series(j_n, est.f0, t),
+                                   rtol=1e-9, atol=1e-9)
+    assert ax_j.get_ylabel().endswith("[N]") and ax_j.get_xlabel() == "time [ms]"
+
+
+def test_fig_forces_draws_the_estimate_the_baseline_and_the_truth(case):
+    est = case.estimate
+    fig = fig_forces(est, case.truth)
+    assert len(fig.axes) == 2
+    ax_r, ax_f = fig.axes
+    m = window(est.time, est.f0)
+    np.testing.assert_allclose(line(ax_f, "total").get_xdata(), est.time[:m] * 1e3)
+    np.testing.assert_array_equal(line(ax_f, "total").get_ydata(), est.total_series[:m])
+    np.testing.assert_array_equal(line(ax_f, "total reactions only").get_ydata(),
+                                  est.static_series.sum(axis=0)[:m])
+    np.testing.assert_array_equal(line(ax_f, "total truth").get_ydata(), case.truth["total"][:m])
+    for k, name in enumerate(est.force_names):
+        np.testing.assert_array_equal(line(ax_f, name).get_ydata(), est.series[k, :m])
+        assert line(ax_f, f"{name} reactions only").get_linestyle() == "--"
+        assert line(ax_f, f"{name} truth").get_linestyle() == ":"
+    for r, g in enumerate(est.gauge_names):
+        t = est.time[:m]
+        np.testing.assert_allclose(line(ax_r, f"R {g}").get_ydata(),
+                                   series(est.reactions[r], est.f0, t), rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(line(ax_r, f"J {g}").get_ydata(),
+                                   series(est.inertia[r], est.f0, t), rtol=1e-9, atol=1e-9)
+    # the reconstruction is much closer to the truth than the reactions-only estimate
+    err = np.std(est.total_series - case.truth["total"])
+    assert err < 0.1 * np.std(est.static_series.sum(axis=0) - case.truth["total"])
+
+    plain = fig_forces(est)
+    assert not [ln for ln in plain.axes[1].get_lines() if "truth" in ln.get_label()]
+    with pytest.raises(DimensionError, match="truth column 'F1'"):
+        fig_forces(est, {"F1": case.truth["F1"][:-1]})
+
+
+def test_fig_residuals_amplitudes_and_chi2(case):
+    est = case.estimate
+    fig = fig_residuals(est, case.run, case.rig)
+    assert len(fig.axes) == 3
+    assert len(fig_residuals(est).axes) == 2
+    ax_res, ax_c, ax_a = fig.axes
+    n_channels = len(case.rig.gauge_names) + len(case.rig.sensor_names) + 2  # i, phi
+    assert len(ax_res.get_lines()) == n_channels
+    # each residual trace is the channel's fit residual / its sigma, offset
+    sig = channels_si(case.rig, case.run)
+    fit = fit_harmonics(sig["R1"], case.run.fs, est.f0, len(est.harmonics) - 1, t0=case.run.t0)
+    y = line(ax_res, "R1").get_ydata()
+    np.testing.assert_allclose(y - y.mean(), (fit.residuals - fit.residuals.mean())
+                               / fit.residual_std, rtol=1e-9, atol=1e-9)
+    chi2 = line(ax_c, "chi2")
+    np.testing.assert_array_equal(chi2.get_ydata(), est.coordinates.chi2)
+    assert ax_a.get_yscale() == "log"
+    kept = est.kept & (np.abs(est.force[0]) > 0)
+    for k, name in enumerate(est.force_names):
+        amp = markers(ax_a, name)
+        np.testing.assert_allclose(amp.get_ydata(), np.abs(est.force[k])[kept])
+        np.testing.assert_allclose(np.round(amp.get_xdata()), est.harmonics[kept])
+        np.testing.assert_allclose(line(ax_a, f"{name} reactions only").get_ydata(),
+                                   np.abs(est.static[k])[est.kept])
+
+
+# ------------------------------------------------------------------------ calibration figure
+
+K = 1.0e-5  # N m^2 / A^2, one pole
+GAPS = (0.8e-3, 1.0e-3, 1.2e-3)
+
+
+def _law() -> Calibration:
+    return Calibration(law="k_i2_s2", params=np.array([K]), covariance=np.array([[1e-18]]),
+                       n_poles=2, current_range=(0.0, 1.2), gap_range=(0.7e-3, 1.3e-3))
+
+
+def _points() -> CalibrationPoints:
+    """Two poles of f = K i^2 / s^2 at i = I0 + I1 cos: F_0 = 2K(I0^2 + I1^2/2)/s^2,
+    |F_1| = 4 K I0 I1 / s^2, plus a repeated run."""
+    rows = [(g, dc, ac) for g in GAPS for dc in (0.4, 0.6, 0.8) for ac in (0.1, 0.2)]
+    rows += [(1.0e-3, 0.6, 0.2)] * 2
+    g, dc, ac = (np.array(c) for c in zip(*rows, strict=True))
+    return CalibrationPoints(gap=g, dc=dc, ac=ac, force_dc=2 * K * (dc**2 + ac**2 / 2) / g**2,
+                             force_ac=4 * K * dc * ac / g**2)
+
+
+def test_fig_calibration_draws_points_law_and_residuals():
+    pts = _points()
+    fig = fig_calibration(pts, _law())
+    assert len(fig.axes) == 4
+    ax0, ax1, rx0, rx1 = fig.axes
+    tag = "gap 1.00 mm, AC 0.2 A"
+    sel = (pts.gap == 1.0e-3) & (pts.ac == 0.2)
+    np.testing.assert_array_equal(markers(ax0, tag).get_ydata(), pts.force_dc[sel])
+    np.testing.assert_array_equal(markers(ax1, tag).get_ydata(), pts.force_ac[sel])
+    # the repeated runs are counted
+    assert "×3" in [t.get_text() for t in ax0.texts]
+    # the law's curves: the cycle mean and fundamental of predict() at the static gap
+    law0, law1 = line(ax0, f"law {tag}"), line(ax1, f"law {tag}")
+    i0 = law0.get_xdata()
+    np.testing.assert_allclose(law0.get_ydata(), 2 * K * (i0**2 + 0.02) / 1e-6, rtol=1e-9)
+    np.testing.assert_allclose(law1.get_ydata(), 4 * K * i0 * 0.2 / 1e-6, rtol=1e-9)
+    for rx in (rx0, rx1):
+        runs = [ln for ln in rx.get_lines() if not ln.get_label().startswith("_")]
+        assert len(runs) == 6  # 3 gaps x 2 AC amplitudes
+        for ln in runs:
+            assert np.all(np.abs(ln.get_ydata()) < 1e-9), ln.get_label()
+        assert rx.get_ylabel().endswith("[%]")
+    assert ax0.get_xlabel() == "" and rx0.get_xlabel() == "DC current $I_0$ [A]"
+
+
+def test_fig_calibration_residuals_against_the_law_at_each_run():
+    pts = _points()
+    law_dc = pts.force_dc * 1.02
+    fig = fig_calibration(dataclasses.replace(pts, law_dc=law_dc, law_ac=pts.force_ac),
+                          _law())
+    ax0, _, rx0, rx1 = fig.axes
+    sel = (pts.gap == 0.8e-3) & (pts.ac == 0.1)
+    np.testing.assert_allclose(line(ax0, "law gap 0.80 mm, AC 0.1 A").get_ydata(),
+                               np.sort(law_dc[sel]))
+    np.testing.assert_allclose(line(rx0, "gap 0.80 mm, AC 0.1 A").get_ydata(),
+                               100 * (1 / 1.02 - 1))
+    np.testing.assert_allclose(line(rx1, "gap 0.80 mm, AC 0.1 A").get_ydata(), 0.0, atol=1e-12)
+
+
+def test_fig_calibration_without_law_and_from_a_mapping():
+    pts = _points()
+    fig = fig_calibration({f.name: getattr(pts, f.name) for f in dataclasses.fields(pts)})
+    assert len(fig.axes) == 2
+    assert not [ln for ln in fig.axes[0].get_lines() if ln.get_label().startswith("law")]
+    with pytest.raises(DimensionError, match="'dc' has shape"):
+        CalibrationPoints(gap=pts.gap, dc=pts.dc[:-1], ac=pts.ac, force_dc=pts.force_dc,
+                          force_ac=pts.force_ac)
+
+
+def test_law_harmonics_of_a_known_law():
+    fs, f0, n = 1000.0, 10.0, 1000
+    t = np.arange(n) / fs
+    current = 0.6 + 0.2 * np.cos(2 * np.pi * f0 * t)
+    mean, fund = law_harmonics(_law(), current, np.full(n, 1.0e-3), fs, f0)
+    assert mean == pytest.approx(2 * K * (0.36 + 0.02) / 1e-6, rel=1e-9)
+    assert fund == pytest.approx(4 * K * 0.6 * 0.2 / 1e-6, rel=1e-9)
+
+
+def test_calibration_points_from_estimates(case):
+    pts = CalibrationPoints.from_estimates(case.rig, [case.run], [case.estimate])
+    est = case.estimate
+    current = channels_si(case.rig, case.run)["i"]
+    fit = fit_harmonics(current, case.run.fs, est.f0, 1, t0=case.run.t0)
+    assert pts.gap[0] == case.rig.forces[0].gap
+    assert pts.dc[0] == pytest.approx(fit.phasors[0].real)
+    assert pts.ac[0] == pytest.approx(abs(fit.phasors[1]))
+    assert pts.force_dc[0] == est.total[0].real
+    assert pts.force_ac[0] == abs(est.total[1])
+    assert pts.names == (est.run_name,)
+
+
+# ------------------------------------------------------------------------------------ output
+
+
+def test_save_png_writes_a_png(tmp_path, case):
+    path = save_png(fig_forces(case.estimate), tmp_path / "sub" / "forces.png")
+    assert path.read_bytes()[:8] == PNG_SIGNATURE
+    assert [p.name for p in path.parent.iterdir()] == ["forces.png"]
+
+
+def test_save_png_leaves_no_file_on_failure(tmp_path):
+    fig = Figure()
+    fig.add_subplot().plot([0, 1], [0, 1])
+
+    def broken(fname, **kwargs):
+        with open(fname, "wb") as fh:
+            fh.write(PNG_SIGNATURE + b"half")
+        raise RuntimeError("disk full")
+
+    fig.savefig = broken
+    with pytest.raises(RuntimeError, match="disk full"):
+        save_png(fig, tmp_path / "f.png")
+    assert list(tmp_path.iterdir()) == []
+    # an existing file is left untouched
+    (tmp_path / "f.png").write_bytes(b"old")
+    with pytest.raises(RuntimeError):
+        save_png(fig, tmp_path / "f.png")
+    assert (tmp_path / "f.png").read_bytes() == b"old"
+    assert [p.name for p in tmp_path.iterdir()] == ["f.png"]
+
+
+def test_estimate_table(case):
+    est = case.estimate
+    rows = estimate_table(est)
+    assert rows[0][:4] == ["force", "harmonic", "frequency [Hz]", "amplitude [N]"]
+    kept = [int(n) for n in est.harmonics if est.kept[n]]
+    assert len(rows) == 1 + (len(est.force_names) + 1) * len(kept)
+    by_key = {(r[0], int(r[1])): r for r in rows[1:]}
+    r = by_key[("F1", 1)]
+    assert float(r[3]) == pytest.approx(abs(est.force[0, 1]), rel=1e-4)
+    assert float(r[4]) == pytest.approx(np.angle(est.force[0, 1]), abs=1e-4)
+    assert float(r[5]) == pytest.approx(est.force_std[0, 1], rel=0.05)
+    assert float(r[6]) == pytest.approx(abs(est.static[0, 1]), rel=1e-4)
+    assert float(by_key[("total", 0)][3]) == pytest.approx(est.total[0].real, rel=1e-4)
+    assert float(by_key[("total", 2)][3]) == pytest.approx(abs(est.total[2]), rel=1e-4)
+
+
+def test_build_report_is_self_contained_and_escaped(tmp_path, case):
+    rows = estimate_table(case.estimate)
+    evil = "run <script>alert('x')</script> & co"
+    fig = Figure(figsize=(3, 2))
+    fig.add_subplot().plot([0, 1], [1, 0])
+    sections = [
+        Section("Forces", [evil, rows, Image(fig_forces(case.estimate), caption="fig. 8 <b>",
+                                             dpi=40),
+                           Table([["a<b", 1.5]], header=["name", "value"], caption="small")]),
+        Section("Selection", [Preformatted("law  <chosen>\nK = 1"), fig,
+                              Section("Nested", ["inner"])]),
+    ]
+    page = build_report("Report <1>", sections)
+    assert page.startswith("<!DOCTYPE html>")
+    assert "<script>" not in page
+    assert html.escape(evil) in page
+    assert "<title>Report &lt;1&gt;</title>" in page
+    assert "fig. 8 &lt;b&gt;" in page and "&lt;chosen&gt;" in page
+    uris = re.findall(r'src="data:image/png;base64,([A-Za-z0-9+/=]+)"', page)
+    assert len(uris) == 2
+    assert all(base64.b64decode(u)[:8] == PNG_SIGNATURE for u in uris)
+    assert not re.search(r'(src|href)="(?!data:)', page)  # no external asset
+    for row in rows:
+        for cell in row:
+            assert f">{html.escape(cell)}<" in page
+    assert "<h3>Nested</h3>" in page
+    path = write_report(tmp_path / "report.html", "Report <1>", sections)
+    assert path.read_text(encoding="utf-8").count("data:image/png;base64,") == 2
+
+
+def test_build_report_refuses_unknown_blocks():
+    with pytest.raises(InputError, match="cannot show a block of type dict"):
+        build_report("t", [Section("s", [{"a": 1}])])
