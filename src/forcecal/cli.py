@@ -15,7 +15,7 @@ import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
-from .errors import ForcecalError
+from .errors import ForcecalError, InputError
 
 __all__ = ["main"]
 
@@ -99,11 +99,23 @@ def _read_runs(paths):
     return [read_run(p) for p in paths]
 
 
+def _check_distinct_names(paths) -> None:
+    """Runs are written as OUT/NAME.*: two run files with one NAME would overwrite each other."""
+    seen: dict[str, str] = {}
+    for path in paths:
+        name = Path(path).stem
+        if name in seen:
+            raise InputError(f"run '{path}': its outputs {name}.forces.csv and {name}.json would "
+                             f"overwrite those of run '{seen[name]}'; rename one of them")
+        seen[name] = str(path)
+
+
 def _cmd_reconstruct(args) -> int:
     from .forces import reconstruct
     from .io.results import write_estimate
     from .rig import load_rig
 
+    _check_distinct_names(args.runs)
     rig = load_rig(args.rig)
     model = _model_for(args, rig)
     runs = _read_runs(args.runs)
@@ -174,6 +186,7 @@ def _cmd_report(args) -> int:
     from .report.pipeline import run_report
     from .rig import load_rig
 
+    _check_distinct_names(args.runs)
     rig = load_rig(args.rig)
     from .io.scan_files import read_scan
 
@@ -306,10 +319,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; returns the exit status."""
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version: printed; return instead of exiting
+            return exc.code if isinstance(exc.code, int) else 0
         if not getattr(args, "func", None):
-            parser.print_help(sys.stderr)
-            return 2
+            parser.error("a command is required")
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _show_warning

@@ -188,7 +188,8 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
                if np.std(r) > 1e-9 * (np.max(np.abs(r)) + 1e-300)]     # constant ones say nothing
     if not records:
         raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
-    f0 = refine_fundamental(records, run.fs, rig.frequency, h, t0=run.t0)
+    check_record_length(run, rig.frequency)
+    f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
     notes = []
     if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
         msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
@@ -296,3 +297,13 @@ def check_record_length(run: Run, f0: float) -> None:
     if periods < 5:
         raise DataError(f"run '{run.source}': the record holds {periods:.1f} periods of "
                         f"{f0:.4g} Hz; at least 5 are needed")
+
+
+def refined_fundamental(records, fs: float, rig: Rig, n_harmonics: int, what: str,
+                        t0: float = 0.0) -> float:
+    """:func:`refine_fundamental` with errors that name the file and the rig's key."""
+    try:
+        return refine_fundamental(records, fs, rig.frequency, n_harmonics, t0=t0)
+    except DataError as exc:
+        raise DataError(f"{what}: {exc} (rig '{rig.source}', key 'acquisition.frequency' = "
+                        f"{rig.frequency:g} Hz)") from None

@@ -360,6 +360,11 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     if len(gauges) != needed:
         raise r.fail("gauges", f"has {len(gauges)} entries; a {kind} on statically determinate "
                      f"gauges needs exactly {needed}")
+    if not sensors:
+        raise r.fail("sensors", "is empty: each harmonic's shape needs at least one "
+                     "displacement sensor (no more shapes than sensors)")
+    if not forces:
+        raise r.fail("forces", "is empty: name at least one force point")
     if len(forces) > len(gauges):
         raise r.fail("forces", f"has {len(forces)} entries; at most {len(gauges)} forces "
                      "(one per gauge) can be determined")

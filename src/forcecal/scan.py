@@ -67,7 +67,15 @@ def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> Harm
     DataError
         When a reference record carries no drive (its fundamental is at the noise level).
     """
-    f0 = refine_fundamental(scan.reference, scan.fs, f0_nominal, n_harmonics)
+    periods = scan.n_samples / scan.fs * f0_nominal
+    if periods < 5:
+        raise DataError(f"scan '{scan.source}': each record holds {periods:.1f} periods of "
+                        f"{f0_nominal:.4g} Hz; at least 5 are needed")
+    try:
+        f0 = refine_fundamental(scan.reference, scan.fs, f0_nominal, n_harmonics)
+    except DataError as exc:
+        raise DataError(f"scan '{scan.source}': {exc} (the rig's 'acquisition.frequency' is "
+                        f"{f0_nominal:g} Hz)") from None
     ref = fit_harmonics(scan.reference, scan.fs, f0, n_harmonics)
     resp = fit_harmonics(scan.response, scan.fs, f0, n_harmonics)
     i1 = ref.phasors[:, 1]

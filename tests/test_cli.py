@@ -1,0 +1,461 @@
+"""The command line as a user meets it (INTERFACES.md section 5).
+
+One simulated 'paper' lab (``forcecal simulate``) serves every test; each test copies and alters
+the files it needs. A refused input must give exit status 2, exactly one line on stderr that
+names the file, key or channel at fault, and leave nothing in the output folder.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import subprocess
+import sys
+import tomllib
+from collections.abc import Callable
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+
+import forcecal
+from forcecal.cli import main
+from forcecal.io import run_files
+from forcecal.io.atomic import atomic_path
+from forcecal.io.run_files import (
+    read_run,
+    read_table_csv,
+    write_run_hdf5,
+    write_run_tdms,
+    write_table_csv,
+)
+
+THIRD_PARTY_UFF58 = Path("/work/shared/data/third-party-uff/Sample_UFF58_ascii.uff")
+FORCE_COLUMNS = ["time", "F1", "F2", "total", "F1_static", "F2_static", "total_static"]
+SHORT_SECONDS = 0.4
+COMMANDS = ["demo", "simulate", "scan", "reconstruct", "calibrate", "predict", "stream", "report"]
+
+
+# --------------------------------------------------------------------------------------------
+# the lab and helpers
+
+
+@pytest.fixture(scope="session")
+def lab(tmp_path_factory) -> Path:
+    """``forcecal simulate LAB --preset paper``: rig.toml, scan.uff, runs/paper.csv, truth/."""
+    out = tmp_path_factory.mktemp("cli") / "lab"
+    assert main(["simulate", str(out), "--preset", "paper"]) == 0
+    return out
+
+
+@pytest.fixture(scope="session")
+def model_json(lab, tmp_path_factory) -> Path:
+    """``forcecal scan`` of the lab: the spatial model the reconstruct tests start from."""
+    path = tmp_path_factory.mktemp("model") / "model.json"
+    assert main(["scan", str(lab / "rig.toml"), str(lab / "scan.uff"), "-o", str(path)]) == 0
+    return path
+
+
+@pytest.fixture(scope="session")
+def run_table(lab) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The lab's run as (time, columns)."""
+    return read_table_csv(lab / "runs" / "paper.csv")
+
+
+@pytest.fixture(scope="session")
+def short_run(run_table, tmp_path_factory) -> Path:
+    """The lab's run cut to its first SHORT_SECONDS (8 periods), to keep reconstruction quick."""
+    time, columns = run_table
+    n = int(round(SHORT_SECONDS / (time[1] - time[0])))
+    folder = tmp_path_factory.mktemp("short")
+    return write_table_csv(folder / "paper.csv", time[:n], {k: v[:n] for k, v in columns.items()})
+
+
+@pytest.fixture(scope="session")
+def csv_forces(lab, model_json, short_run, tmp_path_factory) -> Path:
+    """``forcecal reconstruct`` of the (short) run, CSV, with the saved model: the output folder."""
+    out = tmp_path_factory.mktemp("forces")
+    code = main(["reconstruct", str(lab / "rig.toml"), str(model_json), str(short_run),
+                 "-o", str(out)])
+    assert code == 0
+    return out
+
+
+@pytest.fixture(scope="session")
+def scan_datasets(lab) -> list[str]:
+    """The datasets of the lab's scan.uff as text: the nodes (2411), then per point its
+    vibration and reference records (58)."""
+    text = (lab / "scan.uff").read_text()
+    return re.findall(r"^ {4}-1\n(.*?)^ {4}-1\n", text, re.S | re.M)
+
+
+def cli(*argv: object) -> int:
+    return main([str(a) for a in argv])
+
+
+def assert_refused(code: int, capsys, out: Path, *names: str) -> str:
+    """Exit 2, one line on stderr naming every one of ``names``, nothing left in ``out``."""
+    err = capsys.readouterr().err
+    assert code == 2, err
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    line = lines[0]
+    assert line.startswith("forcecal"), line
+    for name in names:
+        assert name in line, f"{name!r} not named in: {line}"
+    left = sorted(str(p.relative_to(out)) for p in out.rglob("*")) if out.exists() else []
+    assert left == [], left
+    return line
+
+
+def edited_rig(lab: Path, folder: Path, edit: Callable[[dict], None]) -> Path:
+    """A copy of the lab's rig.toml with ``edit`` applied to its parsed document."""
+    doc = tomllib.loads((lab / "rig.toml").read_text(encoding="utf-8"))
+    edit(doc)
+    path = folder / "rig.toml"
+    path.write_text(tomli_w.dumps(doc), encoding="utf-8")
+    return path
+
+
+def edited_run(run_table, folder: Path, edit) -> Path:
+    """A copy of the lab's run with ``edit(time, columns) -> (time, columns)`` applied."""
+    time, columns = run_table
+    time, columns = edit(time.copy(), {k: v.copy() for k, v in columns.items()})
+    return write_table_csv(folder / "paper.csv", time, columns)
+
+
+def scan_subset(scan_datasets, path: Path, n_points: int = 4, coordinates: bool = True,
+                keep: Callable[[str, int], bool] = lambda kind, node: True) -> Path:
+    """A small UFF of the lab's first ``n_points`` scan points; ``keep(kind, node)`` selects
+    records (kind 'vibration' or 'reference'); ``coordinates=False`` drops dataset 2411."""
+    nodes, records = scan_datasets[0], scan_datasets[1:]
+    kept = [nodes] if coordinates else []
+    for record in records[: 2 * n_points]:
+        lines = record.splitlines()
+        kind = "reference" if "Ref" in lines[2] else "vibration"
+        node = int(lines[6].split()[5])
+        if keep(kind, node):
+            kept.append(record)
+    path.write_text("".join(f"    -1\n{d}    -1\n" for d in kept))
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# success paths
+
+
+def test_scan_writes_the_model(model_json):
+    doc = json.loads(model_json.read_text())
+    assert doc["format"] == "forcecal spatial model 1"
+    assert doc["gauges"] == ["R1", "R2"]
+    assert doc["f0_hz"] == pytest.approx(20.0, rel=0.01)
+    assert 1 in doc["harmonics"]
+    assert len(doc["shapes"]) == len(doc["harmonics"])
+    assert not list(model_json.parent.glob(".*.part"))
+
+
+def test_reconstruct_writes_forces_and_summary(csv_forces, short_run):
+    assert sorted(p.name for p in csv_forces.iterdir()) == ["paper.forces.csv", "paper.json"]
+    header = (csv_forces / "paper.forces.csv").read_text().splitlines()[0]
+    assert header.split(",") == FORCE_COLUMNS
+    time, columns = read_table_csv(csv_forces / "paper.forces.csv")
+    np.testing.assert_allclose(time, read_table_csv(short_run)[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(columns["total"], columns["F1"] + columns["F2"], atol=1e-9)
+
+    doc = json.loads((csv_forces / "paper.json").read_text())
+    assert doc["run"] == "paper"
+    assert doc["fundamental_hz"] == pytest.approx(20.0, rel=0.01)
+    assert {"F1", "F2", "total"} <= set(doc["forces"])
+    for name in ("F1", "F2"):
+        rows = doc["forces"][name]
+        assert [r["harmonic"] for r in rows][:2] == [0, 1]
+        for row in rows:
+            assert row["amplitude_n"] >= 0
+            assert -np.pi <= row["phase_rad"] <= np.pi
+            assert row["std_n"] > 0
+    assert 0 < doc["inertia_share"] < 1
+    assert "psi_condition_number" in doc["conditioning"]
+
+
+def test_reconstruct_from_the_scan_matches_the_saved_model(lab, short_run, csv_forces, tmp_path,
+                                                           capsys):
+    out = tmp_path / "out"
+    code = cli("reconstruct", lab / "rig.toml", lab / "scan.uff", short_run, "-o", out)
+    assert code == 0, capsys.readouterr().err
+    assert "paper.forces.csv" in capsys.readouterr().out
+    assert sorted(p.name for p in out.iterdir()) == ["paper.forces.csv", "paper.json"]
+    header = (out / "paper.forces.csv").read_text().splitlines()[0]
+    assert header.split(",") == FORCE_COLUMNS
+    _, direct = read_table_csv(out / "paper.forces.csv")
+    _, saved = read_table_csv(csv_forces / "paper.forces.csv")
+    for name in FORCE_COLUMNS[1:]:
+        np.testing.assert_allclose(direct[name], saved[name], rtol=0, atol=1e-9, err_msg=name)
+
+
+@pytest.mark.parametrize("writer,suffix", [(write_run_tdms, ".tdms"), (write_run_hdf5, ".h5")],
+                         ids=["tdms", "hdf5"])
+def test_tdms_and_hdf5_runs_give_the_csv_forces(lab, model_json, short_run, csv_forces, tmp_path,
+                                                writer, suffix):
+    run = writer(read_run(short_run), tmp_path / f"paper{suffix}")
+    out = tmp_path / "out"
+    assert cli("reconstruct", lab / "rig.toml", model_json, run, "-o", out) == 0
+    time, got = read_table_csv(out / "paper.forces.csv")
+    ref_time, ref = read_table_csv(csv_forces / "paper.forces.csv")
+    np.testing.assert_allclose(time, ref_time, rtol=0, atol=1e-9)
+    for name in FORCE_COLUMNS[1:]:
+        np.testing.assert_allclose(got[name], ref[name], rtol=0, atol=1e-9, err_msg=name)
+
+
+def test_interrupted_write_leaves_no_file(lab, model_json, short_run, tmp_path, capsys,
+                                          monkeypatch):
+    def half_then_interrupt(target, text):
+        with atomic_path(target) as tmp:
+            tmp.write_text(text[: len(text) // 2], encoding="utf-8")
+            raise KeyboardInterrupt
+
+    monkeypatch.setattr(run_files, "write_text_atomic", half_then_interrupt)
+    out = tmp_path / "out"
+    code = cli("reconstruct", lab / "rig.toml", model_json, short_run, "-o", out)
+    err = capsys.readouterr().err
+    assert code == 130
+    assert len(err.splitlines()) == 1 and "interrupted" in err
+    assert sorted(out.rglob("*")) == []
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_help_of_every_command_shows_an_example(command, capsys):
+    assert main([command, "--help"]) == 0
+    help_text = capsys.readouterr().out
+    assert "example" in help_text
+    assert f"forcecal {command} " in help_text
+
+
+def test_version_through_python_m():
+    done = subprocess.run([sys.executable, "-m", "forcecal", "--version"], capture_output=True,
+                          text=True, timeout=120, check=False)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == f"forcecal {forcecal.__version__}"
+
+
+# --------------------------------------------------------------------------------------------
+# missing and unreadable files
+
+
+@pytest.mark.parametrize("missing", ["rig", "model", "run"])
+def test_missing_input_file_of_reconstruct(missing, lab, model_json, tmp_path, capsys):
+    files = {"rig": lab / "rig.toml", "model": model_json, "run": lab / "runs" / "paper.csv"}
+    files[missing] = tmp_path / {"rig": "nothere.toml", "model": "nothere.json",
+                                 "run": "nothere.csv"}[missing]
+    out = tmp_path / "out"
+    code = cli("reconstruct", files["rig"], files["model"], files["run"], "-o", out)
+    assert_refused(code, capsys, out, str(files[missing]))
+
+
+def test_missing_scan(lab, tmp_path, capsys):
+    out = tmp_path / "out"
+    code = cli("scan", lab / "rig.toml", tmp_path / "nothere.uff", "-o", out / "model.json")
+    assert_refused(code, capsys, out, "nothere.uff")
+
+
+def test_scan_that_is_not_a_universal_file(lab, tmp_path, capsys):
+    scan = tmp_path / "scan.uff"
+    scan.write_text("Polytec export\nx,y,velocity\n0.1,0.0,1e-3\nthis is not a UFF\n")
+    out = tmp_path / "out"
+    code = cli("scan", lab / "rig.toml", scan, "-o", out / "model.json")
+    assert_refused(code, capsys, out, str(scan), "Universal File")
+
+
+@pytest.mark.parametrize("source", ["own", "third-party"])
+def test_scan_without_coordinates(source, lab, scan_datasets, tmp_path, capsys):
+    if source == "own":
+        scan = scan_subset(scan_datasets, tmp_path / "scan.uff", coordinates=False)
+    else:
+        scan = THIRD_PARTY_UFF58
+        if not scan.is_file():
+            pytest.skip("third-party UFF samples not available")
+    out = tmp_path / "out"
+    code = cli("scan", lab / "rig.toml", scan, "-o", out / "model.json")
+    assert_refused(code, capsys, out, str(scan), "coordinates", "2411")
+
+
+def test_scan_without_reference_records(lab, scan_datasets, tmp_path, capsys):
+    scan = scan_subset(scan_datasets, tmp_path / "scan.uff",
+                       keep=lambda kind, node: kind == "vibration")
+    out = tmp_path / "out"
+    code = cli("scan", lab / "rig.toml", scan, "-o", out / "model.json")
+    assert_refused(code, capsys, out, str(scan), "reference")
+
+
+def test_scan_point_without_reference(lab, scan_datasets, tmp_path, capsys):
+    scan = scan_subset(scan_datasets, tmp_path / "scan.uff",
+                       keep=lambda kind, node: not (kind == "reference" and node == 3))
+    out = tmp_path / "out"
+    code = cli("scan", lab / "rig.toml", scan, "-o", out / "model.json")
+    assert_refused(code, capsys, out, str(scan), "node 3", "reference")
+
+
+# --------------------------------------------------------------------------------------------
+# run recordings that cannot be used
+
+
+def reconstruct_refused(lab, model_json, run, tmp_path, capsys, *names, rig=None) -> str:
+    out = tmp_path / "out"
+    code = cli("reconstruct", rig or lab / "rig.toml", model_json, run, "-o", out)
+    return assert_refused(code, capsys, out, *names)
+
+
+def test_run_missing_a_channel_of_the_rig(lab, model_json, run_table, tmp_path, capsys):
+    def drop_s2(time, columns):
+        del columns["s2"]
+        return time, columns
+
+    run = edited_run(run_table, tmp_path, drop_s2)
+    reconstruct_refused(lab, model_json, run, tmp_path, capsys, str(run), "'s2'")
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf], ids=["nan", "inf"])
+def test_run_with_nonfinite_samples(bad, lab, model_json, run_table, tmp_path, capsys):
+    def spoil(time, columns):
+        columns["s1"][500:503] = bad
+        return time, columns
+
+    run = edited_run(run_table, tmp_path, spoil)
+    reconstruct_refused(lab, model_json, run, tmp_path, capsys, str(run), "'s1'",
+                        "NaN" if np.isnan(bad) else "infinite")
+
+
+def test_run_with_nonuniform_time_stamps(lab, model_json, run_table, tmp_path, capsys):
+    def jitter(time, columns):
+        time[500] += 0.3 * (time[1] - time[0])
+        return time, columns
+
+    run = edited_run(run_table, tmp_path, jitter)
+    reconstruct_refused(lab, model_json, run, tmp_path, capsys, str(run), "not uniform")
+
+
+def test_run_with_a_clipped_gauge(lab, model_json, run_table, tmp_path, capsys):
+    def clip(time, columns):
+        peak = np.max(np.abs(columns["R1"]))
+        columns["R1"] = np.clip(columns["R1"], -0.9 * peak, 0.9 * peak)
+        return time, columns
+
+    run = edited_run(run_table, tmp_path, clip)
+    reconstruct_refused(lab, model_json, run, tmp_path, capsys, str(run), "'R1'", "clipped")
+
+
+def test_run_shorter_than_five_periods(lab, model_json, run_table, tmp_path, capsys):
+    def four_periods(time, columns):
+        n = int(round(4 / 20.0 / (time[1] - time[0])))
+        return time[:n], {k: v[:n] for k, v in columns.items()}
+
+    run = edited_run(run_table, tmp_path, four_periods)
+    reconstruct_refused(lab, model_json, run, tmp_path, capsys, str(run), "periods")
+
+
+@pytest.mark.parametrize("command", ["scan", "reconstruct"])
+def test_drive_frequency_contradicted_by_the_data(command, lab, model_json, short_run,
+                                                  scan_datasets, tmp_path, capsys):
+    rig = edited_rig(lab, tmp_path, lambda d: d["acquisition"].update(frequency=33.0))
+    out = tmp_path / "out"
+    if command == "scan":
+        data = scan_subset(scan_datasets, tmp_path / "scan.uff", n_points=8)
+        code = cli("scan", rig, data, "-o", out / "model.json")
+    else:
+        data = short_run
+        code = cli("reconstruct", rig, model_json, data, "-o", out)
+    line = assert_refused(code, capsys, out, "33")
+    assert str(data) in line or "acquisition.frequency" in line, line
+
+
+# --------------------------------------------------------------------------------------------
+# rig files that contradict themselves
+
+
+def _set(table: str, index: int, key: str, value):
+    def edit(doc):
+        doc[table][index][key] = value
+    return edit
+
+
+@pytest.mark.parametrize("edit,key", [
+    (_set("gauges", 1, "x", 0.7), "gauges[1].x"),
+    (_set("forces", 0, "x", -0.05), "forces[0].x"),
+    (_set("sensors", 1, "x", 0.65), "sensors[1].x"),
+], ids=["gauge", "force", "sensor"])
+def test_point_off_the_structure(edit, key, lab, model_json, tmp_path, capsys):
+    rig = edited_rig(lab, tmp_path, edit)
+    line = reconstruct_refused(lab, model_json, lab / "runs" / "paper.csv", tmp_path, capsys,
+                               str(rig), key, rig=rig)
+    assert "off the structure" in line
+
+
+@pytest.mark.parametrize("edit,key", [
+    (_set("sensors", 1, "name", "s1"), "sensors[1].name"),
+    (_set("sensors", 0, "name", "R1"), "sensors[0].name"),
+], ids=["two-sensors", "sensor-as-gauge"])
+def test_duplicate_names(edit, key, lab, model_json, tmp_path, capsys):
+    rig = edited_rig(lab, tmp_path, edit)
+    line = reconstruct_refused(lab, model_json, lab / "runs" / "paper.csv", tmp_path, capsys,
+                               str(rig), key, rig=rig)
+    assert "twice" in line
+
+
+def test_two_forces_at_one_point(lab, model_json, tmp_path, capsys):
+    rig = edited_rig(lab, tmp_path, _set("forces", 1, "x", 0.25))
+    reconstruct_refused(lab, model_json, lab / "runs" / "paper.csv", tmp_path, capsys,
+                        str(rig), "forces[1].x", "same point", rig=rig)
+
+
+def test_fewer_sensors_than_shapes(lab, model_json, tmp_path, capsys):
+    rig = edited_rig(lab, tmp_path, lambda d: d.update(sensors=[]))
+    reconstruct_refused(lab, model_json, lab / "runs" / "paper.csv", tmp_path, capsys,
+                        str(rig), "sensors", rig=rig)
+
+
+def test_sensors_at_a_node_of_the_shape(lab, model_json, short_run, tmp_path, capsys):
+    def to_the_ends(doc):
+        doc["sensors"][0]["x"] = 0.0
+        doc["sensors"][1]["x"] = 0.6
+
+    rig = edited_rig(lab, tmp_path, to_the_ends)
+    reconstruct_refused(lab, model_json, short_run, tmp_path, capsys,
+                        "s1", "s2", "node", rig=rig)
+
+
+def test_manifest_naming_a_missing_run(lab, model_json, tmp_path, capsys):
+    pytest.importorskip("forcecal.campaign")
+    manifest = tmp_path / "manifest.csv"
+    manifest.write_text("run,gap\nruns/nothere.csv,0.001\n")
+    out = tmp_path / "out"
+    code = cli("calibrate", lab / "rig.toml", model_json, "--manifest", manifest, "-o", out)
+    assert_refused(code, capsys, out, str(manifest), "runs/nothere.csv")
+
+
+@pytest.mark.parametrize("command", ["reconstruct", "report"])
+def test_two_runs_with_one_name(command, lab, model_json, tmp_path, capsys):
+    other = tmp_path / "other"
+    other.mkdir()
+    copy = other / "paper.csv"
+    copy.write_bytes((lab / "runs" / "paper.csv").read_bytes())
+    out = tmp_path / "out"
+    scan = model_json if command == "reconstruct" else lab / "scan.uff"
+    code = cli(command, lab / "rig.toml", scan, lab / "runs" / "paper.csv", copy, "-o", out)
+    assert_refused(code, capsys, out, str(copy), "paper.forces.csv")
+
+
+# --------------------------------------------------------------------------------------------
+# bad arguments
+
+
+@pytest.mark.parametrize("argv,named", [
+    (["frobnicate"], "frobnicate"),
+    ([], "command"),
+    (["scan", "rig.toml", "scan.uff"], "-o"),
+    (["reconstruct", "rig.toml", "model.json", "run.csv"], "-o"),
+    (["predict", "calibration.json", "--current", "lots", "--gap", "0.001"], "--current"),
+], ids=["unknown-command", "no-command", "scan-without-o", "reconstruct-without-o",
+        "not-a-number"])
+def test_bad_arguments(argv, named, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert_refused(main(argv), capsys, tmp_path, named)

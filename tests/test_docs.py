@@ -1,0 +1,145 @@
+"""Every command the documentation shows works as shown.
+
+Each ```console block of docs/*.md is scanned for lines ``$ forcecal ...`` (a trailing ``\\``
+continues a command on the next line). The commands of one document run in order, through
+:func:`forcecal.cli.main`, in one scratch folder, so a later command may use what an earlier one
+wrote. A command must exit with status 0, unless the document marks it with a trailing
+``# exits 2``: then it must exit with status 2 and say why in one line on stderr.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import re
+import shlex
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from forcecal.cli import main
+
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+FAILS = re.compile(r"#\s*exits\s+(\d+)\s*$")
+
+# modules a command needs beyond the core, written concurrently with the docs: a command whose
+# module is not there yet is skipped, and so is every later command of its document
+NEEDS = {
+    "calibrate": ["forcecal.campaign", "forcecal.report.pipeline"],
+    "predict": ["forcecal.campaign"],
+    "report": ["forcecal.report.pipeline"],
+    "stream": ["forcecal.stream"],
+    "demo": ["forcecal.campaign", "forcecal.report.pipeline"],
+}
+
+
+@dataclass(frozen=True)
+class Command:
+    doc: str
+    line: int
+    argv: tuple[str, ...]
+    status: int
+
+    @property
+    def id(self) -> str:
+        return f"{self.doc}:{self.line}:{' '.join(self.argv[:2])}"
+
+
+def console_commands(text: str, doc: str) -> list[Command]:
+    """The ``$ forcecal`` commands of the ```console blocks of one Markdown text."""
+    commands = []
+    in_console = False
+    pending: tuple[int, str] | None = None
+    for number, line in enumerate(text.splitlines(), start=1):
+        fence = line.strip()
+        if fence.startswith("```"):
+            in_console = not in_console and fence[3:].strip() == "console"
+            pending = None
+            continue
+        if not in_console:
+            continue
+        if pending is not None:
+            start, joined = pending
+            line = joined + " " + line.strip()
+            number = start
+        elif not line.startswith("$ forcecal"):
+            continue
+        if line.rstrip().endswith("\\"):
+            pending = (number, line.rstrip()[:-1].rstrip())
+            continue
+        pending = None
+        command = line[2:].strip()
+        marked = FAILS.search(command)
+        argv = shlex.split(command, comments=True)
+        commands.append(Command(doc, number, tuple(argv[1:]),
+                                int(marked.group(1)) if marked else 0))
+    return commands
+
+
+def all_commands() -> list[Command]:
+    return [c for path in sorted(DOCS.glob("*.md"))
+            for c in console_commands(path.read_text(encoding="utf-8"), path.name)]
+
+
+COMMANDS = all_commands()
+
+
+def test_the_parser_reads_console_blocks():
+    text = "\n".join([
+        "```console",
+        "$ forcecal scan rig.toml 'a b.uff' -o m.json",
+        "m.json: fundamental 20 Hz",
+        "$ forcecal reconstruct rig.toml m.json \\",
+        "    r.csv -o out",
+        "$ forcecal predict cal.json --current 1  # exits 2",
+        "$ ls out",
+        "```",
+        "```",
+        "$ forcecal demo",
+        "```",
+    ])
+    found = console_commands(text, "x.md")
+    assert [(c.line, c.argv, c.status) for c in found] == [
+        (2, ("scan", "rig.toml", "a b.uff", "-o", "m.json"), 0),
+        (4, ("reconstruct", "rig.toml", "m.json", "r.csv", "-o", "out"), 0),
+        (6, ("predict", "cal.json", "--current", "1"), 2),
+    ]
+
+
+def test_the_guide_shows_commands():
+    guide = [c for c in COMMANDS if c.doc == "guide.md"]
+    shown = {c.argv[0] for c in guide}
+    assert {"simulate", "scan", "reconstruct", "calibrate", "predict"} <= shown
+    assert any(c.status == 2 for c in guide)
+
+
+@pytest.fixture(scope="module")
+def workspaces(tmp_path_factory):
+    """doc name -> [scratch folder, reason the later commands cannot run or None]."""
+    spaces: dict[str, list] = {}
+
+    def get(doc: str) -> list:
+        if doc not in spaces:
+            spaces[doc] = [tmp_path_factory.mktemp(doc.replace(".", "_")), None]
+        return spaces[doc]
+
+    return get
+
+
+@pytest.mark.parametrize("command", COMMANDS, ids=[c.id for c in COMMANDS])
+def test_documented_command(command, workspaces, monkeypatch, capsys):
+    space = workspaces(command.doc)
+    if space[1]:
+        pytest.skip(space[1])
+    missing = [m for m in NEEDS.get(command.argv[0], []) if importlib.util.find_spec(m) is None]
+    if missing:
+        space[1] = f"an earlier command of {command.doc} needs {', '.join(missing)}"
+        pytest.skip(f"needs {', '.join(missing)}")
+    monkeypatch.chdir(space[0])
+    space[1] = f"{command.id} failed"
+    status = main(list(command.argv))
+    err = capsys.readouterr().err
+    assert status == command.status, err
+    if command.status == 2:
+        assert len(err.splitlines()) == 1, err
+    space[1] = None
