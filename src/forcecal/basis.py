@@ -40,9 +40,11 @@ __all__ = [
     "ShapeFit",
     "fit_shape",
     "legendre_vandermonde",
+    "modal_functions",
     "n_functions",
     "orthonormal_basis",
     "project",
+    "raw_functions",
     "shape_similarity",
 ]
 
@@ -122,6 +124,52 @@ def legendre_vandermonde(points: np.ndarray, extent: object, order: int) -> np.n
     return np.stack(cols, axis=1)
 
 
+FAMILIES = ("legendre", "modes")
+"""Raw function families: Legendre polynomials (the black box) or mode shapes."""
+
+
+def modal_functions(points: np.ndarray, extent: object, order: int) -> np.ndarray:
+    """Rigid motions plus the bending modes of the structure pinned around its extent.
+
+    1-D: 1, u, sin(k pi xi) for k = 1 .. order - 2 (xi in [0, 1] over the extent): the modes of a
+    uniform beam pinned at both ends of the extent (exact for a uniform beam on gauges at its
+    ends; an approximation with lumped masses or inner gauges, as every modal basis is).
+    2-D: 1, u, v, then sin(k pi xi) sin(l pi eta) in the order of the simply supported plate's
+    frequencies (k/a)^2 + (l/b)^2. Counts match :func:`n_functions`, and lower orders are the
+    leading columns, as for the polynomials.
+
+    Returns
+    -------
+    (n_points, n_functions(order, n_dim)) array [1]
+    """
+    dom = _as_domain(extent)
+    pts = _as_points(points, dom.shape[0])
+    if order < 1:
+        raise DimensionError(f"order must be >= 1; got {order}")
+    xi = (pts - dom[:, 0]) / (dom[:, 1] - dom[:, 0])
+    n_dim = dom.shape[0]
+    total = n_functions(order, n_dim)
+    cols = [np.ones(len(pts))] + [2 * xi[:, d] - 1 for d in range(n_dim)]
+    if n_dim == 1:
+        cols += [np.sin(k * np.pi * xi[:, 0]) for k in range(1, total)]
+    else:
+        size = dom[:, 1] - dom[:, 0]
+        kl = sorted(((k, l) for k in range(1, total + 1) for l in range(1, total + 1)),
+                    key=lambda p: ((p[0] / size[0]) ** 2 + (p[1] / size[1]) ** 2, p))
+        cols += [np.sin(k * np.pi * xi[:, 0]) * np.sin(l * np.pi * xi[:, 1]) for k, l in kl]
+    return np.stack(cols[:total], axis=1)
+
+
+def raw_functions(points: np.ndarray, extent: object, order: int,
+                  family: str = "legendre") -> np.ndarray:
+    """The raw functions of a family before orthonormalization (see :data:`FAMILIES`)."""
+    if family == "legendre":
+        return legendre_vandermonde(points, extent, order)
+    if family == "modes":
+        return modal_functions(points, extent, order)
+    raise DimensionError(f"basis family '{family}' is unknown (choose from {', '.join(FAMILIES)})")
+
+
 @dataclass(frozen=True)
 class PolynomialBasis:
     """Polynomials orthonormal on a set of scan points, evaluable anywhere.
@@ -140,6 +188,7 @@ class PolynomialBasis:
     order: int
     domain: np.ndarray
     coefficients: np.ndarray
+    family: str = "legendre"
 
     @property
     def n_dim(self) -> int:
@@ -162,14 +211,14 @@ class PolynomialBasis:
         -------
         (n_points, n_funcs) array [1]
         """
-        return legendre_vandermonde(points, self.domain, self.order) @ self.coefficients
+        return raw_functions(points, self.domain, self.order, self.family) @ self.coefficients
 
     def truncate(self, order: int) -> PolynomialBasis:
         """The nested basis of a lower order (its leading functions)."""
         if not 1 <= order <= self.order:
             raise DimensionError(f"order must be in 1..{self.order}; got {order}")
         n = n_functions(order, self.n_dim)
-        return PolynomialBasis(order, self.domain, self.coefficients[:n, :n].copy())
+        return PolynomialBasis(order, self.domain, self.coefficients[:n, :n].copy(), self.family)
 
 
 def _as_weights(weights: object, n_points: int) -> np.ndarray:
@@ -199,7 +248,8 @@ def _inverse_triangular(r: np.ndarray) -> np.ndarray:
 
 
 def orthonormal_basis(
-    points: np.ndarray, extent: object, order: int, weights: np.ndarray | None = None
+    points: np.ndarray, extent: object, order: int, weights: np.ndarray | None = None,
+    family: str = "legendre",
 ) -> PolynomialBasis:
     """Polynomial basis orthonormal on the scan points.
 
@@ -234,7 +284,7 @@ def orthonormal_basis(
             "support it"
         )
     sw = np.sqrt(_as_weights(weights, pts.shape[0]))[:, None]
-    v = sw * legendre_vandermonde(pts, dom, order)
+    v = sw * raw_functions(pts, dom, order, family)
     # QR twice ("twice is enough"): the second pass makes V R^-1 orthonormal to rounding
     _, r1 = np.linalg.qr(v)
     d = np.abs(np.diag(r1))
@@ -249,7 +299,8 @@ def orthonormal_basis(
     r_inv = r1_inv @ _inverse_triangular(r2)
     # unique sign convention: positive diagonal of R (beta_0 is a positive constant)
     r_inv = r_inv * np.sign(np.diag(r_inv))
-    return PolynomialBasis(order=int(order), domain=dom, coefficients=np.triu(r_inv))
+    return PolynomialBasis(order=int(order), domain=dom, coefficients=np.triu(r_inv),
+                           family=family)
 
 
 @dataclass(frozen=True)
@@ -337,6 +388,7 @@ def fit_shape(
     criterion: str = "gcv",
     weights: np.ndarray | None = None,
     order: int | None = None,
+    family: str = "legendre",
 ) -> ShapeFit:
     """Fit a smooth shape over scan points, choosing the order from the data.
 
@@ -368,6 +420,8 @@ def fit_shape(
         Positive weights (inverse variances up to a common factor).
     order : int, optional
         Use this order instead of selecting one (``criterion`` becomes "fixed").
+    family : {"legendre", "modes"}
+        The raw functions (see :func:`raw_functions`).
 
     Returns
     -------
@@ -417,7 +471,7 @@ def fit_shape(
             "residual degree of freedom (lower max_order)"
         )
 
-    full = orthonormal_basis(pts, dom, int(orders[-1]), w)
+    full = orthonormal_basis(pts, dom, int(orders[-1]), w, family=family)
     sw = np.sqrt(w)[:, None]
     b = full.evaluate(pts) * sw  # (n, P), orthonormal columns
     yw = y * sw

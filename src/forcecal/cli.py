@@ -66,7 +66,8 @@ def _load_model_inputs(rig_path, scan_path, reference_label="Ref"):
 def _build_model(rig, scan, args):
     from .spatial import build_spatial_model
 
-    return build_spatial_model(rig, scan, n_harmonics=args.harmonics, criterion=args.criterion)
+    return build_spatial_model(rig, scan, n_harmonics=args.harmonics, criterion=args.criterion,
+                               basis=args.basis)
 
 
 def _model_for(args, rig):
@@ -216,6 +217,8 @@ def _model_options(p: argparse.ArgumentParser) -> None:
                    help="harmonics 1..H considered (default 6)")
     p.add_argument("--criterion", choices=("gcv", "bic"), default="gcv",
                    help="how each shape's order is chosen (default gcv)")
+    p.add_argument("--basis", choices=("polynomial", "modes"), default="polynomial",
+                   help="shape basis: orthonormal polynomials (default) or mode shapes")
     p.add_argument("--reference-label", default="Ref",
                    help="text in id line 2 of the scan's reference records (default 'Ref')")
 

@@ -16,7 +16,7 @@ import numpy as np
 from .errors import ConditioningError
 from .harmonics import HarmonicFit
 from .rig import Rig
-from .spatial import SpatialModel
+from .spatial import SpatialModel, structure_coordinates, structure_grid
 
 __all__ = ["MIN_SENSOR_GAIN", "Coordinates", "generalized_coordinates", "sensor_gain"]
 
@@ -47,15 +47,14 @@ class Coordinates:
 
 def sensor_gain(model: SpatialModel, rig: Rig, n: int) -> float:
     """RMS |phi_n| at the sensors relative to its maximum along the structure [1]."""
-    grid = np.linspace(0.0, rig.structure.length, 401)
-    peak = np.max(np.abs(model.shape_values(n, grid)))
-    at = model.shape_values(n, rig.sensor_points[:, 0])
+    peak = np.max(np.abs(model.shape_values(n, structure_grid(rig))))
+    at = sensor_rows(model, rig, n)
     return float(np.sqrt(np.mean(np.abs(at) ** 2)) / peak)
 
 
 def sensor_rows(model: SpatialModel, rig: Rig, n: int) -> np.ndarray:
     """phi_n at the sensors, (n_sensors,) complex [m]."""
-    return model.shape_values(n, rig.sensor_points[:, 0])
+    return model.shape_values(n, structure_coordinates(rig, rig.sensor_points))
 
 
 def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,

@@ -25,11 +25,14 @@ from .io.run_files import check_clipping
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
-from .spatial import SpatialModel
+from .spatial import SpatialModel, structure_coordinates
 
 __all__ = ["ForceEstimate", "channels_si", "reconstruct"]
 
 log = logging.getLogger(__name__)
+
+SPLIT_CONDITION = 30.0
+"""cond(Psi) above which the split between the forces is flagged as poorly determined."""
 
 FREQUENCY_MISMATCH = 0.01
 """Relative difference between a run's and the scan's fundamental that draws a warning."""
@@ -53,6 +56,9 @@ class ForceEstimate:
         five times their noise); the others are set to zero
     time : (n_samples,) [s]; series : (n_forces, n_samples) [N];
     static_series : (n_forces, n_samples) [N] -Psi^+ R(t) sample by sample
+    combination_names, combination, combination_std : every force, the total and the
+        resultant's first moments (see :func:`combinations`), phasors (n_c, H+1) [N, N m] with
+        their standard uncertainties
     """
 
     run_name: str
@@ -75,6 +81,9 @@ class ForceEstimate:
     static_series: np.ndarray
     psi_condition: float
     consistency: np.ndarray
+    combination_names: tuple[str, ...] = ()
+    combination: np.ndarray | None = None
+    combination_std: np.ndarray | None = None
     dc_observed: bool = True
     notes: tuple[str, ...] = field(default=())
 
@@ -126,12 +135,18 @@ def _series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
 
 def _shape_jacobian(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit,
                     pinv: np.ndarray, w0n: float) -> tuple[np.ndarray, np.ndarray]:
-    """Covariance (n_forces, 2, 2) of (Re, Im) of Psi^+ J_n due to the shape coefficients."""
+    """d(Psi^+ J_n)/d(Re p, Im p) of the shape coefficients p, and their covariance.
+
+    Returns
+    -------
+    jac : (n_forces, 2 n_funcs) complex [N per coefficient unit]
+    cov_p : (2 n_funcs, 2 n_funcs) covariance of (Re p, Im p)
+    """
     fit = model.shapes[k]
     n = int(model.harmonics[k])
     pts, weights = mass_weights(rig)
     c = weights @ fit.basis.evaluate(pts)                          # (n_g, nf)
-    bs = fit.basis.evaluate(rig.sensor_points[:, 0])               # (n_s, nf)
+    bs = fit.basis.evaluate(structure_coordinates(rig, rig.sensor_points))   # (n_s, nf)
     s = sensors.phasors[:, n]
     w = 1.0 / np.maximum(sensors.phasor_std[:, n], 1e-150) ** 2
 
@@ -149,18 +164,23 @@ def _shape_jacobian(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit,
             e = np.zeros(nf, dtype=complex)
             e[j] = d
             jac[:, part * nf + j] = (inertia_force(p0 + e) - inertia_force(p0 - e)) / (2 * h)
-    cov_p = np.kron(np.eye(2), fit.coefficient_covariance)         # Re and Im independent
-    jr, ji = jac.real, jac.imag
-    cov = np.stack([
-        np.stack([np.einsum("fa,ab,fb->f", jr, cov_p, jr), np.einsum("fa,ab,fb->f", jr, cov_p, ji)],
-                 -1),
-        np.stack([np.einsum("fa,ab,fb->f", ji, cov_p, jr), np.einsum("fa,ab,fb->f", ji, cov_p, ji)],
-                 -1),
-    ], -2)
-    total_j = jac.sum(axis=0)
-    tr, ti = total_j.real, total_j.imag
-    cov_total = np.array([[tr @ cov_p @ tr, tr @ cov_p @ ti], [ti @ cov_p @ tr, ti @ cov_p @ ti]])
-    return cov, cov_total
+    return jac, np.kron(np.eye(2), fit.coefficient_covariance)   # Re and Im independent
+
+
+def combinations(rig: Rig) -> tuple[tuple[str, ...], np.ndarray]:
+    """Linear combinations of the forces that are reported: each force, the total (the
+    resultant) and its first moments sum(f x) [N m] (and sum(f y) on a plate).
+
+    Returns names and the (n_combinations, n_forces) matrix.
+    """
+    n_f = len(rig.forces)
+    pts = rig.force_points
+    names = [*rig.force_names, "total", "moment_x"]
+    rows = [*np.eye(n_f), np.ones(n_f), pts[:, 0]]
+    if rig.structure.kind == "plate":
+        names.append("moment_y")
+        rows.append(pts[:, 1])
+    return tuple(names), np.array(rows)
 
 
 def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None = None,
@@ -211,14 +231,11 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     inertia = np.zeros((n_g, h + 1), dtype=complex)
     with_inertia = np.zeros(h + 1, dtype=bool)
     w0 = 2 * np.pi * f0
-    var_re = np.zeros((n_f, h + 1))
-    var_im = np.zeros((n_f, h + 1))
-    var_total = np.zeros((h + 1, 2))
-    r_var = g_fit.phasor_std**2                                      # (n_g, H+1)
-    var_re += (pinv**2) @ r_var
-    var_im += (pinv**2) @ r_var
-    ones = np.ones(n_f)
-    var_total += ((ones @ pinv) ** 2 @ r_var)[:, None]
+    combo_names, combo = combinations(rig)
+    a_r = combo @ pinv                                               # (n_c, n_g)
+    n_c = len(combo_names)
+    var = np.zeros((n_c, h + 1, 2))                                  # (Re, Im) variances
+    var += ((a_r**2) @ g_fit.phasor_std**2)[:, :, None]             # gauge noise
     for k, n in enumerate(model.harmonics):
         n = int(n)
         if n > h:
@@ -227,20 +244,15 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         m = model.couplings[k]                                       # (n_g,)
         inertia[:, n] = m * (-(w0n**2)) * coords.q[k]
         with_inertia[n] = True
-        a = pinv @ m * w0n**2                                        # d F / d Q
-        q_var = coords.q_std[k] ** 2
-        var_re[:, n] += np.abs(a) ** 2 * q_var
-        var_im[:, n] += np.abs(a) ** 2 * q_var
-        var_total[n] += abs(ones @ a) ** 2 * q_var
-        cov, cov_total = _shape_jacobian(model, rig, k, s_fit, pinv, w0n)
-        var_re[:, n] += cov[:, 0, 0]
-        var_im[:, n] += cov[:, 1, 1]
-        var_total[n] += np.diag(cov_total)
+        var[:, n, :] += (np.abs(a_r @ m) * w0n**2 * coords.q_std[k])[:, None] ** 2
+        jac, cov_p = _shape_jacobian(model, rig, k, s_fit, pinv, w0n)
+        cj = combo @ jac                                             # (n_c, 2 nf)
+        var[:, n, 0] += np.einsum("ca,ab,cb->c", cj.real, cov_p, cj.real)
+        var[:, n, 1] += np.einsum("ca,ab,cb->c", cj.imag, cov_p, cj.imag)
     # harmonics the scan could not resolve: kept only where the reactions show them; their
     # inertia is not compensated, so it is bounded by the whole mass moving with the sensors'
     # amplitude (or their noise) and that bound is stated as an uncertainty
     mass = rig.structure.total_mass
-    row_share = np.sum(pinv**2, axis=1)
     kept = with_inertia.copy()
     kept[0] = True
     for n in range(1, h + 1):
@@ -252,28 +264,26 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         noise = float(np.sqrt(np.mean(s_fit.phasor_std[:, n] ** 2)))
         motion = max(float(np.sqrt(np.mean(np.abs(s_fit.phasors[:, n]) ** 2))), noise)
         bound = mass * (n * w0) ** 2 * motion
-        var_re[:, n] += bound**2 / 2 * row_share
-        var_im[:, n] += bound**2 / 2 * row_share
-        var_total[n] += bound**2 / 2
+        var[:, n, :] += (bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1))[:, None]
         notes.append(f"harmonic {n}: no shape in the scan model "
                      f"({model.dropped.get(n, 'not scanned')}); its inertia, up to {bound:.2g} N, "
                      "is not compensated and is counted in the uncertainty")
     reactions[:, ~kept] = 0.0
     inertia[:, ~kept] = 0.0
-    var_re[:, ~kept] = var_im[:, ~kept] = 0.0
-    var_total[~kept] = 0.0
+    var[:, ~kept, :] = 0.0
     force = pinv @ (inertia - reactions)
     static = pinv @ (-reactions)
     if ac_coupled:
         force[:, 0] = 0.0
         static[:, 0] = 0.0
-        var_re[:, 0] = var_im[:, 0] = 0.0
-        var_total[0] = 0.0
+        var[:, 0, :] = 0.0
     consistency = np.linalg.norm(psi @ force - (inertia - reactions), axis=0)
-    force_std = np.sqrt((var_re + var_im) / 2)
-    force_std[:, 0] = np.sqrt(var_re[:, 0])                          # DC is real
-    total_std = np.sqrt(var_total.mean(axis=1))
-    total_std[0] = np.sqrt(var_total[0, 0])
+    std = np.sqrt(var.mean(axis=2))
+    std[:, 0] = np.sqrt(var[:, 0, 0])                                # DC is real
+    if cond > SPLIT_CONDITION:
+        notes.append(f"cond(Psi) = {cond:.3g}: the force points are close together, so the split "
+                     f"between {', '.join(rig.force_names)} is poorly determined (see their "
+                     "uncertainties); the resultant (total and moments) is well determined")
     t = run.time
     static_series = pinv @ (-gauges)
     if tare is not None:
@@ -283,7 +293,8 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     return ForceEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
         gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
-        force=force, force_std=force_std, total=force.sum(axis=0), total_std=total_std,
+        force=force, force_std=std[:n_f], total=force.sum(axis=0), total_std=std[n_f],
+        combination_names=combo_names, combination=combo @ force, combination_std=std,
         static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
         kept=kept, coordinates=coords, time=t, series=_series(force, f0, t),
         static_series=static_series, psi_condition=cond, consistency=consistency,

@@ -22,7 +22,14 @@ from .records import Scan
 from .rig import Rig
 from .scan import HarmonicShapes, harmonic_shapes
 
-__all__ = ["SpatialModel", "build_spatial_model", "load_model"]
+__all__ = [
+    "SpatialModel",
+    "build_spatial_model",
+    "load_model",
+    "structure_coordinates",
+    "structure_extent",
+    "structure_grid",
+]
 
 MIN_SNR = 3.0
 """A harmonic is kept when its RMS shape amplitude exceeds this many times the noise."""
@@ -80,6 +87,7 @@ class SpatialModel:
                 "order": s.order,
                 "criterion": s.criterion,
                 "domain": s.basis.domain.tolist(),
+                "family": s.basis.family,
                 "basis": s.basis.coefficients.tolist(),
                 "coefficients_re": s.coefficients.real.tolist(),
                 "coefficients_im": s.coefficients.imag.tolist(),
@@ -111,7 +119,8 @@ class SpatialModel:
             shapes = []
             for s in doc["shapes"]:
                 basis = PolynomialBasis(int(s["order"]), np.asarray(s["domain"], dtype=float),
-                                        np.asarray(s["basis"], dtype=float))
+                                        np.asarray(s["basis"], dtype=float),
+                                        s.get("family", "legendre"))
                 coef = np.asarray(s["coefficients_re"]) + 1j * np.asarray(s["coefficients_im"])
                 shapes.append(ShapeFit(
                     basis=basis, coefficients=coef, order=int(s["order"]),
@@ -152,7 +161,8 @@ def load_model(path: str | Path) -> SpatialModel:
 
 
 def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: str = "gcv",
-                        shapes: HarmonicShapes | None = None) -> SpatialModel:
+                        shapes: HarmonicShapes | None = None,
+                        basis: str = "polynomial") -> SpatialModel:
     """Fit a shape per supported harmonic and its mass couplings.
 
     Parameters
@@ -162,33 +172,69 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
     n_harmonics : H, harmonics 1..H are considered; those below ``MIN_SNR`` are dropped
     criterion : "gcv" or "bic", how each shape's order is chosen
     shapes : the measured harmonic shapes, when already computed from ``scan``
+    basis : "polynomial" (orthonormal Legendre polynomials, the black box the paper prefers)
+        or "modes" (rigid motions plus the bending modes of the structure pinned at its gauges,
+        the physical alternative); either is orthonormalized on the scan points
     """
     if rig.frequency is None:
         raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing "
                          "(the nominal drive frequency)")
     hs = shapes if shapes is not None else harmonic_shapes(scan, rig.frequency, n_harmonics)
     _check_points_on_structure(rig, scan)
-    extent = (0.0, rig.structure.length)
+    extent = structure_extent(rig)
+    points = structure_coordinates(rig, hs.points)
     snr = hs.snr()
     kept, fits, dropped = [], [], {}
     for k, n in enumerate(hs.harmonics):
         if snr[k] < MIN_SNR:
             dropped[int(n)] = f"scan signal-to-noise {snr[k]:.1f} < {MIN_SNR:g}"
             continue
-        fits.append(fit_shape(hs.points[:, 0], hs.values[k], extent, criterion=criterion,
-                              weights=_inverse_variance(hs.std[k])))
+        fits.append(fit_shape(points, hs.values[k], extent, criterion=criterion,
+                              weights=_inverse_variance(hs.std[k]),
+                              family="modes" if basis == "modes" else "legendre"))
         kept.append(int(n))
+    if basis not in ("polynomial", "modes"):
+        raise InputError(f"basis '{basis}' is unknown (choose 'polynomial' or 'modes')")
     if not kept:
         raise InputError(f"scan '{scan.source}': no harmonic rises above the noise "
                          f"(signal-to-noise {snr.max():.1f} at best)")
     couplings = np.stack([mass_coupling(rig, f.evaluate) for f in fits])
-    grid = hs.points[:, 0]
-    vals = [f.evaluate(grid) for f in fits]
+    vals = [f.evaluate(points) for f in fits]
     mac = np.array([[shape_similarity(a, b) for b in vals] for a in vals])
     return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(fits),
                         couplings=couplings, similarity=mac, snr=snr,
                         gauge_names=tuple(rig.gauge_names), dropped=dropped,
-                        n_points=len(grid), source=scan.source)
+                        n_points=len(points), source=scan.source)
+
+
+def structure_extent(rig: Rig):
+    """The structure's extent mapped onto the basis domain: (0, L), or the outline's box."""
+    if rig.structure.kind == "beam":
+        return (0.0, rig.structure.length)
+    v = np.asarray(rig.structure.outline)
+    return ((v[:, 0].min(), v[:, 0].max()), (v[:, 1].min(), v[:, 1].max()))
+
+
+def structure_coordinates(rig: Rig, points: np.ndarray) -> np.ndarray:
+    """Points in the structure's own coordinates: x (n,) on a beam, (x, y) (n, 2) on a plate."""
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim == 1:
+        pts = pts[:, None]
+    return pts[:, 0] if rig.structure.kind == "beam" else pts[:, :2]
+
+
+def structure_grid(rig: Rig, n: int = 401) -> np.ndarray:
+    """Points covering the structure (for peaks of shapes): a line or a grid inside the outline."""
+    if rig.structure.kind == "beam":
+        return np.linspace(0.0, rig.structure.length, n)
+    from matplotlib.path import Path as _Path
+
+    (x0, x1), (y0, y1) = structure_extent(rig)
+    side = int(np.sqrt(n)) + 1
+    xx, yy = np.meshgrid(np.linspace(x0, x1, side), np.linspace(y0, y1, side))
+    pts = np.column_stack([xx.ravel(), yy.ravel()])
+    inside = _Path(np.asarray(rig.structure.outline)).contains_points(pts, radius=1e-9)
+    return pts[inside]
 
 
 def _inverse_variance(std: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..forces import ForceEstimate
+from ..forces import SPLIT_CONDITION, ForceEstimate
 from .atomic import write_text_atomic
 from .run_files import write_table_csv
 
@@ -18,31 +18,39 @@ def estimate_summary(est: ForceEstimate) -> dict:
     """The JSON document of one run's forces: fundamental, per-harmonic phasors with standard
     uncertainties, inertia share and conditioning figures."""
 
-    def harmonics(ph: np.ndarray, std: np.ndarray, static: np.ndarray) -> list[dict]:
+    def harmonics(ph: np.ndarray, std: np.ndarray, static: np.ndarray | None) -> list[dict]:
         rows = []
         for n in est.harmonics:
             if not est.kept[n]:
                 continue
-            rows.append({
+            row = {
                 "harmonic": int(n),
                 "frequency_hz": float(n * est.f0),
                 "amplitude_n": float(abs(ph[n])),
                 "phase_rad": float(np.angle(ph[n])),
                 "std_n": float(std[n]),
-                "static_amplitude_n": float(abs(static[n])),
                 "inertia_compensated": bool(est.with_inertia[n]),
-            })
+            }
+            if static is not None:
+                row["static_amplitude_n"] = float(abs(static[n]))
+            rows.append(row)
         return rows
 
     forces = {name: harmonics(est.force[k], est.force_std[k], est.static[k])
               for k, name in enumerate(est.force_names)}
     forces["total"] = harmonics(est.total, est.total_std, est.static.sum(axis=0))
+    resultant = {}                        # first moments of the forces (amplitudes in N m)
+    for k, name in enumerate(est.combination_names):
+        if name.startswith("moment"):
+            resultant[name] = harmonics(est.combination[k], est.combination_std[k], None)
     c = est.coordinates
     return {
         "run": est.run_name,
         "fundamental_hz": est.f0,
         "dc_observed": est.dc_observed,
         "forces": forces,
+        "resultant_moments": resultant,
+        "split_well_determined": bool(est.psi_condition <= SPLIT_CONDITION),
         "inertia_share": est.inertia_share,
         "waveform_std_n": est.waveform_std,
         "conditioning": {
