@@ -52,6 +52,7 @@ __all__ = [
     "fig_forces",
     "fig_residuals",
     "fig_shapes",
+    "fig_shapes_2d",
     "fig_signals",
     "law_harmonics",
     "png_bytes",
@@ -228,6 +229,43 @@ def fig_shapes(shapes: HarmonicShapes, model: SpatialModel, n_fine: int = 401) -
                  title_fontsize="small", alignment="left", framealpha=0.9)
     lo, hi = right.get_ylim()
     right.set_ylim(min(lo, -0.1), max(hi, 1.1))
+    return fig
+
+
+def fig_shapes_2d(shapes: HarmonicShapes, model: SpatialModel, n_fine: int = 81) -> Figure:
+    """Harmonic deflection shapes of a plate: the fitted shape per harmonic as a contour map.
+
+    Each panel shows Re of the fitted shape, rotated to its most real phase and normalized by
+    its peak, over the outline's box, with the scan points as dots and the MAC of every
+    harmonic against the first in its title.
+    """
+    harmonics = [int(n) for n in model.harmonics]
+    fig = Figure(figsize=(4.2 * len(harmonics) + 0.8, 4.0), layout="constrained")
+    axes = fig.subplots(1, len(harmonics), squeeze=False)[0]
+    dom = model.shapes[0].basis.domain
+    xs = np.linspace(dom[0, 0], dom[0, 1], n_fine)
+    ys = np.linspace(dom[1, 0], dom[1, 1], n_fine)
+    xx, yy = np.meshgrid(xs, ys)
+    grid = np.column_stack([xx.ravel(), yy.ravel()])
+    contour = None
+    for k, (ax, n) in enumerate(zip(axes, harmonics, strict=True)):
+        values = model.shape_values(n, grid)
+        peak = values[np.argmax(np.abs(values))]
+        z = (values / peak).real.reshape(xx.shape)
+        contour = ax.contourf(xx * 1e3, yy * 1e3, z, levels=np.linspace(-1, 1, 21),
+                              cmap="RdBu_r")
+        ax.contour(xx * 1e3, yy * 1e3, z, levels=[0.0], colors="k", linewidths=0.8)
+        ax.plot(shapes.points[:, 0] * 1e3, shapes.points[:, 1] * 1e3, ".", color="0.3", ms=2)
+        ax.set_aspect("equal")
+        ax.set_xlabel("x [mm]")
+        if k == 0:
+            ax.set_ylabel("y [mm]")
+        ax.set_title(f"harmonic {n}: {n * model.f0:.1f} Hz, order {model.shapes[k].order}\n"
+                     f"MAC with harmonic {harmonics[0]}: {model.similarity[0, k]:.4f}",
+                     fontsize=9)
+    fig.colorbar(contour, ax=list(axes), label="Re phi_n / phi_n(peak) [1]", shrink=0.8)
+    fig.suptitle(f"Harmonic deflection shapes from the scan '{Path(shapes.source).name}' "
+                 f"({shapes.points.shape[0]} points; black: node lines)")
     return fig
 
 

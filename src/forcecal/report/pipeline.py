@@ -27,6 +27,7 @@ from .figures import (
     fig_forces,
     fig_residuals,
     fig_shapes,
+    fig_shapes_2d,
     fig_signals,
     law_harmonics,
     save_png,
@@ -82,7 +83,8 @@ def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
     hs = harmonic_shapes(scan, rig.frequency, n_harmonics) if rig.frequency else None
     model = build_spatial_model(rig, scan, n_harmonics=n_harmonics, shapes=hs)
     model.save(out / "model.json")
-    fig = fig_shapes(hs, model)
+    fig = (fig_shapes(hs, model) if rig.structure.kind == "beam"
+           else fig_shapes_2d(hs, model))
     shapes_png = save_png(fig, figs / "shapes.png")
     sections = [_model_section(model, shapes_png, fig)]
     summary = []

@@ -1,0 +1,468 @@
+"""Speed and memory of forcecal: the streaming estimator, the batch reconstruction, the scan
+model, and how each scales.
+
+Run from the project root::
+
+    .venv/bin/python benchmarks/speed.py            # full run, a few minutes
+    .venv/bin/python benchmarks/speed.py --quick    # shorter stream and fewer sizes
+
+Prints a table and writes ``benchmarks/results/speed.json``. Everything runs on one core (the
+BLAS thread pools are pinned to one thread before numpy is imported). Times are given as wall
+time and as CPU time of this process; on a loaded machine the CPU time is the fairer figure.
+
+Signals: the 'paper' preset is simulated once (seed 0) and its batch estimate supplies channel
+phasors (gauges, probes consistent with the scan model's shapes, coil current); synthetic
+records are those phasors plus the preset's white noise, at any rate and length, with a whole
+number of periods so that repeating them continues the drive without a phase jump.
+"""
+
+from __future__ import annotations
+
+import os
+
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import argparse  # noqa: E402
+import json  # noqa: E402
+import platform  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+import tracemalloc  # noqa: E402
+from dataclasses import dataclass  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+from forcecal.coordinates import sensor_rows  # noqa: E402
+from forcecal.forces import ForceEstimate, channels_si, reconstruct  # noqa: E402
+from forcecal.harmonics import fit_harmonics  # noqa: E402
+from forcecal.io.run_files import read_run, write_run_hdf5  # noqa: E402
+from forcecal.io.uff import read_scan_uff  # noqa: E402
+from forcecal.records import Run, Scan  # noqa: E402
+from forcecal.rig import Rig, load_rig  # noqa: E402
+from forcecal.simulate.export import write_simulation  # noqa: E402
+from forcecal.simulate.presets import NoiseSpec  # noqa: E402
+from forcecal.spatial import SpatialModel, build_spatial_model  # noqa: E402
+from forcecal.stream import StreamEstimator, steady_count  # noqa: E402
+
+RESULTS = Path(__file__).resolve().parent / "results" / "speed.json"
+FS_STREAM = 51_200.0          # [Hz] streaming rate of the benchmark
+BLOCK = 256                   # samples per block
+BASE_SAMPLES = 131_072        # 2.56 s at 51.2 kS/s ...
+BASE_PERIODS = 51             # ... holding 51 whole periods of the synthetic drive
+F_STREAM = BASE_PERIODS * FS_STREAM / BASE_SAMPLES     # 19.921875 Hz
+TARGET_RATE = 1_000_000       # [samples/s] streaming target on one core
+
+
+@dataclass
+class Context:
+    rig: Rig
+    model: SpatialModel
+    run: Run
+    batch: ForceEstimate
+    phasors: dict[str, np.ndarray]        # SI phasors 0..H of every streamed channel
+    noise: dict[str, float]               # [SI] white-noise std of every channel
+    work: Path
+
+
+class Clock:
+    """Wall and CPU seconds of a with-block."""
+
+    def __enter__(self) -> Clock:
+        self._wall, self._cpu = time.perf_counter(), time.process_time()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.wall = time.perf_counter() - self._wall
+        self.cpu = time.process_time() - self._cpu
+
+
+def rss_bytes() -> int:
+    """Resident set size of this process [bytes] (Linux /proc; else the peak)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    import resource
+
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+
+
+def fitted_order(sizes, seconds) -> float:
+    """Slope of log(seconds) against log(size): the empirical order of growth."""
+    return float(np.polyfit(np.log(np.asarray(sizes, float)), np.log(np.asarray(seconds)), 1)[0])
+
+
+# ------------------------------------------------------------------------------ signals
+
+
+def setup(work: Path) -> Context:
+    out = work / "paper"
+    write_simulation(out, "paper", seed=0)
+    rig = load_rig(out / "rig.toml")
+    model = build_spatial_model(rig, read_scan_uff(out / "scan.uff"))
+    run = read_run(out / "runs" / "paper.csv")
+    batch = reconstruct(rig, model, run)
+    h = len(batch.harmonics) - 1
+    sig = channels_si(rig, run)
+    phasors = {g: batch.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
+    probes = fit_harmonics(np.stack([sig[s] for s in rig.sensor_names]), run.fs, batch.f0, h,
+                           t0=run.t0).phasors
+    for j, s in enumerate(rig.sensor_names):
+        x = np.zeros(h + 1, dtype=complex)
+        x[0] = probes[j, 0]
+        for k, n in enumerate(model.harmonics):
+            x[n] = sensor_rows(model, rig, int(n))[j] * batch.coordinates.q[k]
+        phasors[s] = x
+    cur = rig.actuator.current
+    phasors[cur] = fit_harmonics(sig[cur], run.fs, batch.f0, h, t0=run.t0).phasors
+    spec = NoiseSpec()
+    noise = {**dict.fromkeys(rig.gauge_names, spec.gauge),
+             **dict.fromkeys(rig.sensor_names, spec.probe), cur: spec.current}
+    return Context(rig, model, run, batch, phasors, noise, work)
+
+
+def synthetic_channels(ctx: Context, names, fs: float, n_samples: int, f0: float,
+                       seed: int = 0) -> np.ndarray:
+    """(n_channels, n_samples) raw samples: phasors at f0 plus the preset's noise."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(n_samples) / fs
+    h = len(next(iter(ctx.phasors.values()))) - 1
+    rot = np.exp(2j * np.pi * np.mod(np.outer(np.arange(h + 1), f0 * t), 1.0))
+    scale = {g.name: g.scale for g in ctx.rig.gauges}
+    scale.update({s.name: s.scale for s in ctx.rig.sensors})
+    scale[ctx.rig.actuator.current] = ctx.rig.actuator.current_scale
+    out = np.empty((len(names), n_samples))
+    for k, name in enumerate(names):
+        out[k] = ((ctx.phasors[name] @ rot).real
+                  + ctx.noise[name] * rng.standard_normal(n_samples)) / scale[name]
+    return out
+
+
+def synthetic_run(ctx: Context, fs: float, duration: float, name: str = "synthetic") -> Run:
+    names = [*ctx.rig.gauge_names, *ctx.rig.sensor_names, ctx.rig.actuator.current]
+    n = round(duration * fs)
+    data = synthetic_channels(ctx, names, fs, n, ctx.batch.f0, seed=11)
+    return Run(channels=dict(zip(names, data, strict=True)), fs=fs, name=name)
+
+
+def synthetic_scan(ctx: Context, n_points: int, n_samples: int, fs: float = 10_000.0,
+                   seed: int = 0) -> Scan:
+    """SLDV velocity records from the model's shapes, each point at its own start phase."""
+    rng = np.random.default_rng(seed)
+    x = np.linspace(0.0, ctx.rig.structure.length, n_points)
+    w = 2 * np.pi * ctx.batch.f0
+    t = np.arange(n_samples) / fs
+    start = rng.uniform(0.0, 1.0 / ctx.batch.f0, n_points)
+    response = np.zeros((n_points, n_samples))
+    reference = np.full((n_points, n_samples), ctx.phasors[ctx.rig.actuator.current][0].real)
+    current = ctx.phasors[ctx.rig.actuator.current]
+    for n in range(1, len(current)):
+        rot = np.exp(1j * n * w * (t[None, :] + start[:, None]))
+        reference += (current[n] * rot).real
+        if n in ctx.model.harmonics:
+            k = ctx.model.index(n)
+            shape = ctx.model.shape_values(n, x) * ctx.batch.coordinates.q[k]
+            response += (1j * n * w * shape[:, None] * rot).real
+    response += NoiseSpec().ldv * rng.standard_normal(response.shape)
+    reference += NoiseSpec().current * rng.standard_normal(reference.shape)
+    return Scan(points=x, response=response, reference=reference, fs=fs)
+
+
+# ------------------------------------------------------------------------------ streaming
+
+
+def _estimator(ctx: Context, n_harmonics: int | None = None) -> StreamEstimator:
+    return StreamEstimator(ctx.rig, ctx.model, F_STREAM, FS_STREAM, n_harmonics=n_harmonics)
+
+
+def _base_blocks(ctx: Context, est: StreamEstimator) -> list[np.ndarray]:
+    data = synthetic_channels(ctx, est.channel_names, FS_STREAM, BASE_SAMPLES, F_STREAM)
+    return [np.ascontiguousarray(data[:, s:s + BLOCK]) for s in range(0, BASE_SAMPLES, BLOCK)]
+
+
+def _feed(est: StreamEstimator, blocks, n_blocks: int, start: int = 0) -> int:
+    for k in range(start, start + n_blocks):
+        est.process(blocks[k % len(blocks)])
+    return start + n_blocks
+
+
+def bench_stream(ctx: Context, n_harmonics: int, n_samples: int, repeats: int = 3) -> dict:
+    """Start-up and steady throughput [samples/s] of 2 gauges + 2 probes + current."""
+    est = _estimator(ctx, n_harmonics)
+    blocks = _base_blocks(ctx, est)
+    warm = -(-steady_count(est.lam) // BLOCK) + 1
+    with Clock() as startup:
+        k = _feed(est, blocks, warm)
+    n_blocks = max(1, n_samples // BLOCK)
+    best_wall = best_cpu = np.inf
+    for _ in range(repeats):
+        with Clock() as c:
+            k = _feed(est, blocks, n_blocks, k)
+        best_wall, best_cpu = min(best_wall, c.wall), min(best_cpu, c.cpu)
+    n = n_blocks * BLOCK
+    return {"harmonics": est.n_harmonics, "samples": n, "seconds_wall": best_wall,
+            "seconds_cpu": best_cpu, "rate_wall": n / best_wall, "rate_cpu": n / best_cpu,
+            "startup_samples": warm * BLOCK, "startup_rate_cpu": warm * BLOCK / startup.cpu,
+            "startup_rate_wall": warm * BLOCK / startup.wall}
+
+
+def bench_latency(ctx: Context, n_blocks: int = 4000) -> dict:
+    """Time of one process() call per block, in steady state; the estimate's own delay."""
+    est = _estimator(ctx)
+    blocks = _base_blocks(ctx, est)
+    k = _feed(est, blocks, -(-steady_count(est.lam) // BLOCK) + 1)
+    times = np.empty(n_blocks)
+    for j in range(n_blocks):
+        t = time.perf_counter()
+        est.process(blocks[(k + j) % len(blocks)])
+        times[j] = time.perf_counter() - t
+    period = 1.0 / est.frequency
+    return {"block": BLOCK, "block_duration_ms": 1e3 * BLOCK / FS_STREAM,
+            "median_ms": 1e3 * float(np.median(times)),
+            "p99_ms": 1e3 * float(np.percentile(times, 99)), "max_ms": 1e3 * float(times.max()),
+            "estimate_latency_periods": est.latency_periods,
+            "estimate_latency_ms": 1e3 * est.latency_periods * period,
+            "settling_1e-3_periods": est.settling_periods(1e-3)}
+
+
+def bench_memory(ctx: Context, minutes: float) -> dict:
+    """RSS over a long stream of repeated blocks with continuing time; traced allocations."""
+    est = _estimator(ctx)
+    blocks = _base_blocks(ctx, est)
+    per_minute = round(60 * FS_STREAM / BLOCK)
+    total = round(minutes * per_minute)
+    marks = sorted({max(1, round(total * f)) for f in (0.05, 0.1, 0.25, 0.5, 1.0)})
+    rss, k = [], 0
+    with Clock() as c:
+        for mark in marks:
+            k = _feed(est, blocks, mark - k, k)
+            rss.append({"stream_minutes": k / per_minute, "rss_mb": rss_bytes() / 2**20})
+    # allocations still held, every 1000 blocks: the state is of fixed size, the caches of
+    # per-frequency tables are bounded (lru), so the level stays put
+    tracemalloc.start()
+    try:
+        k = _feed(est, blocks, 500, k)
+        traced = []
+        for _ in range(6):
+            k = _feed(est, blocks, 1000, k)
+            traced.append(tracemalloc.get_traced_memory()[0])
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    slope = float(np.polyfit(np.arange(6) * 1000, traced, 1)[0])
+    return {"stream_minutes": minutes, "samples": total * BLOCK, "rss": rss,
+            "rss_growth_mb": rss[-1]["rss_mb"] - rss[0]["rss_mb"],
+            "traced_bytes_every_1000_blocks": traced, "traced_bytes_per_block": slope,
+            "traced_peak_bytes": peak, "seconds_wall": c.wall,
+            "realtime_factor": total * BLOCK / FS_STREAM / c.wall,
+            "tracked_frequency_hz": est.frequency, "true_frequency_hz": F_STREAM}
+
+
+# ------------------------------------------------------------------------------ batch
+
+
+def bench_campaign(ctx: Context) -> dict:
+    """Batch reconstruct of every run of the 'campaign' preset."""
+    out = ctx.work / "campaign"
+    with Clock() as sim:
+        write_simulation(out, "campaign", seed=0)
+    rig = load_rig(out / "rig.toml")
+    with Clock() as build:
+        model = build_spatial_model(rig, read_scan_uff(out / "scan.uff"))
+    seconds = []
+    for path in sorted((out / "runs").glob("*.csv")):
+        run = read_run(path)
+        if run.name == "tare":
+            continue
+        with Clock() as c:
+            reconstruct(rig, model, run)
+        seconds.append(c.cpu)
+    return {"runs": len(seconds), "samples_per_run": run.n_samples,
+            "seconds_per_run_cpu": float(np.mean(seconds)), "min_cpu": float(np.min(seconds)),
+            "max_cpu": float(np.max(seconds)), "simulate_seconds_wall": sim.wall,
+            "scan_model_seconds_cpu": build.cpu}
+
+
+def bench_reconstruct(ctx: Context, duration: float, n_harmonics: int | None = None) -> float:
+    run = synthetic_run(ctx, 10_000.0, duration)
+    with Clock() as c:
+        reconstruct(ctx.rig, ctx.model, run, n_harmonics=n_harmonics)
+    return c.cpu
+
+
+def bench_scan(ctx: Context, n_points: int, n_samples: int) -> float:
+    scan = synthetic_scan(ctx, n_points, n_samples)
+    with Clock() as c:
+        build_spatial_model(ctx.rig, scan, n_harmonics=6)
+    return c.cpu
+
+
+# ------------------------------------------------------------------------------ CLI (later)
+
+
+def time_cli_stream(ctx: Context) -> dict:
+    """CLI STREAMING TIMING, to be completed when ``forcecal stream`` exists.
+
+    Measures ``python -m forcecal stream RIG MODEL RUN -o OUT.csv`` on a 60 s, 10.24 kHz HDF5
+    run built from the simulated paper run's phasors. Skips (prints 'n/a') while the command
+    is not there.
+    """
+    probe = subprocess.run([sys.executable, "-m", "forcecal", "stream", "--help"],
+                           capture_output=True, text=True, check=False)
+    if probe.returncode != 0:
+        print("forcecal stream CLI: n/a (the 'stream' command is not available yet)")
+        return {"available": False, "seconds_wall": None}
+    fs, duration = 10_240.0, 60.0
+    work = ctx.work / "cli"
+    work.mkdir(exist_ok=True)
+    names = [*ctx.rig.gauge_names, *ctx.rig.sensor_names, ctx.rig.actuator.current]
+    n = round(fs * duration)
+    data = synthetic_channels(ctx, names, fs, n, ctx.batch.f0, seed=21)
+    run_path = write_run_hdf5(Run(channels=dict(zip(names, data, strict=True)), fs=fs,
+                                  name="cli"), work / "cli.h5")
+    model_path = ctx.model.save(work / "model.json")
+    rig_path = ctx.work / "paper" / "rig.toml"
+    out = work / "cli.forces.csv"
+    cmd = [sys.executable, "-m", "forcecal", "stream", str(rig_path), str(model_path),
+           str(run_path), "-o", str(out)]
+    with Clock() as c:
+        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    ok = done.returncode == 0 and out.is_file()
+    if not ok:
+        print(f"forcecal stream CLI: failed (exit {done.returncode}): "
+              f"{done.stderr.strip().splitlines()[-1:] or ''}")
+    return {"available": True, "ok": ok, "samples": n, "seconds_wall": c.wall,
+            "rate_wall": n / c.wall, "realtime_factor": duration / c.wall}
+
+
+# ------------------------------------------------------------------------------ report
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="shorter stream, fewer sizes")
+    args = parser.parse_args(argv)
+    quick = args.quick
+    res: dict = {"machine": {"python": platform.python_version(), "numpy": np.__version__,
+                             "cpu": platform.processor() or platform.machine(),
+                             "load_average": os.getloadavg() if hasattr(os, "getloadavg")
+                             else None, "threads": os.environ.get("OPENBLAS_NUM_THREADS")}}
+    with tempfile.TemporaryDirectory(prefix="forcecal-bench-") as tmp:
+        say("simulating the paper preset")
+        ctx = setup(Path(tmp))
+        say("streaming throughput")
+        n_main = 2**19 if quick else 2**21
+        res["stream"] = bench_stream(ctx, 6, n_main)
+        say("streaming latency")
+        res["latency"] = bench_latency(ctx, 1000 if quick else 4000)
+        say("streaming memory")
+        res["memory"] = bench_memory(ctx, 1.0 if quick else 10.0)
+        say("scaling of the stream")
+        sizes = [2**17, 2**19] if quick else [2**17, 2**19, 2**21]
+        by_n = [bench_stream(ctx, 6, n, repeats=1)["seconds_cpu"] for n in sizes]
+        harm = [3, 6, 12]
+        by_h = [bench_stream(ctx, h, 2**18 if quick else 2**19, repeats=1) for h in harm]
+        res["stream_scaling"] = {
+            "samples": sizes, "seconds_cpu": by_n, "order_in_samples": fitted_order(sizes, by_n),
+            "harmonics": harm, "rate_cpu": [b["rate_cpu"] for b in by_h],
+            "order_in_harmonics": fitted_order(harm, [1 / b["rate_cpu"] for b in by_h])}
+        say("batch reconstruct on the campaign preset")
+        res["campaign"] = bench_campaign(ctx)
+        say("scaling of the batch reconstruct")
+        durations = [0.5, 1.0] if quick else [0.5, 1.0, 2.0]
+        by_len = [bench_reconstruct(ctx, d) for d in durations]
+        by_hb = [bench_reconstruct(ctx, 1.0, h) for h in harm]
+        res["reconstruct_scaling"] = {
+            "samples": [round(d * 1e4) for d in durations], "seconds_cpu": by_len,
+            "order_in_samples": fitted_order(durations, by_len), "harmonics": harm,
+            "seconds_cpu_by_harmonics": by_hb, "order_in_harmonics": fitted_order(harm, by_hb)}
+        say("scan model: 500 points x 16384 samples")
+        res["scan"] = {"points": 500, "samples": 16384, "seconds_cpu": bench_scan(ctx, 500, 16384)}
+        say("scaling of the scan model")
+        pts = [125, 250] if quick else [125, 250, 500]
+        by_p = [bench_scan(ctx, p, 16384) for p in pts[:-1]] + (
+            [res["scan"]["seconds_cpu"]] if pts[-1] == 500 else [bench_scan(ctx, pts[-1], 16384)])
+        lens = [4096, 8192, 16384]
+        by_s = [bench_scan(ctx, 125, s) for s in lens[:-1]] + [by_p[0]]
+        res["scan_scaling"] = {"points": pts, "seconds_cpu_by_points": by_p,
+                               "order_in_points": fitted_order(pts, by_p),
+                               "samples": lens, "seconds_cpu_by_samples": by_s,
+                               "order_in_samples": fitted_order(lens, by_s)}
+        say("CLI stream")
+        res["cli_stream"] = time_cli_stream(ctx)
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(res, indent=2, default=float) + "\n")
+    print(table(res))
+    print(f"\nwritten: {RESULTS}")
+    return 0
+
+
+def say(msg: str) -> None:
+    print(f"... {msg}", file=sys.stderr, flush=True)
+
+
+def table(res: dict) -> str:
+    s, lat, mem = res["stream"], res["latency"], res["memory"]
+    sc, camp, rs = res["stream_scaling"], res["campaign"], res["reconstruct_scaling"]
+    scan, ss, cli = res["scan"], res["scan_scaling"], res["cli_stream"]
+    ok = "meets" if s["rate_cpu"] >= TARGET_RATE else "MISSES"
+    rows = [
+        ("stream, 5 ch, H=6, block 256 (steady)",
+         f"{s['rate_cpu'] / 1e6:.2f} MS/s CPU, {s['rate_wall'] / 1e6:.2f} MS/s wall "
+         f"({ok} the 1 MS/s target)"),
+        ("stream start-up (exact per-sample solve)",
+         f"{s['startup_rate_cpu'] / 1e3:.0f} kS/s CPU over the first "
+         f"{s['startup_samples'] / FS_STREAM:.1f} s of signal"),
+        ("latency per block of 256 (5 ms of signal)",
+         f"median {lat['median_ms']:.3f} ms, p99 {lat['p99_ms']:.3f} ms, "
+         f"max {lat['max_ms']:.2f} ms"),
+        ("estimate's own delay (default memory)",
+         f"{lat['estimate_latency_periods']:.2f} periods = {lat['estimate_latency_ms']:.0f} ms;"
+         f" step settles to 1e-3 in {lat['settling_1e-3_periods']:.1f} periods"),
+        (f"memory over {mem['stream_minutes']:g} min at 51.2 kS/s",
+         "RSS " + " -> ".join(f"{r['rss_mb']:.1f}" for r in mem["rss"])
+         + f" MB (growth {mem['rss_growth_mb']:+.2f} MB); traced "
+         f"{min(mem['traced_bytes_every_1000_blocks']) / 1e3:.0f}-"
+         f"{max(mem['traced_bytes_every_1000_blocks']) / 1e3:.0f} kB over 6000 blocks, "
+         f"slope {mem['traced_bytes_per_block']:+.1f} B/block; "
+         f"{mem['realtime_factor']:.0f}x real time"),
+        ("stream vs samples", ", ".join(f"{n}: {t:.3f} s" for n, t in
+                                       zip(sc["samples"], sc["seconds_cpu"], strict=True))
+         + f"  -> order {sc['order_in_samples']:.2f}"),
+        ("stream vs harmonics", ", ".join(f"H={h}: {r / 1e6:.2f} MS/s" for h, r in
+                                         zip(sc["harmonics"], sc["rate_cpu"], strict=True))
+         + f"  -> time order {sc['order_in_harmonics']:.2f} in H"),
+        (f"batch reconstruct, campaign ({camp['runs']} runs of {camp['samples_per_run']})",
+         f"{camp['seconds_per_run_cpu']:.2f} s/run CPU (min {camp['min_cpu']:.2f}, "
+         f"max {camp['max_cpu']:.2f})"),
+        ("reconstruct vs samples", ", ".join(f"{n}: {t:.2f} s" for n, t in
+                                            zip(rs["samples"], rs["seconds_cpu"], strict=True))
+         + f"  -> order {rs['order_in_samples']:.2f}"),
+        ("reconstruct vs harmonics", ", ".join(
+            f"H={h}: {t:.2f} s" for h, t in zip(rs["harmonics"], rs["seconds_cpu_by_harmonics"],
+                                                strict=True))
+         + f"  -> order {rs['order_in_harmonics']:.2f}"),
+        ("scan model, 500 points x 16384 samples", f"{scan['seconds_cpu']:.2f} s CPU"),
+        ("scan model vs points (16384 samples)", ", ".join(
+            f"{p}: {t:.2f} s" for p, t in zip(ss["points"], ss["seconds_cpu_by_points"],
+                                              strict=True))
+         + f"  -> order {ss['order_in_points']:.2f}"),
+        ("scan model vs samples (125 points)", ", ".join(
+            f"{n}: {t:.2f} s" for n, t in zip(ss["samples"], ss["seconds_cpu_by_samples"],
+                                              strict=True))
+         + f"  -> order {ss['order_in_samples']:.2f}"),
+        ("forcecal stream CLI, 60 s at 10.24 kHz (HDF5)",
+         "n/a" if not cli["available"] else f"{cli['seconds_wall']:.2f} s wall"),
+    ]
+    width = max(len(r[0]) for r in rows)
+    return "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

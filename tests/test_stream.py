@@ -1,0 +1,357 @@
+"""The real-time estimator (forcecal.stream) against exact RLS, the batch estimate and known
+synthetic truths (a step in drive amplitude, a drifting drive frequency)."""
+
+from __future__ import annotations
+
+import tracemalloc
+
+import numpy as np
+import pytest
+
+from forcecal.coordinates import sensor_rows
+from forcecal.errors import DataError, DimensionError, InputError
+from forcecal.forces import channels_si, reconstruct
+from forcecal.harmonics import design_matrix, fit_harmonics
+from forcecal.io.run_files import read_table_csv
+from forcecal.records import Run
+from forcecal.relaxation import force_matrix
+from forcecal.simulate.presets import NoiseSpec
+from forcecal.stream import (
+    StreamEstimator,
+    harmonic_start,
+    harmonic_update,
+    replay,
+    rls_start,
+    rls_update,
+    steady_count,
+    write_stream_csv,
+)
+
+NOISE = NoiseSpec()
+NOISE_STD = {"R1": NOISE.gauge, "R2": NOISE.gauge, "s1": NOISE.probe, "s2": NOISE.probe,
+             "i": NOISE.current}
+NOISE_FACTOR = 4.0
+"""Streamed forces stay within this many times their predicted noise std of the reference."""
+
+
+# ------------------------------------------------------------------------------ fixtures
+
+
+@pytest.fixture(scope="module")
+def batch(paper):
+    rig, _, model, run = paper
+    return reconstruct(rig, model, run)
+
+
+@pytest.fixture(scope="module")
+def phasors(paper, batch):
+    """Channel phasors consistent with the batch estimate (SI), probes exactly phi_n Q_n."""
+    rig, _, model, run = paper
+    h = len(batch.harmonics) - 1
+    sig = channels_si(rig, run)
+    out = {g: batch.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
+    probes = fit_harmonics(np.stack([sig[s] for s in rig.sensor_names]), run.fs, batch.f0, h,
+                           t0=run.t0).phasors
+    for j, s in enumerate(rig.sensor_names):
+        x = np.zeros(h + 1, dtype=complex)
+        x[0] = probes[j, 0]
+        for k, n in enumerate(model.harmonics):
+            x[n] = sensor_rows(model, rig, int(n))[j] * batch.coordinates.q[k]
+        out[s] = x
+    out[rig.actuator.current] = fit_harmonics(sig[rig.actuator.current], run.fs, batch.f0, h,
+                                              t0=run.t0).phasors
+    return out
+
+
+def synthetic_run(rig, model, batch, phasors, duration, f_start, f_end, seed, gain=None):
+    """Channels sum_n Re(X_n e^{j n theta(t)}) + the preset's noise, the drive frequency
+    moving linearly from f_start to f_end; the true forces F_n(w(t)) of the same phasors.
+
+    gain : optional callable t -> (n,) scaling every channel (and so every force).
+    """
+    fs = 10_000.0
+    t = np.arange(round(duration * fs)) / fs
+    cycles = f_start * t + (f_end - f_start) * t**2 / (2 * duration)
+    w = 2 * np.pi * (f_start + (f_end - f_start) * t / duration)
+    h = len(batch.harmonics) - 1
+    rot = np.exp(2j * np.pi * np.mod(np.outer(np.arange(h + 1), cycles), 1.0))
+    g = np.ones_like(t) if gain is None else gain(t)
+    rng = np.random.default_rng(seed)
+    channels = {name: g * (x @ rot).real + NOISE_STD[name] * rng.standard_normal(t.size)
+                for name, x in phasors.items()}
+    pinv = np.linalg.pinv(force_matrix(rig))
+    r = np.stack([phasors[name] for name in rig.gauge_names])
+    force = np.repeat(-(pinv @ r[:, :1]).real, t.size, axis=1)
+    for k, n in enumerate(model.harmonics):
+        n = int(n)
+        inertia = model.couplings[k][:, None] * (-((n * w) ** 2)) * batch.coordinates.q[k]
+        force += ((pinv @ (inertia - r[:, n:n + 1])) * rot[n]).real
+    return Run(channels=channels, fs=fs, name="synthetic"), g * force
+
+
+def stacked(forces):
+    return np.stack(list(forces.values()))
+
+
+def rms(x, axis=None):
+    return np.sqrt(np.mean(np.square(x), axis=axis))
+
+
+def periods_to_samples(periods, f0, fs):
+    return int(round(periods * fs / f0))
+
+
+# ------------------------------------------------------------------------------ exactness
+
+
+def test_harmonic_update_is_exact_rls_with_forgetting():
+    """The demodulated block form equals information-form RLS on the design matrix, through
+    the start-up (per-sample M_k) and the stationary stretch, for any block split."""
+    rng = np.random.default_rng(1)
+    fs, f0, h, lam, t0 = 2000.0, 13.7, 3, 0.99, 0.37
+    n = steady_count(lam) + 1500
+    t = t0 + np.arange(n) / fs
+    x = rng.normal(size=(4, h + 1)) + 1j * rng.normal(size=(4, h + 1))
+    x[:, 0] = x[:, 0].real
+    y = (x @ np.exp(2j * np.pi * f0 * np.outer(np.arange(h + 1), t))).real
+    y += 0.1 * rng.standard_normal(y.shape)
+    _, theta = rls_update(rls_start(2 * h + 1, 4), y, design_matrix(t, f0, h).T, lam)
+    reference = np.concatenate([theta[:, :1], theta[:, 1::2] + 1j * theta[:, 2::2]], axis=1)
+
+    state, pieces = harmonic_start(4, h, f0, fs, t0), []
+    for start in range(0, n, 777):
+        state, out = harmonic_update(state, y[:, start:start + 777], lam)
+        pieces.append(out)
+    fast = np.concatenate(pieces, axis=-1)
+    settled = int(fs / f0)            # the first period is ill-conditioned for both forms
+    np.testing.assert_allclose(fast[..., settled:], reference[..., settled:], rtol=0,
+                               atol=1e-11 * np.abs(reference).max())
+    assert steady_count(lam) < n - 1000                  # both regimes were compared
+
+
+def test_force_readout_equals_the_phasor_path(paper):
+    """Mixing the readout into the demodulation (stationary fast path) changes nothing; the
+    estimator is the pure function plus its set-up (filterpy style)."""
+    rig, _, model, run = paper
+    est = StreamEstimator(rig, model, model.f0, run.fs, forgetting=1 - 1 / 200,
+                          track_frequency=False, t0=run.t0)
+    raw = np.stack([run.channel(name) for name in est.channel_names])
+    y = raw * np.array([1.0] * len(est.channel_names))[:, None]      # the paper rig: scale 1
+    readout = est._force_readout(2 * np.pi * model.f0)
+    state, phasor_path = harmonic_start(len(y), est.n_harmonics, model.f0, run.fs, run.t0), []
+    for start in range(0, y.shape[1], 500):
+        state, x = harmonic_update(state, y[:, start:start + 500], est.lam)
+        u_complex = x * np.exp(2j * np.pi * model.f0 * np.outer(
+            np.arange(est.n_harmonics + 1), run.t0 + np.arange(start, start + x.shape[-1])
+            / run.fs))
+        u = np.concatenate([u_complex[:, :1].real, np.stack(
+            [u_complex[:, 1:].real, u_complex[:, 1:].imag], axis=2).reshape(
+            len(y), -1, x.shape[-1])], axis=1)
+        phasor_path.append(np.einsum("ocp,cpj->oj", readout, u))
+    expected = np.concatenate(phasor_path, axis=-1)
+    force = np.concatenate([est.process(raw[:, s:s + 256])[0]
+                            for s in range(0, raw.shape[1], 256)], axis=-1)
+    assert est.state.count > steady_count(est.lam)                  # fast path was used
+    settled = int(run.fs / model.f0)        # the first period is ill-conditioned for both
+    np.testing.assert_allclose(force[:, settled:], expected[:, settled:], rtol=0, atol=1e-9)
+
+
+def test_block_size_does_not_change_the_result(paper):
+    """Blocks of 1, 7, 256 and 4096 samples: identical forces (start-up, stationary fast
+    path and frequency tracking all crossed)."""
+    rig, _, model, run = paper
+    options = {"forgetting": 1 - 1 / 200, "f0_guess": rig.frequency}
+    results = {b: replay(rig, model, run, b, **options) for b in (4096, 256, 7, 1)}
+    ref_time, ref_force, ref_static = results[4096]
+    assert steady_count(options["forgetting"]) < run.n_samples
+    scale = np.abs(stacked(ref_force)).max()
+    for b, (time, force, static) in results.items():
+        np.testing.assert_array_equal(time, ref_time)
+        np.testing.assert_allclose(stacked(force), stacked(ref_force), rtol=0,
+                                   atol=1e-12 * scale, err_msg=f"block {b}")
+        np.testing.assert_allclose(stacked(static), stacked(ref_static), rtol=0,
+                                   atol=1e-12 * scale)
+
+
+# ------------------------------------------------------------------------------ accuracy
+
+
+def test_stationary_run_agrees_with_batch_reconstruct(paper, batch):
+    """After 5 latencies the streamed forces agree sample by sample with the batch forces
+    within NOISE_FACTOR times the stream's own noise (its window holds ~ (1+lam)/(1-lam)
+    samples against the batch's N), and far inside the reactions-only error."""
+    rig, _, model, run = paper
+    time, force, static = replay(rig, model, run, block=256)
+    est = StreamEstimator(rig, model, model.f0, run.fs)
+    skip = periods_to_samples(5 * est.latency_periods, batch.f0, run.fs)
+    sig = channels_si(rig, run)
+    sigma = fit_harmonics(np.stack([sig[c] for c in est.channel_names]), run.fs, batch.f0,
+                          len(batch.harmonics) - 1, t0=run.t0).residual_std
+    predicted = est.noise_std(sigma)
+    # the window's noise vs the batch's: var ratio ~ N (1 - lam) / (1 + lam) per harmonic
+    assert 1.5 < predicted.min() / batch.force_std[:, 1:4].max() < 10
+    error = rms(stacked(force)[:, skip:] - batch.series[:, skip:], axis=1)
+    static_error = rms(stacked(static)[:, skip:] - batch.series[:, skip:], axis=1)
+    assert np.all(error < NOISE_FACTOR * predicted), (error, predicted)
+    assert np.all(error < 0.05 * static_error)
+    np.testing.assert_allclose(stacked(static), batch.static_series, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(time, batch.time)
+
+
+def test_phasor_noise_matches_the_forgetting_prediction():
+    """White noise: var(Re X_n) = var(Im X_n) = (1-lam)/(1+lam) 2 sigma^2 (n >= 1) and
+    (1-lam)/(1+lam) sigma^2 for the mean."""
+    rng = np.random.default_rng(7)
+    lam, sigma, h = 0.99, 0.3, 2
+    y = sigma * rng.standard_normal((1, 120_000))
+    _, x = harmonic_update(harmonic_start(1, h, 50.0, 5000.0), y, lam)
+    x = x[0, :, steady_count(lam):]
+    factor = (1 - lam) / (1 + lam)
+    np.testing.assert_allclose(np.var(x[0].real), factor * sigma**2, rtol=0.15)
+    for n in (1, 2):
+        np.testing.assert_allclose(np.var(x[n].real), 2 * factor * sigma**2, rtol=0.15)
+        np.testing.assert_allclose(np.var(x[n].imag), 2 * factor * sigma**2, rtol=0.15)
+
+
+def test_step_in_drive_amplitude_settles_as_stated(paper, batch, phasors):
+    """Every channel (so every force) jumps by half at t = 1 s. The estimate lags at first,
+    and within settling_periods(1e-3) periods the error is back to the noise plus 1e-3 of
+    the step."""
+    rig, _, model, _ = paper
+    t_step, jump = 1.0, 1.5
+    run, truth = synthetic_run(rig, model, batch, phasors, 2.5, batch.f0, batch.f0, seed=3,
+                               gain=lambda t: np.where(t < t_step, 1.0, jump))
+    _, force, _ = replay(rig, model, run, 256, f0_guess=batch.f0)
+    est = StreamEstimator(rig, model, batch.f0, run.fs)
+    sigma = np.array([NOISE_STD[c] for c in est.channel_names])
+    noise = NOISE_FACTOR * est.noise_std(sigma)[:, None]
+    err = np.abs(stacked(force) - truth)
+    k_step = round(t_step * run.fs)
+    period = periods_to_samples(1, batch.f0, run.fs)
+    settle = periods_to_samples(est.settling_periods(1e-3), batch.f0, run.fs)
+    assert 10 < est.settling_periods(1e-3) < 20          # 6.9 memories of 2 periods
+    step_size = rms((jump - 1) * truth[:, :k_step] , axis=1)[:, None] / (jump - 1) * 0.5
+    before = slice(periods_to_samples(10, batch.f0, run.fs), k_step)
+    assert np.all(rms(err[:, before], axis=1)[:, None] < noise)
+    assert np.all(rms(err[:, k_step:k_step + period], axis=1)[:, None] > 0.1 * step_size)
+    after = slice(k_step + settle, None)
+    assert np.all(rms(err[:, after], axis=1)[:, None] < noise + 1e-3 * step_size)
+
+
+def test_frequency_drift_is_tracked(paper, batch, phasors):
+    """The drive frequency rises by 0.2 % over a 2 s record: with tracking the forces stay at
+    the noise level after 10 periods and the frequency is followed; a fixed frequency lags
+    more and more."""
+    rig, _, model, _ = paper
+    f_end = batch.f0 * 1.002
+    run, truth = synthetic_run(rig, model, batch, phasors, 2.0, batch.f0, f_end, seed=5)
+    est = StreamEstimator(rig, model, batch.f0, run.fs)
+    raw = np.stack([run.channels[c] for c in est.channel_names])
+    tracked = np.concatenate([est.process(raw[:, s:s + 256])[0]
+                              for s in range(0, raw.shape[1], 256)], axis=-1)
+    _, fixed, _ = replay(rig, model, run, 256, f0_guess=batch.f0, track_frequency=False)
+    sigma = np.array([NOISE_STD[c] for c in est.channel_names])
+    noise = NOISE_FACTOR * est.noise_std(sigma)
+    settled = slice(periods_to_samples(10, batch.f0, run.fs), None)
+    last = slice(-periods_to_samples(5, batch.f0, run.fs), None)
+    assert np.all(rms(tracked[:, settled] - truth[:, settled], axis=1) < noise)
+    assert np.all(rms(stacked(fixed)[:, last] - truth[:, last], axis=1) > 3 * noise)
+    assert abs(est.frequency / f_end - 1) < 5e-5
+
+
+# ------------------------------------------------------------------------------ interface
+
+
+def test_memory_stays_flat(paper, batch, phasors):
+    """The state is of fixed size: thousands more blocks allocate nothing that stays."""
+    rig, _, model, _ = paper
+    f0 = 20.0                               # 500 samples a period: 5 periods repeat smoothly
+    run, _ = synthetic_run(rig, model, batch, phasors, 0.25, f0, f0, seed=9)
+    est = StreamEstimator(rig, model, f0, run.fs, forgetting=1 - 1 / 100)
+    raw = np.stack([run.channels[c] for c in est.channel_names])
+    blocks = [raw[:, s:s + 250] for s in range(0, raw.shape[1], 250)]
+
+    def feed(n_blocks):
+        for k in range(n_blocks):
+            est.process(blocks[k % len(blocks)])
+
+    feed(300)                                           # past start-up, caches filled
+    tracemalloc.start()
+    try:
+        feed(100)
+        first, _ = tracemalloc.get_traced_memory()
+        feed(1500)
+        second, _ = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert second - first < 64_000
+    assert est.state.demod.shape == (len(est.channel_names), est.n_harmonics + 1)
+
+
+def test_dict_and_array_blocks_agree_and_channels_are_checked(paper):
+    rig, _, model, run = paper
+    a = StreamEstimator(rig, model, model.f0, run.fs, t0=run.t0)
+    b = StreamEstimator(rig, model, model.f0, run.fs, t0=run.t0)
+    block = {name: run.channel(name)[:300] for name in run.channels}   # extra 'phi', 'v'
+    fa, sa = a.process(block)
+    fb, sb = b.process(np.stack([block[name] for name in b.channel_names]))
+    np.testing.assert_array_equal(fa, fb)
+    np.testing.assert_array_equal(sa, sb)
+    assert fa.shape == (len(rig.forces), 300)
+    with pytest.raises(DataError, match="'s2'"):
+        a.process({k: v for k, v in block.items() if k != "s2"})
+    with pytest.raises(DimensionError, match=r"\(5, n\)"):
+        a.process(np.zeros((4, 10)))
+    bad = dict(block)
+    bad["R1"] = block["R1"].copy()
+    bad["R1"][17] = np.nan
+    with pytest.raises(DataError, match="channel 'R1' has 1 NaN"):
+        a.process(bad)
+
+
+def test_bad_options_are_refused(paper):
+    rig, _, model, run = paper
+    with pytest.raises(InputError, match="forgetting factor"):
+        StreamEstimator(rig, model, model.f0, run.fs, forgetting=1.0)
+    with pytest.raises(InputError, match="memory"):
+        StreamEstimator(rig, model, model.f0, run.fs, forgetting=0.9)
+    with pytest.raises(DataError, match="Nyquist"):
+        StreamEstimator(rig, model, model.f0, run.fs, n_harmonics=300)
+    with pytest.raises(InputError, match="block"):
+        replay(rig, model, run, block=0)
+
+
+def test_tare_and_ac_coupling_remove_the_dc(paper, batch):
+    """A tare equal to the run removes the DC force; AC-coupled gauges give no DC at all;
+    after the start-up both leave the same AC force, and the AC-coupled static estimate has
+    the tracked DC removed."""
+    rig, _, model, run = paper
+    _, tared, _ = replay(rig, model, run, 512, tare=run)
+    _, ac, ac_static = replay(rig, model, run, 512, ac_coupled=True)
+    skip = periods_to_samples(10, batch.f0, run.fs)
+    dc = np.abs(batch.force[:, 0])
+    assert np.all(dc > 5.0)                                          # a DC worth removing
+    for f in (stacked(tared), stacked(ac)):
+        assert np.all(np.abs(f[:, skip:].mean(axis=1)) < 1e-3 * dc)
+    np.testing.assert_allclose(stacked(tared)[:, skip:], stacked(ac)[:, skip:], rtol=0,
+                               atol=0.01)
+    assert np.all(np.abs(stacked(ac_static)[:, skip:].mean(axis=1)) < 1e-2 * dc)
+
+
+def test_latency_is_stated_in_periods(paper):
+    rig, _, model, run = paper
+    est = StreamEstimator(rig, model, model.f0, run.fs)
+    assert est.memory == pytest.approx(2 * run.fs / model.f0)       # the default: 2 periods
+    assert est.latency_periods == pytest.approx((est.memory - 1) * model.f0 / run.fs)
+    assert est.settling_periods(np.exp(-1)) == pytest.approx(2.0, rel=1e-3)
+
+
+def test_stream_csv_has_the_reconstruct_columns(paper, tmp_path):
+    rig, _, model, run = paper
+    time, force, static = replay(rig, model, run, block=1024)
+    path = write_stream_csv(tmp_path / "paper.forces.csv", time, force, static)
+    t, cols = read_table_csv(path)
+    assert list(cols) == ["F1", "F2", "total", "F1_static", "F2_static", "total_static"]
+    np.testing.assert_array_equal(t, time)
+    np.testing.assert_array_equal(cols["F2"], force["F2"])
+    np.testing.assert_allclose(cols["total_static"], static["F1"] + static["F2"], rtol=1e-15)
