@@ -38,6 +38,7 @@ __all__ = [
     "write_run_hdf5",
     "write_run_tdms",
     "write_table_csv",
+    "write_table_hdf5",
 ]
 
 MIN_SAMPLES = 16
@@ -551,6 +552,16 @@ def write_run_hdf5(run: Run, path: str | Path) -> Path:
         for name, values in run.channels.items():
             h5.create_dataset(name, data=np.asarray(values, dtype=float))
     return Path(path)
+
+
+def write_table_hdf5(path: str | Path, time: np.ndarray,
+                     columns: Mapping[str, np.ndarray]) -> Path:
+    """Write ``time`` and named columns as HDF5 in the run layout (root datasets, attribute
+    ``fs`` from the time step, ``t0``), atomically; :func:`read_run` reads it back."""
+    time = np.asarray(time, dtype=float).ravel()
+    step = float(np.mean(np.diff(time))) if time.size > 1 else 1.0
+    return write_run_hdf5(Run(channels=dict(columns), fs=1.0 / step,
+                              t0=float(time[0]) if time.size else 0.0), path)
 
 
 def _first_line(exc: BaseException) -> str:
