@@ -241,7 +241,7 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("simulate", help="write a virtual rig's files", formatter_class=fmt,
                        epilog="example:\n  forcecal simulate lab --preset campaign --seed 1")
     p.add_argument("out", help="output folder")
-    p.add_argument("--preset", default="paper", help="paper, resonance or campaign")
+    p.add_argument("--preset", default="paper", help="paper, resonance, campaign or plate")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--binary-uff", action="store_true", help="write the scan as dataset 58b")
     p.set_defaults(func=_cmd_simulate)

@@ -359,6 +359,10 @@ def _total_rss(groups: list[np.ndarray], fs: float, f0: float, h: int, t0: float
     return total
 
 
+_SEGMENT_PERIODS = 40
+"""Periods of the leading segment on which :func:`refine_fundamental` first searches."""
+
+
 def refine_fundamental(
     records: np.ndarray | Sequence[np.ndarray],
     fs: float,
@@ -439,14 +443,25 @@ def refine_fundamental(
     groups = _group_by_length(scaled)
     total_var = float(lengths.sum())  # each scaled record has unit mean square
 
-    duration = lengths.max() / fs
-    spacing = 1.0 / (2.0 * n_harmonics * duration)
-    n_grid = max(math.ceil((f_hi - f_lo) / spacing) + 1, 5)
-    grid = np.linspace(f_lo, f_hi, n_grid)
-    rss = np.array([_total_rss(groups, fs, f, n_harmonics, t0) for f in grid])
-    i_best = int(np.argmin(rss))
-    lo = grid[max(i_best - 1, 0)]
-    hi = grid[min(i_best + 1, n_grid - 1)]
+    # coarse to fine: the full grid on a leading segment of the records, then the segment
+    # doubled with the bracket narrowed each time, so the work grows like the record length,
+    # not like its square (the valley of the objective narrows as 1 / duration)
+    n_full = int(lengths.max())
+    n_seg = min(n_full, max(int(_SEGMENT_PERIODS * fs / f0_nominal), int(lengths.min())))
+    lo_f, hi_f = f_lo, f_hi
+    while True:
+        part = [g[:, :n_seg] for g in groups]
+        spacing = 1.0 / (2.0 * n_harmonics * n_seg / fs)
+        n_grid = max(math.ceil((hi_f - lo_f) / spacing) + 1, 5)
+        grid = np.linspace(lo_f, hi_f, n_grid)
+        rss = np.array([_total_rss(part, fs, f, n_harmonics, t0) for f in grid])
+        i_best = int(np.argmin(rss))
+        lo = grid[max(i_best - 1, 0)]
+        hi = grid[min(i_best + 1, n_grid - 1)]
+        if n_seg >= n_full:
+            break
+        n_seg = min(2 * n_seg, n_full)
+        lo_f, hi_f = max(lo - spacing, f_lo), min(hi + spacing, f_hi)
     res = minimize_scalar(
         lambda f: _total_rss(groups, fs, f, n_harmonics, t0),
         bounds=(lo, hi),

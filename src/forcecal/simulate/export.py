@@ -20,7 +20,7 @@ from ..io.run_files import write_run_csv, write_table_csv
 from ..io.uff import write_scan_uff
 from ..rig import rig_to_dict
 from .beam import natural_frequencies
-from .presets import Preset, get_preset
+from .presets import PlateSpec, Preset, get_preset
 from .virtual_rig import Truth, build_model, public_rig, record_run, record_scan
 
 __all__ = ["write_simulation", "write_truth"]
@@ -40,15 +40,32 @@ def write_truth(out: Path, name: str, truth: Truth) -> None:
                 flux=truth.flux)
 
 
+def _structure_facts(preset: Preset) -> dict:
+    s = preset.beam
+    if isinstance(s, PlateSpec):
+        return {
+            "structure": "plate",
+            "size_m": [s.a, s.b], "thickness_m": s.thickness,
+            "youngs_modulus_Pa": s.youngs_modulus, "poisson": s.poisson,
+            "flexural_rigidity_Nm": s.flexural_rigidity,
+            "mass_per_area_kg_m2": s.mass_per_area,
+            "mesh": list(s.mesh),
+            "gauge_stiffness_N_m": s.gauge_stiffness,
+        }
+    return {
+        "bending_stiffness_Nm2": s.ei,
+        "mass_per_length_kg_m": s.mass_per_length,
+        "gauge_stiffness_N_m": s.gauge_stiffness,
+    }
+
+
 def _simulator_facts(preset: Preset) -> dict:
     model = build_model(preset)
     mag = preset.magnets[0]
     return {
         "preset": preset.name,
         "description": preset.description,
-        "bending_stiffness_Nm2": preset.beam.ei,
-        "mass_per_length_kg_m": preset.beam.mass_per_length,
-        "gauge_stiffness_N_m": preset.beam.gauge_stiffness,
+        **_structure_facts(preset),
         "damping_beta_s": model.beta,
         "natural_frequencies_Hz": natural_frequencies(model, 4).tolist(),
         "drive_frequency_Hz": preset.runs[0].drives[0].frequency,

@@ -1,4 +1,4 @@
-"""Time integration of the beam coupled to its electromagnets.
+"""Time integration of the beam (or plate) coupled to its electromagnets.
 
 Newmark average acceleration (trapezoidal rule: unconditionally stable, no numerical damping)
 for the structure; the coil flux linkage by the same trapezoidal rule; the magnetic force and
@@ -19,8 +19,9 @@ import numpy as np
 
 from .beam import BeamModel
 from .magnet import MU0, Drive, Magnet
+from .plate import PlateModel
 
-__all__ = ["Response", "SimulationError", "integrate"]
+__all__ = ["Response", "SimulationError", "integrate", "pole_points"]
 
 
 class SimulationError(RuntimeError):
@@ -88,6 +89,14 @@ def _finish_record(out: dict | None) -> dict | None:
     return {k: np.ascontiguousarray(v.T) for k, v in out.items()}
 
 
+def pole_points(model: BeamModel | PlateModel, poles) -> np.ndarray:
+    """Where the poles act, as ``model.row`` takes them: x (n,) on a beam, (x, y) (n, 2) on a
+    plate (a model with ``dim == 2``)."""
+    if getattr(model, "dim", 1) == 2:
+        return np.array([[p.x, p.y] for p in poles], dtype=float).reshape(-1, 2)
+    return np.array([p.x for p in poles])
+
+
 class _Stepper:
     """Newmark stepping of the coupled system in modal coordinates.
 
@@ -96,7 +105,7 @@ class _Stepper:
     in nodal coordinates, at a fraction of the cost per step.
     """
 
-    def __init__(self, model: BeamModel, magnets, drives, dt: float, beta: float):
+    def __init__(self, model: BeamModel | PlateModel, magnets, drives, dt: float, beta: float):
         if len(magnets) > 2:
             raise ValueError("at most two independent magnets")
         self.model, self.magnets, self.drives, self.dt = model, magnets, drives, dt
@@ -106,7 +115,7 @@ class _Stepper:
         self.c = beta * w2                                                  # 2 zeta w
         self.keff = w2 + (2 / dt) * self.c + 4 / dt**2
         poles = [p for mg in magnets for p in mg.poles]
-        self.pole_rows = model.row(np.array([p.x for p in poles]))          # (n_poles, n_dof)
+        self.pole_rows = model.row(pole_points(model, poles))               # (n_poles, n_dof)
         self.static_gap = np.array([p.gap for p in poles])
         n_m = len(magnets)
         self.S = np.zeros((n_m, len(poles)))                                # magnet <- poles
@@ -337,14 +346,15 @@ class _Stepper:
                 (s**2 * qh * ph).real.sum(0))
 
 
-def integrate(model: BeamModel, magnets: tuple[Magnet, ...], drives: tuple[Drive, ...],
+def integrate(model: BeamModel | PlateModel, magnets: tuple[Magnet, ...], drives: tuple[Drive, ...],
               fs: float, duration: float, oversample: int = 1, settle_periods: int = 3,
               max_passes: int = 8, tol: float = 1e-8) -> Response:
     """Simulate the rig on its periodic steady state and sample it at ``fs`` for ``duration``.
 
     Parameters
     ----------
-    model : the assembled beam with its gauge springs (damping ``beta * stiffness``)
+    model : the assembled beam or plate with its gauge springs (damping ``beta * stiffness``);
+        a plate (``model.dim == 2``) takes each pole at its (x, y)
     magnets, drives : one drive per magnet; all drives share one fundamental frequency
     fs : output sampling rate [Hz]; oversample : internal steps per output sample
     duration : record length [s]; the first sample is at t = 0

@@ -24,11 +24,13 @@ MU0 = 4e-7 * math.pi
 
 @dataclass(frozen=True)
 class Pole:
-    """One pole face: the force point's name, position x [m] and static gap at w = 0 [m]."""
+    """One pole face: the force point's name, position x [m], static gap at w = 0 [m] and,
+    on a plate, the second coordinate y [m] (ignored by a beam)."""
 
     name: str
     x: float
     gap: float
+    y: float = 0.0
 
 
 @dataclass(frozen=True)

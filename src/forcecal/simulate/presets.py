@@ -1,4 +1,5 @@
-"""Built-in virtual rigs: the paper's beam, a calibration campaign, a near-resonance drive.
+"""Built-in virtual rigs: the paper's beam, a calibration campaign, a near-resonance drive, and
+a plate on three gauges.
 
 Every preset is a complete description: structure, gauges, magnets, sensors, noise, the SLDV
 scan and the runs. The drive's true frequency deliberately differs from the nominal one written
@@ -12,7 +13,8 @@ from dataclasses import dataclass, field
 
 from .magnet import Drive, Magnet, Pole
 
-__all__ = ["PRESETS", "BeamSpec", "NoiseSpec", "Preset", "RunSpec", "ScanSpec", "get_preset"]
+__all__ = ["PRESETS", "BeamSpec", "NoiseSpec", "PlateSpec", "Preset", "RunSpec", "ScanSpec",
+           "get_preset"]
 
 
 @dataclass(frozen=True)
@@ -42,6 +44,43 @@ class BeamSpec:
 
 
 @dataclass(frozen=True)
+class PlateSpec:
+    """A rectangular steel plate [0, a] x [0, b] on three stiff force gauges.
+
+    ``masses`` are (x m, y m, kg), ``gauges`` (name, x m, y m); the plate is meshed by
+    ``mesh = (nx, ny)`` Bogner-Fox-Schmit elements.
+    """
+
+    a: float = 0.5                              # m, along x
+    b: float = 0.4                              # m, along y
+    thickness: float = 0.008                    # m
+    youngs_modulus: float = 210e9               # Pa
+    poisson: float = 0.3
+    density: float = 7850.0                     # kg/m^3
+    mesh: tuple[int, int] = (10, 8)
+    damping_ratio: float = 0.01                 # of the first bending mode (stiffness-prop.)
+    masses: tuple[tuple[float, float, float], ...] = ((0.25, 0.20, 0.3),)  # the armature
+    gauges: tuple[tuple[str, float, float], ...] = (
+        ("R1", 0.05, 0.05), ("R2", 0.45, 0.05), ("R3", 0.25, 0.35))
+    gauge_stiffness: float = 2e9                # N/m
+
+    @property
+    def flexural_rigidity(self) -> float:
+        """D = E h^3 / (12 (1 - nu^2)) [N m]."""
+        return self.youngs_modulus * self.thickness**3 / (12 * (1 - self.poisson**2))
+
+    @property
+    def mass_per_area(self) -> float:
+        """[kg/m^2]"""
+        return self.density * self.thickness
+
+    @property
+    def outline(self) -> tuple[tuple[float, float], ...]:
+        """The rectangle's vertices [m], counter-clockwise from the origin."""
+        return ((0.0, 0.0), (self.a, 0.0), (self.a, self.b), (0.0, self.b))
+
+
+@dataclass(frozen=True)
 class NoiseSpec:
     """Standard deviations of the white measurement noise, in SI units."""
 
@@ -67,26 +106,44 @@ class RunSpec:
 
 @dataclass(frozen=True)
 class ScanSpec:
-    """A sequential SLDV scan along the beam."""
+    """A sequential SLDV scan: ``n_points`` evenly along a beam, or on a plate an
+    ``grid = (n_x, n_y)`` grid of points over the whole rectangle, edges included."""
 
     drives: tuple[Drive, ...]
     n_points: int = 61
     record: float = 0.5                        # s per point
     gap: float | None = None
+    grid: tuple[int, int] | None = None        # plate only
 
 
 @dataclass(frozen=True)
 class Preset:
+    """A complete virtual rig.
+
+    ``beam`` is the structure: a :class:`BeamSpec` (sensors ``(name, x)``) or a
+    :class:`PlateSpec` (sensors ``(name, x, y)``, poles with their ``y``); the field keeps its
+    historical name, :attr:`structure` is the neutral alias.
+    """
+
     name: str
     description: str
-    beam: BeamSpec
+    beam: BeamSpec | PlateSpec
     magnets: tuple[Magnet, ...]
-    sensors: tuple[tuple[str, float], ...]
+    sensors: tuple[tuple[str, float], ...] | tuple[tuple[str, float, float], ...]
     scan: ScanSpec
     runs: tuple[RunSpec, ...]
     nominal_frequency: float
     fs: float = 10_000.0
     noise: NoiseSpec = field(default_factory=NoiseSpec)
+
+    @property
+    def structure(self) -> BeamSpec | PlateSpec:
+        """The structure's specification (the same object as ``beam``)."""
+        return self.beam
+
+    @property
+    def is_plate(self) -> bool:
+        return isinstance(self.beam, PlateSpec)
 
 
 _F_TRUE = 20.0 * (1 + 7e-4)          # the generator runs 0.07 % fast
@@ -147,7 +204,27 @@ def _campaign() -> Preset:
     )
 
 
-PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign}
+_F_PLATE = 20.0 * (1 + 5e-4)         # the generator runs 0.05 % fast
+
+
+def _plate() -> Preset:
+    drive = Drive("voltage", dc=2.0, ac=1.0, frequency=_F_PLATE)
+    magnet = Magnet(poles=(Pole("F1", 0.20, 1.0e-3, y=0.20), Pole("F2", 0.30, 1.0e-3, y=0.20)))
+    return Preset(
+        name="plate",
+        description="steel plate 0.5 m x 0.4 m x 8 mm on three gauges (a triangle), a U-core "
+                    "magnet whose two poles pull near the centre (2 forces, 3 gauges), four "
+                    "probes, voltage drive with a DC bias at 20 Hz, scan on a 13 x 11 grid",
+        beam=PlateSpec(), magnets=(magnet,),
+        sensors=(("s1", 0.10, 0.30), ("s2", 0.40, 0.30), ("s3", 0.10, 0.10),
+                 ("s4", 0.40, 0.10)),
+        scan=ScanSpec(drives=(drive,), n_points=13 * 11, grid=(13, 11)),
+        runs=(RunSpec("plate", drives=(drive,), duration=1.0),),
+        nominal_frequency=20.0,
+    )
+
+
+PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign, "plate": _plate}
 
 
 def get_preset(name: str) -> Preset:
@@ -159,6 +236,6 @@ def get_preset(name: str) -> Preset:
     return PRESETS[name]()
 
 
-def first_mode_beta(beam: BeamSpec, f1: float) -> float:
+def first_mode_beta(beam: BeamSpec | PlateSpec, f1: float) -> float:
     """Stiffness-proportional coefficient [s] giving ``damping_ratio`` at f1 [Hz]."""
     return 2 * beam.damping_ratio / (2 * math.pi * f1)

@@ -1,5 +1,8 @@
 """The virtual rig: builds the finite-element model of a preset and records runs and scans.
 
+The structure is a beam (:mod:`.beam`) or a rectangular plate (:mod:`.plate`); a plate takes
+every point (gauge, pole, probe, scan point, lumped mass) as (x, y).
+
 Measurements carry seeded white noise; the ground truth (pole forces, gaps, displacement field,
 the inertia term of each gauge) is returned beside them.
 """
@@ -16,7 +19,8 @@ from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor, Structur
 from .beam import BeamModel, assemble_beam, natural_frequencies
 from .integrate import Response, integrate
 from .magnet import Drive, Magnet
-from .presets import Preset, RunSpec, first_mode_beta
+from .plate import PlateModel, assemble_plate
+from .presets import BeamSpec, PlateSpec, Preset, RunSpec, first_mode_beta
 
 __all__ = [
     "Truth",
@@ -26,9 +30,13 @@ __all__ = [
     "public_rig",
     "record_run",
     "record_scan",
+    "relaxation_modes",
     "run_truth",
+    "scan_points",
     "scan_response",
 ]
+
+Model = BeamModel | PlateModel
 
 
 @dataclass(frozen=True)
@@ -36,7 +44,8 @@ class Truth:
     """Ground truth of one run.
 
     pole_force : (n_poles, n_samples) [N]; gap : (n_poles, n_samples) [m];
-    nodes : (n_nodes,) [m]; w : (n_nodes, n_samples) [m] deflection at the FE nodes;
+    nodes : (n_nodes,) [m] on a beam, (n_nodes, 2) (x, y) on a plate;
+    w : (n_nodes, n_samples) [m] deflection at the FE nodes;
     inertia : (n_gauges, n_samples) [N], J_r = integral(rho psi_r w_tt) + lumped terms.
     """
 
@@ -51,9 +60,11 @@ class Truth:
     flux: np.ndarray
 
 
-def build_model(preset: Preset) -> BeamModel:
-    """The beam of ``preset`` on its gauge springs, damped at the first bending mode."""
+def build_model(preset: Preset) -> Model:
+    """The beam or plate of ``preset`` on its gauge springs, damped at the first bending mode."""
     b = preset.beam
+    if isinstance(b, PlateSpec):
+        return _build_plate(b)
     springs = tuple((x, b.gauge_stiffness) for _, x in b.gauges)
     undamped = assemble_beam(b.length, b.ei, b.mass_per_length, b.n_elements, b.masses, springs)
     f1 = _first_bending(undamped)
@@ -61,8 +72,15 @@ def build_model(preset: Preset) -> BeamModel:
                          beta=first_mode_beta(b, f1))
 
 
-def _first_bending(model: BeamModel) -> float:
-    """Lowest mode that bends the beam (the bounce modes on the gauge springs are rigid)."""
+def _build_plate(p: PlateSpec) -> PlateModel:
+    springs = tuple((x, y, p.gauge_stiffness) for _, x, y in p.gauges)
+    args = (p.a, p.b, p.flexural_rigidity, p.mass_per_area, p.poisson, p.mesh, p.masses, springs)
+    f1 = _first_bending(assemble_plate(*args))
+    return assemble_plate(*args, beta=first_mode_beta(p, f1))
+
+
+def _first_bending(model: Model) -> float:
+    """Lowest mode that bends the structure (the bounce modes on the gauge springs are rigid)."""
     import scipy.linalg
 
     w2, vec = scipy.linalg.eigh(model.stiffness, model.mass)
@@ -85,6 +103,20 @@ def public_rig(preset: Preset) -> Rig:
     """What the lab writes in its rig file: geometry, masses, channels; no stiffness, no truth."""
     b = preset.beam
     mag = preset.magnets[0]
+    if isinstance(b, PlateSpec):
+        return Rig(
+            name=f"virtual {preset.name} rig",
+            structure=Structure(kind="plate", mass_per_area=b.mass_per_area, outline=b.outline,
+                                masses=tuple(LumpedMass(x=x, y=y, mass=m)
+                                             for x, y, m in b.masses)),
+            gauges=tuple(Gauge(name=n, x=x, y=y) for n, x, y in b.gauges),
+            forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, gap=p.gap)
+                         for m in preset.magnets for p in m.poles),
+            sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in preset.sensors),
+            actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
+                              turns=mag.turns, pole_area=mag.pole_area),
+            frequency=preset.nominal_frequency,
+        )
     return Rig(
         name=f"virtual {preset.name} rig",
         structure=Structure(kind="beam", length=b.length, mass_per_length=b.mass_per_length,
@@ -99,46 +131,69 @@ def public_rig(preset: Preset) -> Rig:
     )
 
 
-def _gauge_forces(model: BeamModel, preset: Preset, u, v) -> np.ndarray:
+def _points(preset: Preset, items) -> np.ndarray:
+    """Coordinates of named points ``(name, x[, y])`` as ``model.row`` takes them: (n,) x on a
+    beam, (n, 2) (x, y) on a plate."""
+    if preset.is_plate:
+        return np.array([[x, y] for _, x, y in items], dtype=float).reshape(-1, 2)
+    return np.array([x for _, x in items])
+
+
+def _gauge_forces(model: Model, preset: Preset, u, v) -> np.ndarray:
     """(n_gauges, n) [N] force each gauge exerts on the structure (spring plus its dashpot)."""
-    rows = model.row(np.array([x for _, x in preset.beam.gauges]))
+    rows = model.row(_points(preset, preset.beam.gauges))
     k = preset.beam.gauge_stiffness
     return -k * (rows @ u + model.beta * (rows @ v))
 
 
-def _inertia(model: BeamModel, preset: Preset, a) -> np.ndarray:
+def relaxation_modes(model: Model, preset: Preset) -> np.ndarray:
+    """(n_gauges, n_dof): nodal vectors of the relaxation shapes psi_r (METHOD.md section 2).
+
+    Beam on gauges at xa, xb: (xb - x)/(xb - xa) and (x - xa)/(xb - xa). Plate on three
+    gauges: the barycentric coordinates of the gauge triangle, psi_r = c0 + c1 x + c2 y with
+    psi_r(g_s) = delta_rs. Both are rigid motions, exact in the element bases.
+    """
+    spec = preset.beam
+    if isinstance(spec, BeamSpec):
+        (_, xa), (_, xb) = spec.gauges
+        span = xb - xa
+        return np.stack([model.rigid_mode(xb / span, -1 / span),
+                         model.rigid_mode(-xa / span, 1 / span)])
+    g = np.array([[1.0, x, y] for _, x, y in spec.gauges])
+    coef = np.linalg.inv(g)                          # column r: psi_r's (c0, c1, c2)
+    return np.stack([model.rigid_mode(*coef[:, r]) for r in range(len(spec.gauges))])
+
+
+def _inertia(model: Model, preset: Preset, a) -> np.ndarray:
     """(n_gauges, n) [N]: Psi_r^T M a, the inertia term of every relaxed gauge (exact)."""
-    (_, xa), (_, xb) = preset.beam.gauges
-    span = xb - xa
-    psi = np.stack([model.rigid_mode(xb / span, -1 / span), model.rigid_mode(-xa / span, 1 / span)])
-    return psi @ (model.mass @ a)
+    return relaxation_modes(model, preset) @ (model.mass @ a)
 
 
 def simulate_response(preset: Preset, drives: tuple[Drive, ...], gap: float | None,
-                      duration: float, model: BeamModel | None = None) -> Response:
+                      duration: float, model: Model | None = None) -> Response:
     model = model or build_model(preset)
     return integrate(model, _magnets_at(preset, gap), drives, preset.fs, duration)
 
 
 def record_run(preset: Preset, spec: RunSpec, rng: np.random.Generator,
-               model: BeamModel | None = None) -> tuple[Run, Truth]:
+               model: Model | None = None) -> tuple[Run, Truth]:
     """Simulate one run and return what the DAQ recorded (noisy) and the truth."""
     model = model or build_model(preset)
     r = simulate_response(preset, spec.drives, spec.gap, spec.duration, model)
     return measure_run(preset, spec, model, r, rng), run_truth(preset, model, r)
 
 
-def measure_run(preset: Preset, spec: RunSpec, model: BeamModel, r: Response,
+def measure_run(preset: Preset, spec: RunSpec, model: Model, r: Response,
                 rng: np.random.Generator) -> Run:
     """What the DAQ records of a simulated response: every channel with its white noise."""
     noise = preset.noise
     n = len(r.t)
     gauges = _gauge_forces(model, preset, r.u, r.v)
-    probes = model.row(np.array([x for _, x in preset.sensors])) @ r.u
+    probes = model.row(_points(preset, preset.sensors)) @ r.u
     channels: dict[str, np.ndarray] = {}
-    for k, (name, _) in enumerate(preset.beam.gauges):
+    for k, (name, *_) in enumerate(preset.beam.gauges):
         channels[name] = gauges[k] + noise.gauge * rng.standard_normal(n)
-    for k, (name, _) in enumerate(preset.sensors):
+    for k, (name, *_) in enumerate(preset.sensors):
         channels[name] = probes[k] + noise.probe * rng.standard_normal(n)
     for k, mag in enumerate(preset.magnets):
         channels[mag.current_channel] = r.current[k] + noise.current * rng.standard_normal(n)
@@ -148,17 +203,18 @@ def measure_run(preset: Preset, spec: RunSpec, model: BeamModel, r: Response,
                source=f"{spec.name}.csv", labels=dict(spec.labels))
 
 
-def run_truth(preset: Preset, model: BeamModel, r: Response) -> Truth:
+def run_truth(preset: Preset, model: Model, r: Response) -> Truth:
     """The ground truth of a simulated response."""
+    per_node = 4 if isinstance(model, PlateModel) else 2          # w is the first nodal DOF
     return Truth(
         t=r.t, pole_names=tuple(p.name for m in preset.magnets for p in m.poles),
-        pole_force=r.pole_force, gap=r.gap, nodes=model.nodes, w=r.u[0::2],
+        pole_force=r.pole_force, gap=r.gap, nodes=model.nodes, w=r.u[0::per_node],
         inertia=_inertia(model, preset, r.a), current=r.current, flux=r.flux,
     )
 
 
 def record_scan(preset: Preset, rng: np.random.Generator,
-                model: BeamModel | None = None) -> Scan:
+                model: Model | None = None) -> Scan:
     """A sequential SLDV scan: each point a velocity record with its own random start phase.
 
     The rig runs on its periodic steady state; point k is recorded over its own window, which
@@ -169,7 +225,20 @@ def record_scan(preset: Preset, rng: np.random.Generator,
     return measure_scan(preset, model, scan_response(preset, model), rng)
 
 
-def scan_response(preset: Preset, model: BeamModel) -> Response:
+def scan_points(preset: Preset) -> np.ndarray:
+    """The scan grid [m]: (n_points,) along a beam; (n_x * n_y, 2) over a plate, x fastest."""
+    spec = preset.scan
+    b = preset.beam
+    if isinstance(b, PlateSpec):
+        if spec.grid is None:
+            raise ValueError(f"preset '{preset.name}': a plate scan needs ScanSpec.grid (n_x, n_y)")
+        nx, ny = spec.grid
+        gx, gy = np.meshgrid(np.linspace(0.0, b.a, nx), np.linspace(0.0, b.b, ny), indexing="xy")
+        return np.column_stack([gx.ravel(), gy.ravel()])
+    return np.linspace(0.0, b.length, spec.n_points)
+
+
+def scan_response(preset: Preset, model: Model) -> Response:
     """The steady-state response the scan samples: one record plus one drive period."""
     spec = preset.scan
     n_rec = int(round(spec.record * preset.fs))
@@ -178,15 +247,15 @@ def scan_response(preset: Preset, model: BeamModel) -> Response:
                              model)
 
 
-def measure_scan(preset: Preset, model: BeamModel, r: Response,
+def measure_scan(preset: Preset, model: Model, r: Response,
                  rng: np.random.Generator) -> Scan:
     """The scan's records: a window per point at a random start within one drive period."""
     spec = preset.scan
     n_rec = int(round(spec.record * preset.fs))
     per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
-    x = np.linspace(0.0, preset.beam.length, spec.n_points)
+    x = scan_points(preset)
     velocity = model.row(x) @ r.v                            # (n_points, n_total)
-    starts = rng.integers(0, per_period, size=spec.n_points)
+    starts = rng.integers(0, per_period, size=len(x))
     idx = starts[:, None] + np.arange(n_rec)[None, :]
     response = np.take_along_axis(velocity, idx, axis=1)
     reference = r.current[0][idx]
