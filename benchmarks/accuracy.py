@@ -33,14 +33,14 @@ from forcecal.simulate.virtual_rig import (
 from forcecal.spatial import build_spatial_model
 
 CASES = (("paper", "paper", 0.1), ("resonance", "resonance", 0.5),
-         ("campaign", "g1000_dc06_ac02", None))
+         ("campaign", "g1000_dc06_ac02", None), ("plate", "plate", 0.2))
 
 
 def rms(x):
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-def study(preset_name: str, run_name: str, seeds: int) -> dict:
+def study(preset_name: str, run_name: str, seeds: int, basis: str = "polynomial") -> dict:
     preset = get_preset(preset_name)
     model_fe = build_model(preset)
     spec = next(r for r in preset.runs if r.name == run_name)
@@ -68,7 +68,7 @@ def study(preset_name: str, run_name: str, seeds: int) -> dict:
                 dataclasses.replace(f, gap=spec.gap) for f in rig.forces))
         else:
             rig_run = rig
-        model = build_spatial_model(rig_run, scan)
+        model = build_spatial_model(rig_run, scan, basis=basis)
         est = reconstruct(rig_run, model, run)
         times.append(time.perf_counter() - t1)
         # the truth's phasors on the estimate's own basis (same fundamental, same window)
@@ -94,6 +94,7 @@ def study(preset_name: str, run_name: str, seeds: int) -> dict:
             first = {
                 "f0_est_hz": est.f0, "f0_true_hz": f_true,
                 "harmonics_with_shape": [int(n) for n in model.harmonics],
+                "orders": [int(f.order) for f in model.shapes],
                 "one_shape": model.one_shape, "inertia_share": est.inertia_share,
                 "total_error_pct": 100 * wave_err[-1] / ac_rms,
                 "static_error_pct": 100 * static_err[-1] / ac_rms,
@@ -121,7 +122,8 @@ def study(preset_name: str, run_name: str, seeds: int) -> dict:
                                            / ratios[int(n)]["stated_n"])
     wave_ratio = rms(wave_err) / rms(wave_std)
     return {
-        "preset": preset_name, "run": run_name, "seeds": seeds, "ac_rms_n": ac_rms,
+        "preset": preset_name, "run": run_name, "seeds": seeds, "basis": basis,
+        "ac_rms_n": ac_rms,
         "first_seed": first,
         "over_seeds": {
             "total_error_pct_mean": 100 * float(np.mean(wave_err)) / ac_rms,
@@ -138,12 +140,27 @@ def study(preset_name: str, run_name: str, seeds: int) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=50)
+    ap.add_argument("--basis-seeds", type=int, default=10,
+                    help="noise seeds of the mode-shape basis comparison")
+    ap.add_argument("--cases", nargs="*", default=[c[0] for c in CASES])
     args = ap.parse_args()
     results = []
     for preset, run, target in CASES:
+        if preset not in args.cases:
+            continue
         res = study(preset, run, args.seeds)
         res["target_pct"] = target
         results.append(res)
+    comparison = []
+    for preset, run, _ in CASES:
+        if preset not in args.cases:
+            continue
+        for basis in ("polynomial", "modes"):
+            r = study(preset, run, args.basis_seeds, basis=basis)
+            comparison.append({"preset": preset, "basis": basis, "seeds": args.basis_seeds,
+                               "total_error_pct_mean": r["over_seeds"]["total_error_pct_mean"],
+                               "orders": r["first_seed"]["orders"],
+                               "ratio": r["over_seeds"]["waveform_ratio_observed_to_stated"]})
     print(f"\nforce reconstruction vs truth ({args.seeds} noise seeds; errors in % of true AC RMS)")
     hdr = (f"{'case':<22}{'total %':>9}{'max %':>8}{'F1 %':>8}{'F2 %':>8}{'static %':>10}"
            f"{'target':>8}{'obs/stated':>11}{'inertia':>9}{'s/run':>7}")
@@ -162,9 +179,15 @@ def main() -> None:
         parts = [f"n={n}: {v['ratio_rms']:.2f} (scatter {v['ratio_scatter']:.2f})"
                  for n, v in r["over_seeds"]["per_harmonic"].items()]
         print(f"  {r['preset']:<10} " + ";  ".join(parts))
+    print(f"\nshape basis: polynomials (black box) vs mode shapes ({args.basis_seeds} seeds)")
+    print(f"{'case':<12}{'basis':<12}{'total %':>9}{'obs/stated':>12}  orders per harmonic")
+    for c in comparison:
+        print(f"{c['preset']:<12}{c['basis']:<12}{c['total_error_pct_mean']:9.4f}"
+              f"{c['ratio']:12.2f}  {c['orders']}")
     out = Path(__file__).resolve().parent / "results" / "accuracy.json"
     out.parent.mkdir(exist_ok=True)
-    out.write_text(json.dumps(results, indent=1, default=float))
+    out.write_text(json.dumps({"studies": results, "basis_comparison": comparison}, indent=1,
+                              default=float))
     print(f"\nwritten {out}")
 
 

@@ -447,7 +447,7 @@ def refine_fundamental(
     # doubled with the bracket narrowed each time, so the work grows like the record length,
     # not like its square (the valley of the objective narrows as 1 / duration)
     n_full = int(lengths.max())
-    n_seg = min(n_full, max(int(_SEGMENT_PERIODS * fs / f0_nominal), int(lengths.min())))
+    n_seg = min(n_full, int(_SEGMENT_PERIODS * fs / f0_nominal))
     lo_f, hi_f = f_lo, f_hi
     while True:
         part = [g[:, :n_seg] for g in groups]

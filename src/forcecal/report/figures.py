@@ -263,7 +263,8 @@ def fig_shapes_2d(shapes: HarmonicShapes, model: SpatialModel, n_fine: int = 81)
         ax.set_title(f"harmonic {n}: {n * model.f0:.1f} Hz, order {model.shapes[k].order}\n"
                      f"MAC with harmonic {harmonics[0]}: {model.similarity[0, k]:.4f}",
                      fontsize=9)
-    fig.colorbar(contour, ax=list(axes), label="Re phi_n / phi_n(peak) [1]", shrink=0.8)
+    fig.colorbar(contour, ax=list(axes), label=r"Re $\varphi_n / \varphi_n(\mathrm{peak})$ [1]",
+                 shrink=0.8)
     fig.suptitle(f"Harmonic deflection shapes from the scan '{Path(shapes.source).name}' "
                  f"({shapes.points.shape[0]} points; black: node lines)")
     return fig
