@@ -165,3 +165,34 @@ def test_plate_rig_without_y_is_refused(tmp_path):
            "gauges": [{"name": "R1", "x": 0.1}]}
     with pytest.raises(RigError, match=r"gauges\[0\]\.y"):
         parse_rig(doc, source="p.toml")
+
+
+@pytest.fixture(scope="module")
+def plate_lab(tmp_path_factory):
+    from forcecal.simulate.export import write_simulation
+
+    return write_simulation(tmp_path_factory.mktemp("plate"), "plate", seed=0)
+
+
+def test_plate_forces_against_the_virtual_rig(plate_lab):
+    """Three gauges, two poles, four probes: the total force within 0.2 % of its AC RMS."""
+    from forcecal.io.run_files import read_run, read_table_csv
+    from forcecal.io.uff import read_scan_uff
+    from forcecal.rig import load_rig
+
+    rig = load_rig(plate_lab / "rig.toml")
+    assert rig.structure.kind == "plate" and len(rig.gauges) == 3 and len(rig.forces) == 2
+    model = build_spatial_model(rig, read_scan_uff(plate_lab / "scan.uff"))
+    est = reconstruct(rig, model, read_run(plate_lab / "runs" / "plate.csv"))
+    _, truth = read_table_csv(plate_lab / "truth" / "plate.forces.csv")
+
+    def ac_error(x, true):
+        e = x - true
+        return np.sqrt(np.mean((e - e.mean()) ** 2)) / np.std(true)
+
+    full = ac_error(est.total_series, truth["total"])
+    static = ac_error(est.static_series.sum(axis=0), truth["total"])
+    assert full < 0.002
+    assert static > 5 * full
+    # the stated waveform uncertainty is of the size of the error (not 10x off either way)
+    assert 0.2 < full * np.std(truth["total"]) / est.waveform_std < 5
