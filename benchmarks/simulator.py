@@ -35,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from forcecal.harmonics import fit_harmonics
 from forcecal.simulate.beam import hermite_row, natural_frequencies, pinned_pinned_frequencies
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.integrate import integrate
@@ -78,12 +79,8 @@ def speed(preset) -> dict:
 
 def harmonics(x, t, f0, n_harm=4):
     """Complex amplitudes (n_signals, n_harm) of harmonics 1..n_harm by least squares."""
-    w = 2 * np.pi * f0 * t
-    cols = [np.ones_like(t)]
-    for n in range(1, n_harm + 1):
-        cols += [np.cos(n * w), np.sin(n * w)]
-    coef = np.linalg.lstsq(np.column_stack(cols), np.atleast_2d(x).T, rcond=None)[0]
-    return (coef[1::2] - 1j * coef[2::2]).T
+    fit = fit_harmonics(np.atleast_2d(x), 1.0 / (t[1] - t[0]), f0, n_harm, t0=t[0])
+    return fit.phasors[:, 1:]
 
 
 def gauge_reactions(model, preset, u, v):

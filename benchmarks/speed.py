@@ -36,9 +36,7 @@ from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from forcecal.coordinates import sensor_rows  # noqa: E402
-from forcecal.forces import ForceEstimate, channels_si, reconstruct  # noqa: E402
-from forcecal.harmonics import fit_harmonics  # noqa: E402
+from forcecal.forces import ForceEstimate, implied_phasors, reconstruct  # noqa: E402
 from forcecal.io.run_files import read_run, write_run_hdf5  # noqa: E402
 from forcecal.io.uff import read_scan_uff  # noqa: E402
 from forcecal.records import Run, Scan  # noqa: E402
@@ -108,19 +106,8 @@ def setup(work: Path) -> Context:
     model = build_spatial_model(rig, read_scan_uff(out / "scan.uff"))
     run = read_run(out / "runs" / "paper.csv")
     batch = reconstruct(rig, model, run)
-    h = len(batch.harmonics) - 1
-    sig = channels_si(rig, run)
-    phasors = {g: batch.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
-    probes = fit_harmonics(np.stack([sig[s] for s in rig.sensor_names]), run.fs, batch.f0, h,
-                           t0=run.t0).phasors
-    for j, s in enumerate(rig.sensor_names):
-        x = np.zeros(h + 1, dtype=complex)
-        x[0] = probes[j, 0]
-        for k, n in enumerate(model.harmonics):
-            x[n] = sensor_rows(model, rig, int(n))[j] * batch.coordinates.q[k]
-        phasors[s] = x
+    phasors = implied_phasors(rig, model, run, batch)
     cur = rig.actuator.current
-    phasors[cur] = fit_harmonics(sig[cur], run.fs, batch.f0, h, t0=run.t0).phasors
     spec = NoiseSpec()
     noise = {**dict.fromkeys(rig.gauge_names, spec.gauge),
              **dict.fromkeys(rig.sensor_names, spec.probe), cur: spec.current}

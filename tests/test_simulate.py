@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from forcecal.harmonics import fit_harmonics
 from forcecal.io.manifest import read_manifest
 from forcecal.io.run_files import read_run, read_table_csv
 from forcecal.io.uff import read_scan_uff
@@ -45,14 +46,10 @@ UFF_RTOL = 5e-12          # pyuff ASCII values: %20.11e, half a unit in the 12th
 SHORT = 0.25              # s, record length of the dynamic checks
 
 
-def harmonics(x: np.ndarray, t: np.ndarray, f0: float, n_harm: int = 4) -> np.ndarray:
+def harmonics(x, t, f0, n_harm=4):
     """Complex amplitudes (n_signals, n_harm) of harmonics 1..n_harm by least squares."""
-    w = 2 * np.pi * f0 * t
-    cols = [np.ones_like(t)]
-    for n in range(1, n_harm + 1):
-        cols += [np.cos(n * w), np.sin(n * w)]
-    coef = np.linalg.lstsq(np.column_stack(cols), np.atleast_2d(x).T, rcond=None)[0]
-    return (coef[1::2] - 1j * coef[2::2]).T
+    fit = fit_harmonics(np.atleast_2d(x), 1.0 / (t[1] - t[0]), f0, n_harm, t0=t[0])
+    return fit.phasors[:, 1:]
 
 
 def psi_matrix(xa: float, xb: float, x: np.ndarray) -> np.ndarray:

@@ -8,9 +8,8 @@ import tracemalloc
 import numpy as np
 import pytest
 
-from forcecal.coordinates import sensor_rows
 from forcecal.errors import DataError, DimensionError, InputError
-from forcecal.forces import channels_si, reconstruct
+from forcecal.forces import channels_si, implied_phasors, reconstruct
 from forcecal.harmonics import design_matrix, fit_harmonics
 from forcecal.io.run_files import read_table_csv
 from forcecal.records import Run
@@ -47,20 +46,7 @@ def batch(paper):
 def phasors(paper, batch):
     """Channel phasors consistent with the batch estimate (SI), probes exactly phi_n Q_n."""
     rig, _, model, run = paper
-    h = len(batch.harmonics) - 1
-    sig = channels_si(rig, run)
-    out = {g: batch.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
-    probes = fit_harmonics(np.stack([sig[s] for s in rig.sensor_names]), run.fs, batch.f0, h,
-                           t0=run.t0).phasors
-    for j, s in enumerate(rig.sensor_names):
-        x = np.zeros(h + 1, dtype=complex)
-        x[0] = probes[j, 0]
-        for k, n in enumerate(model.harmonics):
-            x[n] = sensor_rows(model, rig, int(n))[j] * batch.coordinates.q[k]
-        out[s] = x
-    out[rig.actuator.current] = fit_harmonics(sig[rig.actuator.current], run.fs, batch.f0, h,
-                                              t0=run.t0).phasors
-    return out
+    return implied_phasors(rig, model, run, batch)
 
 
 def synthetic_run(rig, model, batch, phasors, duration, f_start, f_end, seed, gain=None):

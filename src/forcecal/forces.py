@@ -27,7 +27,7 @@ from .relaxation import force_matrix
 from .rig import Rig
 from .spatial import SpatialModel, structure_coordinates
 
-__all__ = ["ForceEstimate", "channels_si", "reconstruct"]
+__all__ = ["ForceEstimate", "channels_si", "implied_phasors", "reconstruct"]
 
 log = logging.getLogger(__name__)
 
@@ -300,6 +300,32 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         static_series=static_series, psi_condition=cond, consistency=consistency,
         dc_observed=not ac_coupled, notes=tuple(notes),
     )
+
+
+def implied_phasors(rig: Rig, model: SpatialModel, run: Run,
+                    estimate: ForceEstimate) -> dict[str, np.ndarray]:
+    """The channel phasors (H+1,) [SI] that an estimate implies, by channel name.
+
+    Gauges: the reactions used by the estimate; sensors: their DC as measured and, per
+    harmonic, phi_n(l_j) Q_n (the model's view of the motion); the current: its own fit. A run
+    built from these phasors is one the estimate explains exactly (synthetic runs, checks).
+    """
+    from .coordinates import sensor_rows
+
+    h = len(estimate.harmonics) - 1
+    sig = channels_si(rig, run)
+    out = {g: estimate.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
+    probes = fit_harmonics(np.stack([sig[s] for s in rig.sensor_names]), run.fs, estimate.f0,
+                           h, t0=run.t0).phasors
+    for j, s in enumerate(rig.sensor_names):
+        x = np.zeros(h + 1, dtype=complex)
+        x[0] = probes[j, 0]
+        for k, n in enumerate(model.harmonics):
+            x[n] = sensor_rows(model, rig, int(n))[j] * estimate.coordinates.q[k]
+        out[s] = x
+    cur = rig.actuator.current
+    out[cur] = fit_harmonics(sig[cur], run.fs, estimate.f0, h, t0=run.t0).phasors
+    return out
 
 
 def check_record_length(run: Run, f0: float) -> None:
