@@ -200,3 +200,16 @@ def test_refined_fundamental_scatter_matches_its_uncertainty():
         stated.append(fundamental_uncertainty([x], FS, f_est, H))
     ratio = np.std(errors, ddof=1) / np.mean(stated)
     assert 0.85 < ratio < 1.15
+
+
+def test_a_noisy_record_does_not_pull_the_joint_fundamental():
+    """Records are weighted by their noise (maximum likelihood), not by their RMS."""
+    f_true = F0 * 1.002
+    t = times(4000)
+    for seed in range(5):
+        rng = np.random.default_rng(100 + seed)
+        clean = np.cos(2 * np.pi * f_true * t + 0.4) + 1e-3 * rng.standard_normal(t.size)
+        noisy = np.cos(2 * np.pi * f_true * t - 1.0) + 3.0 * rng.standard_normal(t.size)
+        f = refine_fundamental([clean, noisy], FS, F0, 1)
+        bound = fundamental_uncertainty([clean, noisy], FS, f, 1)
+        assert abs(f - f_true) < 4 * bound

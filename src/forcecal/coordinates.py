@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.stats
 
 from .errors import ConditioningError
 from .harmonics import HarmonicFit
@@ -32,7 +33,8 @@ class Coordinates:
     ----------
     harmonics : (n_h,) int
     q : (n_h,) complex [1]: w(x) at harmonic n is phi_n(x) Q_n
-    q_std : (n_h,) [1] standard uncertainty of Re Q_n and of Im Q_n
+    q_std : (n_h,) [1] standard uncertainty of Re Q_n and of Im Q_n, scaled by the reduced
+        chi-square when the sensors disagree with the shape beyond their noise
     gain : (n_h,) [1] RMS |phi_n| at the sensors / max |phi_n| on the structure
     chi2 : (n_h,) [1] reduced chi-square of the sensor fit (about 1 when the shape fits;
         NaN with a single sensor)
@@ -86,9 +88,13 @@ def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
         q = np.sum(w * np.conj(phi) * s) / info
         resid = s - phi * q
         dof = 2 * (len(s) - 1)
-        chi2.append(float(np.sum(w * np.abs(resid) ** 2) / dof) if dof > 0 else np.nan)
+        red = float(np.sum(w * np.abs(resid) ** 2) / dof) if dof > 0 else np.nan
+        chi2.append(red)
         qs.append(q)
-        stds.append(1.0 / np.sqrt(info))
+        # the shape misses the sensors by more than their noise (1 % significance): the model
+        # error is real, and Q is only known to within it (Birge ratio)
+        misfit = red if dof > 0 and red > scipy.stats.chi2.ppf(0.99, dof) / dof else 1.0
+        stds.append(float(np.sqrt(misfit / info)))
         gains.append(gain)
     return Coordinates(harmonics=model.harmonics.copy(), q=np.array(qs), q_std=np.array(stds),
                        gain=np.array(gains), chi2=np.array(chi2))

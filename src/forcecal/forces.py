@@ -19,7 +19,7 @@ import numpy as np
 
 from .coordinates import Coordinates, generalized_coordinates
 from .errors import DataError, InputError
-from .harmonics import HarmonicFit, fit_harmonics, refine_fundamental
+from .harmonics import HarmonicFit, fit_harmonics, fundamental_uncertainty, refine_fundamental
 from .inertia import mass_weights
 from .io.run_files import check_clipping
 from .records import Run
@@ -44,7 +44,7 @@ class ForceEstimate:
 
     Attributes
     ----------
-    f0 : [Hz] refined fundamental of the run
+    f0 : [Hz] refined fundamental of the run; f0_std : [Hz] its standard uncertainty
     harmonics : (H+1,) int 0..H; phasors follow the convention of :mod:`forcecal.harmonics`
     force : (n_forces, H+1) complex [N]; force_std : (n_forces, H+1) [N] (Re and Im each)
     total : (H+1,) complex [N]; total_std : (H+1,) [N]
@@ -81,6 +81,7 @@ class ForceEstimate:
     static_series: np.ndarray
     psi_condition: float
     consistency: np.ndarray
+    f0_std: float = 0.0
     combination_names: tuple[str, ...] = ()
     combination: np.ndarray | None = None
     combination_std: np.ndarray | None = None
@@ -106,8 +107,16 @@ class ForceEstimate:
 
     @property
     def waveform_std(self) -> float:
-        """Standard uncertainty [N] of the total force waveform (RMS over time, AC part)."""
-        return float(np.sqrt(np.sum(self.total_std[1:] ** 2)))
+        """Standard uncertainty [N] of the total force waveform (RMS over the record, AC part).
+
+        The phasors' uncertainties, plus the fundamental's: an error df in f0 turns harmonic n
+        by 2 pi n df (t - t_mid), whose mean square over a record of duration T is
+        (2 pi n df)^2 T^2 / 12.
+        """
+        n = self.harmonics[1:]
+        duration = self.time[-1] - self.time[0] if self.time.size > 1 else 0.0
+        drift = (2 * np.pi * n * self.f0_std * duration) ** 2 / 12 * np.abs(self.total[1:]) ** 2 / 2
+        return float(np.sqrt(np.sum(self.total_std[1:] ** 2) + np.sum(drift)))
 
 
 def channels_si(rig: Rig, run: Run) -> dict[str, np.ndarray]:
@@ -210,6 +219,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
     check_record_length(run, rig.frequency)
     f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
+    f0_std = fundamental_uncertainty(records, run.fs, f0, h, t0=run.t0)
     notes = []
     if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
         msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
@@ -298,7 +308,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
         kept=kept, coordinates=coords, time=t, series=_series(force, f0, t),
         static_series=static_series, psi_condition=cond, consistency=consistency,
-        dc_observed=not ac_coupled, notes=tuple(notes),
+        dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std,
     )
 
 

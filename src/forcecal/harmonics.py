@@ -479,6 +479,19 @@ def refine_fundamental(
             f"{100 * max(explained, 0.0):.1f} % of the variance of the records "
             f"(at least {100 * min_explained:.0f} % expected)"
         )
+    # maximum likelihood for white noise: each record weighted by its own noise, so that a
+    # faint, noisy record (a probe near a node) does not pull as hard as a clean one
+    noise = [fit_harmonics(g, fs, f_best, n_harmonics, t0=t0).residual_std for g in groups]
+    floor = 1e-9                    # scaled records have unit RMS: below this, noise-free
+    if len(recs) > 1 and all(np.all(s > floor) for s in noise):
+        weighted = [g / s[:, None] for g, s in zip(groups, noise, strict=True)]
+        res = minimize_scalar(
+            lambda f: _total_rss(weighted, fs, f, n_harmonics, t0),
+            bounds=(f_best - spacing, f_best + spacing),
+            method="bounded",
+            options={"xatol": 1e-10 * f0_nominal, "maxiter": 500},
+        )
+        f_best = float(res.x)
     return f_best
 
 

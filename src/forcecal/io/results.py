@@ -47,6 +47,7 @@ def estimate_summary(est: ForceEstimate) -> dict:
     return {
         "run": est.run_name,
         "fundamental_hz": est.f0,
+        "fundamental_std_hz": est.f0_std,
         "dc_observed": est.dc_observed,
         "forces": forces,
         "resultant_moments": resultant,
