@@ -127,10 +127,7 @@ def _read_tdms_run(path: Path) -> Run:
     first = next(iter(raw[n] for n in channels))
     if "wf_increment" in first.properties:
         fs = _rate_from_increment(first.properties["wf_increment"], path)
-        t0 = float(first.properties.get("wf_start_offset", 0.0))
-        _check_equal_lengths(channels, path)
-        _check_length(len(next(iter(channels.values()))), path)
-        return _finish(path, channels, fs, t0)
+        return _sampled(path, channels, fs, float(first.properties.get("wf_start_offset", 0.0)))
     if time_name is None:
         raise InputError(
             f"run '{path}': no 'wf_increment' property and no 'time' channel; "
@@ -152,16 +149,20 @@ def _read_hdf5_run(path: Path) -> Run:
         raise DataError(f"run '{path}': no channel datasets at the file root")
     if "fs" in attrs:
         fs = _positive_number(attrs["fs"], "root attribute 'fs'", path)
-        t0 = float(np.asarray(attrs.get("t0", 0.0), dtype=float).item())
-        _check_equal_lengths(channels, path)
-        _check_length(len(next(iter(channels.values()))), path)
-        return _finish(path, channels, fs, t0)
+        return _sampled(path, channels, fs, float(np.asarray(attrs.get("t0", 0.0)).item()))
     if time_name is None:
         raise InputError(
             f"run '{path}': no 'fs' attribute on the file root and no 'time' dataset; "
             "cannot tell the sampling"
         )
     return _with_time_channel(path, _hdf5_values(data[time_name], time_name, path), channels)
+
+
+def _sampled(path: Path, channels: dict[str, np.ndarray], fs: float, t0: float) -> Run:
+    """A run whose sampling rate the file states: equal, long enough channels."""
+    _check_equal_lengths(channels, path)
+    _check_length(len(next(iter(channels.values()))), path)
+    return _finish(path, channels, fs, t0)
 
 
 def _with_time_channel(path: Path, time: np.ndarray, channels: dict[str, np.ndarray]) -> Run:
