@@ -4,9 +4,8 @@ Per harmonic n >= 1: J_{r,n} = m_{r,n} (-(n w0)^2) Q_n and F_n = Psi^+ (J_n - R_
 has no inertia, F_0 = -Psi^+ (R_0 - R_0,tare). The reactions-only (static) estimate,
 -Psi^+ R(t) sample by sample, is returned beside it as the baseline.
 
-Standard uncertainties are propagated linearly from the noise of every channel (estimated from
-its own fit residuals) and from the scan model's shape coefficients, so that near a resonance,
-where F is a small difference of large numbers, the stated uncertainty grows with it.
+Standard uncertainties come from :mod:`forcecal.uncertainty`: linear propagation from the noise
+of every channel and from the scan model's shape coefficients.
 """
 
 from __future__ import annotations
@@ -19,13 +18,18 @@ import numpy as np
 
 from .coordinates import Coordinates, generalized_coordinates
 from .errors import DataError, InputError
-from .harmonics import HarmonicFit, fit_harmonics, fundamental_uncertainty, refine_fundamental
-from .inertia import mass_weights
+from .harmonics import fit_harmonics, fundamental_uncertainty, refine_fundamental
 from .io.run_files import check_clipping
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
-from .spatial import SpatialModel, structure_coordinates
+from .spatial import SpatialModel
+from .uncertainty import (
+    combinations,
+    gauge_variance,
+    inertia_variance,
+    unresolved_inertia_bound,
+)
 
 __all__ = ["ForceEstimate", "channels_si", "implied_phasors", "reconstruct"]
 
@@ -57,8 +61,8 @@ class ForceEstimate:
     time : (n_samples,) [s]; series : (n_forces, n_samples) [N];
     static_series : (n_forces, n_samples) [N] -Psi^+ R(t) sample by sample
     combination_names, combination, combination_std : every force, the total and the
-        resultant's first moments (see :func:`combinations`), phasors (n_c, H+1) [N, N m] with
-        their standard uncertainties
+        resultant's first moments (:func:`forcecal.uncertainty.combinations`), phasors
+        (n_c, H+1) [N, N m] with their standard uncertainties
     """
 
     run_name: str
@@ -142,56 +146,6 @@ def _series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
     return (phasors @ e).real
 
 
-def _shape_jacobian(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit,
-                    pinv: np.ndarray, w0n: float) -> tuple[np.ndarray, np.ndarray]:
-    """d(Psi^+ J_n)/d(Re p, Im p) of the shape coefficients p, and their covariance.
-
-    Returns
-    -------
-    jac : (n_forces, 2 n_funcs) complex [N per coefficient unit]
-    cov_p : (2 n_funcs, 2 n_funcs) covariance of (Re p, Im p)
-    """
-    fit = model.shapes[k]
-    n = int(model.harmonics[k])
-    pts, weights = mass_weights(rig)
-    c = weights @ fit.basis.evaluate(pts)                          # (n_g, nf)
-    bs = fit.basis.evaluate(structure_coordinates(rig, rig.sensor_points))   # (n_s, nf)
-    s = sensors.phasors[:, n]
-    w = 1.0 / np.maximum(sensors.phasor_std[:, n], 1e-150) ** 2
-
-    def inertia_force(p: np.ndarray) -> np.ndarray:
-        phi = bs @ p
-        q = np.sum(w * np.conj(phi) * s) / np.sum(w * np.abs(phi) ** 2)
-        return pinv @ ((c @ p) * (-(w0n**2)) * q)
-
-    p0 = fit.coefficients
-    nf = len(p0)
-    h = 1e-6 * np.linalg.norm(p0)
-    jac = np.empty((pinv.shape[0], 2 * nf), dtype=complex)
-    for j in range(nf):
-        for part, d in ((0, h), (1, 1j * h)):
-            e = np.zeros(nf, dtype=complex)
-            e[j] = d
-            jac[:, part * nf + j] = (inertia_force(p0 + e) - inertia_force(p0 - e)) / (2 * h)
-    return jac, np.kron(np.eye(2), fit.coefficient_covariance)   # Re and Im independent
-
-
-def combinations(rig: Rig) -> tuple[tuple[str, ...], np.ndarray]:
-    """Linear combinations of the forces that are reported: each force, the total (the
-    resultant) and its first moments sum(f x) [N m] (and sum(f y) on a plate).
-
-    Returns names and the (n_combinations, n_forces) matrix.
-    """
-    n_f = len(rig.forces)
-    pts = rig.force_points
-    names = [*rig.force_names, "total", "moment_x"]
-    rows = [*np.eye(n_f), np.ones(n_f), pts[:, 0]]
-    if rig.structure.kind == "plate":
-        names.append("moment_y")
-        rows.append(pts[:, 1])
-    return tuple(names), np.array(rows)
-
-
 def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None = None,
                 tare: Run | None = None, ac_coupled: bool = False) -> ForceEstimate:
     """External forces of one run from its reactions, sensors and the spatial model.
@@ -243,37 +197,25 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     w0 = 2 * np.pi * f0
     combo_names, combo = combinations(rig)
     a_r = combo @ pinv                                               # (n_c, n_g)
-    n_c = len(combo_names)
-    var = np.zeros((n_c, h + 1, 2))                                  # (Re, Im) variances
-    var += ((a_r**2) @ g_fit.phasor_std**2)[:, :, None]             # gauge noise
+    var = np.repeat(gauge_variance(a_r, g_fit)[:, :, None], 2, axis=2)   # (n_c, H+1, Re/Im)
     for k, n in enumerate(model.harmonics):
         n = int(n)
         if n > h:
             continue
         w0n = n * w0
-        m = model.couplings[k]                                       # (n_g,)
-        inertia[:, n] = m * (-(w0n**2)) * coords.q[k]
+        inertia[:, n] = model.couplings[k] * (-(w0n**2)) * coords.q[k]
         with_inertia[n] = True
-        var[:, n, :] += (np.abs(a_r @ m) * w0n**2 * coords.q_std[k])[:, None] ** 2
-        jac, cov_p = _shape_jacobian(model, rig, k, s_fit, pinv, w0n)
-        cj = combo @ jac                                             # (n_c, 2 nf)
-        var[:, n, 0] += np.einsum("ca,ab,cb->c", cj.real, cov_p, cj.real)
-        var[:, n, 1] += np.einsum("ca,ab,cb->c", cj.imag, cov_p, cj.imag)
+        var[:, n, :] += inertia_variance(model, rig, k, s_fit, pinv, combo, w0n,
+                                         coords.q_std[k])
     # harmonics the scan could not resolve: kept only where the reactions show them; their
-    # inertia is not compensated, so it is bounded by the whole mass moving with the sensors'
-    # amplitude (or their noise) and that bound is stated as an uncertainty
-    mass = rig.structure.total_mass
+    # inertia is not compensated, and its bound is stated as an uncertainty
     kept = with_inertia.copy()
     kept[0] = True
     for n in range(1, h + 1):
-        if with_inertia[n]:
-            continue
-        if not np.any(np.abs(reactions[:, n]) > 5 * g_fit.phasor_std[:, n]):
+        if with_inertia[n] or not np.any(np.abs(reactions[:, n]) > 5 * g_fit.phasor_std[:, n]):
             continue
         kept[n] = True
-        noise = float(np.sqrt(np.mean(s_fit.phasor_std[:, n] ** 2)))
-        motion = max(float(np.sqrt(np.mean(np.abs(s_fit.phasors[:, n]) ** 2))), noise)
-        bound = mass * (n * w0) ** 2 * motion
+        bound = unresolved_inertia_bound(rig, s_fit, n, w0)
         var[:, n, :] += (bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1))[:, None]
         notes.append(f"harmonic {n}: no shape in the scan model "
                      f"({model.dropped.get(n, 'not scanned')}); its inertia, up to {bound:.2g} N, "
