@@ -196,3 +196,12 @@ def test_plate_forces_against_the_virtual_rig(plate_lab):
     assert static > 5 * full
     # the stated waveform uncertainty is of the size of the error (not 10x off either way)
     assert 0.2 < full * np.std(truth["total"]) / est.waveform_std < 5
+
+
+def test_inside_polygon_on_a_concave_outline():
+    from forcecal.rig import inside_polygon
+
+    outline = np.array([[0, 0], [0.5, 0], [0.5, 0.4], [0.2, 0.4], [0.2, 0.2], [0, 0.2]])
+    points = np.array([[0.1, 0.1], [0.1, 0.3], [0.3, 0.3], [0.5, 0.2], [0.2, 0.3], [0.6, 0.1]])
+    np.testing.assert_array_equal(inside_polygon(outline, points),
+                                  [True, False, True, True, True, False])

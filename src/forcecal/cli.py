@@ -54,13 +54,10 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
-def _load_model_inputs(rig_path, scan_path, reference_label="Ref"):
+def _read_scan(args):
     from .io.scan_files import read_scan
-    from .rig import load_rig
 
-    rig = load_rig(rig_path)
-    scan = read_scan(scan_path, reference_label=reference_label)
-    return rig, scan
+    return read_scan(args.scan, reference_label=args.reference_label)
 
 
 def _build_model(rig, scan, args):
@@ -76,15 +73,14 @@ def _model_for(args, rig):
 
     if str(args.scan).endswith(".json"):
         return load_model(args.scan)
-    from .io.scan_files import read_scan
-
-    scan = read_scan(args.scan, reference_label=args.reference_label)
-    return _build_model(rig, scan, args)
+    return _build_model(rig, _read_scan(args), args)
 
 
 def _cmd_scan(args) -> int:
-    rig, scan = _load_model_inputs(args.rig, args.scan, args.reference_label)
-    model = _build_model(rig, scan, args)
+    from .rig import load_rig
+
+    rig = load_rig(args.rig)
+    model = _build_model(rig, _read_scan(args), args)
     model.save(args.output)
     mac = model.similarity.min()
     print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
@@ -189,12 +185,10 @@ def _cmd_report(args) -> int:
 
     _check_distinct_names(args.runs)
     rig = load_rig(args.rig)
-    from .io.scan_files import read_scan
-
-    scan = read_scan(args.scan, reference_label=args.reference_label)
+    scan = _read_scan(args)
     runs = _read_runs(args.runs)
     path = run_report(rig, scan, runs, args.output, truth_dir=args.truth,
-                      n_harmonics=args.harmonics)
+                      n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis)
     print(path)
     return 0
 

@@ -10,7 +10,6 @@ of every channel and from the scan model's shape coefficients.
 
 from __future__ import annotations
 
-import logging
 import warnings
 from dataclasses import dataclass, field
 
@@ -32,8 +31,6 @@ from .uncertainty import (
 )
 
 __all__ = ["ForceEstimate", "channels_si", "implied_phasors", "reconstruct"]
-
-log = logging.getLogger(__name__)
 
 SPLIT_CONDITION = 30.0
 """cond(Psi) above which the split between the forces is flagged as poorly determined."""

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import DimensionError
+from .errors import DataError, DimensionError
 
 __all__ = ["Run", "Scan"]
 
@@ -109,8 +109,7 @@ class Run:
         return self.t0 + np.arange(self.n_samples) / self.fs
 
     def channel(self, name: str) -> np.ndarray:
-        from .errors import DataError
-
+        """Raw values of a channel; DataError naming the run and the channel if it is missing."""
         if name not in self.channels:
             raise DataError(
                 f"run '{self.source}': channel '{name}' named in the rig is missing "

@@ -24,6 +24,7 @@ __all__ = [
     "Rig",
     "Sensor",
     "Structure",
+    "inside_polygon",
     "load_rig",
     "parse_rig",
     "rig_to_dict",
@@ -91,6 +92,34 @@ class Actuator:
         return 4e-7 * math.pi * self.turns**2 * self.pole_area / 4.0
 
 
+def inside_polygon(polygon: np.ndarray, points: np.ndarray, tol: float = 1e-9) -> np.ndarray:
+    """Which points lie inside a simple polygon or within ``tol`` of its edges.
+
+    Parameters
+    ----------
+    polygon : (n_vertices, 2) [m]; points : (n_points, 2) [m]
+
+    Returns
+    -------
+    (n_points,) bool
+    """
+    v = np.asarray(polygon, dtype=float)
+    p = np.atleast_2d(np.asarray(points, dtype=float))
+    a, b = v, np.roll(v, -1, axis=0)                                 # edges a -> b
+    px, py = p[:, 0:1], p[:, 1:2]
+    # even-odd rule: edges that straddle the point's height, crossed to its right
+    straddle = (a[:, 1] > py) != (b[:, 1] > py)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        x_cross = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
+    inside = np.count_nonzero(straddle & (px < x_cross), axis=1) % 2 == 1
+    # distance to every edge, so that points on the outline count
+    d = b - a
+    length2 = np.maximum(np.sum(d**2, axis=1), 1e-300)
+    u = np.clip(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / length2, 0.0, 1.0)
+    dist = np.hypot(px - (a[:, 0] + u * d[:, 0]), py - (a[:, 1] + u * d[:, 1]))
+    return inside | np.any(dist <= tol, axis=1)
+
+
 @dataclass(frozen=True)
 class Structure:
     """The elastic body: its kind, extent and mass distribution.
@@ -114,11 +143,7 @@ class Structure:
         """Whether (x, y) lies on the structure (within ``tol`` [m])."""
         if self.kind == "beam":
             return -tol <= x <= self.length + tol
-        from matplotlib.path import Path as _Path  # point-in-polygon, no plotting
-
-        return bool(_Path(np.asarray(self.outline)).contains_point((x, y), radius=tol)) or bool(
-            _Path(np.asarray(self.outline)).contains_point((x, y), radius=-tol)
-        )
+        return bool(inside_polygon(np.asarray(self.outline), np.array([[x, y]]), tol)[0])
 
     @property
     def total_mass(self) -> float:

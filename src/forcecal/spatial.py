@@ -19,7 +19,7 @@ from .basis import PolynomialBasis, ShapeFit, fit_shape, shape_similarity
 from .errors import InputError
 from .inertia import mass_coupling
 from .records import Scan
-from .rig import Rig
+from .rig import Rig, inside_polygon
 from .scan import HarmonicShapes, harmonic_shapes
 
 __all__ = [
@@ -227,14 +227,11 @@ def structure_grid(rig: Rig, n: int = 401) -> np.ndarray:
     """Points covering the structure (for peaks of shapes): a line or a grid inside the outline."""
     if rig.structure.kind == "beam":
         return np.linspace(0.0, rig.structure.length, n)
-    from matplotlib.path import Path as _Path
-
     (x0, x1), (y0, y1) = structure_extent(rig)
     side = int(np.sqrt(n)) + 1
     xx, yy = np.meshgrid(np.linspace(x0, x1, side), np.linspace(y0, y1, side))
     pts = np.column_stack([xx.ravel(), yy.ravel()])
-    inside = _Path(np.asarray(rig.structure.outline)).contains_points(pts, radius=1e-9)
-    return pts[inside]
+    return pts[inside_polygon(np.asarray(rig.structure.outline), pts)]
 
 
 def _inverse_variance(std: np.ndarray) -> np.ndarray:

@@ -7,15 +7,15 @@
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
 
 from ..forces import ForceEstimate, reconstruct
+from ..harmonics import fit_harmonics
 from ..io.results import write_estimate
-from ..io.run_files import read_run, read_table_csv
+from ..io.run_files import read_table_csv
 from ..records import Run, Scan
 from ..rig import Rig
 from ..scan import harmonic_shapes
@@ -76,12 +76,18 @@ def _truth_errors(est: ForceEstimate, truth: dict[str, np.ndarray]) -> list[list
 
 
 def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
-               truth_dir: str | Path | None = None, n_harmonics: int = 6) -> Path:
-    """Model, forces, figures and ``OUT/report.html`` for runs; returns the report's path."""
+               truth_dir: str | Path | None = None, n_harmonics: int = 6,
+               criterion: str = "gcv", basis: str = "polynomial") -> Path:
+    """Model, forces, figures and ``OUT/report.html`` for runs; returns the report's path.
+
+    ``n_harmonics``, ``criterion`` and ``basis`` are those of
+    :func:`forcecal.spatial.build_spatial_model`.
+    """
     out = Path(out_dir)
     figs = out / "figures"
     hs = harmonic_shapes(scan, rig.frequency, n_harmonics) if rig.frequency else None
-    model = build_spatial_model(rig, scan, n_harmonics=n_harmonics, shapes=hs)
+    model = build_spatial_model(rig, scan, n_harmonics=n_harmonics, criterion=criterion,
+                                shapes=hs, basis=basis)
     model.save(out / "model.json")
     fig = (fig_shapes(hs, model) if rig.structure.kind == "beam"
            else fig_shapes_2d(hs, model))
@@ -136,16 +142,25 @@ def calibration_report(rig: Rig, model: SpatialModel, result, out_dir: str | Pat
     from ..campaign import report_text
 
     out = Path(out_dir)
-    pairs = [(r, read_run(r.entry.run)) for r in result.runs if not r.entry.tare]
-    gaps = [r.entry.gap if r.entry.gap is not None else rig.forces[0].gap for r, _ in pairs]
-    points = CalibrationPoints.from_estimates(rig, [run for _, run in pairs],
-                                              [r.estimate for r, _ in pairs], gaps=gaps)
-    # the law at each run's own current and instantaneous gaps (the structure moves)
-    law = [law_harmonics(result.calibration, r.samples.current, r.samples.gaps,
-                         r.samples.n * r.estimate.f0, r.estimate.f0, t0=r.samples.time[0])
-           for r, _ in pairs]
-    points = dataclasses.replace(points, law_dc=np.array([a for a, _ in law]),
-                                 law_ac=np.array([b for _, b in law]))
+    dc, ac, law_dc, law_ac = [], [], [], []
+    for r in result.runs:
+        smp, f0 = r.samples, r.estimate.f0
+        fs = smp.n * f0                                 # the samples span one period evenly
+        current = fit_harmonics(smp.current, fs, f0, 1, t0=smp.time[0]).phasors
+        dc.append(current[0].real)
+        ac.append(abs(current[1]))
+        # the law at the run's own current and instantaneous gaps (the structure moves)
+        a, b = law_harmonics(result.calibration, smp.current, smp.gaps, fs, f0, t0=smp.time[0])
+        law_dc.append(a)
+        law_ac.append(b)
+    est = [r.estimate for r in result.runs]
+    points = CalibrationPoints(
+        gap=np.array([r.samples.static_gap for r in result.runs]), dc=np.array(dc),
+        ac=np.array(ac), force_dc=np.array([e.total[0].real for e in est]),
+        force_ac=np.array([abs(e.total[1]) for e in est]),
+        force_dc_std=np.array([e.total_std[0] for e in est]),
+        force_ac_std=np.array([e.total_std[1] for e in est]),
+        law_dc=np.array(law_dc), law_ac=np.array(law_ac), names=tuple(r.name for r in result.runs))
     fig = fig_calibration(points, result.calibration)
     png = save_png(fig, out / "figures" / "calibration.png")
     sections = [
