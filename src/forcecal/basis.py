@@ -55,22 +55,24 @@ _MAX_ORDER = 20
 
 
 def n_functions(order: int, n_dim: int) -> int:
-    """Number of basis functions of a given order (max total degree + 1) in 1-D or 2-D."""
+    """Number of basis functions of a given order (max total degree + 1) in 1-D, 2-D or 3-D."""
     if n_dim == 1:
         return order
     if n_dim == 2:
         return order * (order + 1) // 2
-    raise DimensionError(f"n_dim must be 1 or 2; got {n_dim}")
+    if n_dim == 3:
+        return order * (order + 1) * (order + 2) // 6
+    raise DimensionError(f"n_dim must be 1, 2 or 3; got {n_dim}")
 
 
 def _as_domain(extent: object) -> np.ndarray:
     dom = np.asarray(extent, dtype=float)
     if dom.shape == (2,):
         dom = dom[None, :]
-    if dom.ndim != 2 or dom.shape[1] != 2 or dom.shape[0] not in (1, 2):
+    if dom.ndim != 2 or dom.shape[1] != 2 or dom.shape[0] not in (1, 2, 3):
         raise DimensionError(
-            "extent must be (x_min, x_max) or ((x_min, x_max), (y_min, y_max)) [m]; "
-            f"got shape {dom.shape}"
+            "extent must be (x_min, x_max) or ((x_min, x_max), (y_min, y_max)[, (z_min, z_max)])"
+            f" [m]; got shape {dom.shape}"
         )
     if not np.all(np.isfinite(dom)) or np.any(dom[:, 1] <= dom[:, 0]):
         raise DataError(f"extent {dom.tolist()} must have finite bounds with min < max [m]")
@@ -83,9 +85,9 @@ def _as_points(points: object, n_dim: int | None = None) -> np.ndarray:
         pts = pts.reshape(1, 1)
     elif pts.ndim == 1:
         pts = pts[:, None]
-    if pts.ndim != 2 or pts.shape[1] not in (1, 2):
+    if pts.ndim != 2 or pts.shape[1] not in (1, 2, 3):
         raise DimensionError(
-            f"points must be (n_points,) or (n_points, n_dim) with n_dim 1 or 2; "
+            f"points must be (n_points,) or (n_points, n_dim) with n_dim 1, 2 or 3; "
             f"got shape {np.shape(points)}"
         )
     if n_dim is not None and pts.shape[1] != n_dim:
@@ -109,7 +111,8 @@ def legendre_vandermonde(points: np.ndarray, extent: object, order: int) -> np.n
     -------
     (n_points, n_functions(order, n_dim)) array [1]
         1-D: P_0(u) .. P_{order-1}(u). 2-D: P_i(u) P_j(v) by total degree d = i + j, and
-        within a degree by decreasing i.
+        within a degree by decreasing i. 3-D: P_i(u) P_j(v) P_k(w) by total degree, then by
+        decreasing i, then decreasing j.
     """
     dom = _as_domain(extent)
     pts = _as_points(points, dom.shape[0])
@@ -120,7 +123,12 @@ def legendre_vandermonde(points: np.ndarray, extent: object, order: int) -> np.n
         return legendre.legvander(u[:, 0], order - 1)
     pu = legendre.legvander(u[:, 0], order - 1)
     pv = legendre.legvander(u[:, 1], order - 1)
-    cols = [pu[:, d - j] * pv[:, j] for d in range(order) for j in range(d + 1)]
+    if dom.shape[0] == 2:
+        cols = [pu[:, d - j] * pv[:, j] for d in range(order) for j in range(d + 1)]
+    else:
+        pw = legendre.legvander(u[:, 2], order - 1)
+        cols = [pu[:, i] * pv[:, j] * pw[:, d - i - j]
+                for d in range(order) for i in range(d, -1, -1) for j in range(d - i, -1, -1)]
     return np.stack(cols, axis=1)
 
 
@@ -146,6 +154,9 @@ def modal_functions(points: np.ndarray, extent: object, order: int) -> np.ndarra
     pts = _as_points(points, dom.shape[0])
     if order < 1:
         raise DimensionError(f"order must be >= 1; got {order}")
+    if dom.shape[0] == 3:
+        raise DimensionError("the mode-shape basis serves beams and plates; a body's shapes "
+                             "use the polynomials")
     xi = (pts - dom[:, 0]) / (dom[:, 1] - dom[:, 0])
     n_dim = dom.shape[0]
     total = n_functions(order, n_dim)
@@ -471,7 +482,16 @@ def fit_shape(
             "residual degree of freedom (lower max_order)"
         )
 
-    full = orthonormal_basis(pts, dom, int(orders[-1]), w, family=family)
+    while True:
+        try:
+            full = orthonormal_basis(pts, dom, int(orders[-1]), w, family=family)
+            break
+        except ConditioningError:
+            # points on a few lines or surfaces (a body scanned on its faces) support only
+            # the orders whose functions they tell apart
+            if order is not None or len(orders) == 1:
+                raise
+            orders = orders[:-1]
     sw = np.sqrt(w)[:, None]
     b = full.evaluate(pts) * sw  # (n, P), orthonormal columns
     yw = y * sw

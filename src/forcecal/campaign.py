@@ -84,7 +84,7 @@ from .io.manifest import ManifestEntry, read_manifest
 from .io.run_files import read_run
 from .records import Run
 from .rig import Rig
-from .spatial import SpatialModel
+from .spatial import SpatialModel, structure_coordinates, structure_grid
 
 __all__ = [
     "CURRENT_GAP_LAWS",
@@ -147,16 +147,16 @@ def quasi_static_shape(model: SpatialModel, rig: Rig) -> Callable[[np.ndarray], 
     Returns
     -------
     callable
-        ``x (n,) [m] -> (n,) [m]``, the shape at points along the structure; its scale and
-        sign are arbitrary (the DC amplitude is fitted to the probes).
+        ``points -> (n,) [m]``, the shape at points of the structure (as
+        :func:`forcecal.spatial.structure_coordinates` gives them); its scale and sign are
+        arbitrary (the DC amplitude is fitted to the probes).
     """
     n1 = 1 if 1 in model.harmonics else int(np.min(model.harmonics))
-    grid = np.linspace(0.0, float(rig.structure.length), _SHAPE_GRID)
-    phi = model.shape_values(n1, grid)
+    phi = model.shape_values(n1, structure_grid(rig, _SHAPE_GRID))
     rotor = np.exp(-0.5j * np.angle(np.sum(phi**2)))
 
-    def shape(x: np.ndarray) -> np.ndarray:
-        return (model.shape_values(n1, np.atleast_1d(np.asarray(x, dtype=float))) * rotor).real
+    def shape(points: np.ndarray) -> np.ndarray:
+        return (model.shape_values(n1, structure_coordinates(rig, points)) * rotor).real
 
     return shape
 
@@ -229,7 +229,7 @@ def pole_motion(
     PoleMotion
     """
     h = int(estimate.harmonics[-1])
-    xp = rig.force_points[:, 0]
+    xp = structure_coordinates(rig, rig.force_points)
     phasors = np.zeros((len(rig.forces), h + 1), dtype=complex)
     coords = estimate.coordinates
     for k, n in enumerate(coords.harmonics):
@@ -247,7 +247,7 @@ def pole_motion(
         dc = dc - zero
         var = var + np.array([t_sig[s].var() / t_sig[s].size for s in rig.sensor_names])
     shape = quasi_static_shape(model, rig)
-    at_probes = shape(rig.sensor_points[:, 0])
+    at_probes = shape(rig.sensor_points)
     w = 1.0 / np.maximum(var, np.finfo(float).tiny)
     amplitude = float(np.sum(w * at_probes * dc) / np.sum(w * at_probes**2))
     misfit = dc - amplitude * at_probes

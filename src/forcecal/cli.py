@@ -54,10 +54,10 @@ def _cmd_simulate(args) -> int:
     return 0
 
 
-def _read_scan(args):
+def _read_scan(args, rig):
     from .io.scan_files import read_scan
 
-    return read_scan(args.scan, reference_label=args.reference_label)
+    return read_scan(args.scan, reference_label=args.reference_label, locations=rig.is_body)
 
 
 def _build_model(rig, scan, args):
@@ -73,20 +73,22 @@ def _model_for(args, rig):
 
     if str(args.scan).endswith(".json"):
         return load_model(args.scan)
-    return _build_model(rig, _read_scan(args), args)
+    return _build_model(rig, _read_scan(args, rig), args)
 
 
 def _cmd_scan(args) -> int:
     from .rig import load_rig
 
     rig = load_rig(args.rig)
-    model = _build_model(rig, _read_scan(args), args)
+    model = _build_model(rig, _read_scan(args, rig), args)
     model.save(args.output)
     mac = model.similarity.min()
     print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
           f"{', '.join(str(n) for n in model.harmonics)} (orders "
           f"{', '.join(str(s.order) for s in model.shapes)}); lowest MAC between harmonics "
           f"{mac:.5f}: {'one shape serves all' if model.one_shape else 'shapes differ'}")
+    for note in model.notes:
+        print(f"note: {note}")
     return 0
 
 
@@ -185,7 +187,7 @@ def _cmd_report(args) -> int:
 
     _check_distinct_names(args.runs)
     rig = load_rig(args.rig)
-    scan = _read_scan(args)
+    scan = _read_scan(args, rig)
     runs = _read_runs(args.runs)
     path = run_report(rig, scan, runs, args.output, truth_dir=args.truth,
                       n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis)

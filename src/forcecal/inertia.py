@@ -1,9 +1,12 @@
 """Mass coupling of relaxation shapes and deflection shapes (METHOD.md eq. 6).
 
 m_r[phi] = integral(rho psi_r phi) + sum_k m_k psi_r(x_k) phi(x_k), by Gauss-Legendre
-quadrature along a beam, or over a plate's outline cut into triangles (each integrated by a
-collapsed Gauss rule), exact for the polynomial shapes of :mod:`forcecal.basis` up to the
-quadrature's degree, plus the lumped masses.
+quadrature along a beam, over a plate's outline cut into triangles (each integrated by a
+collapsed Gauss rule), or through a body's blocks (a tensor Gauss rule), exact for the
+polynomial shapes of :mod:`forcecal.basis` up to the quadrature's degree, plus the lumped
+masses. On a body both psi_r and phi are vector fields: the product is their dot product, so
+every quadrature point enters three times, once per axis, as a location (x, e_x), (x, e_y),
+(x, e_z).
 """
 
 from __future__ import annotations
@@ -15,10 +18,12 @@ import numpy as np
 from .relaxation import relaxation_shapes
 from .rig import Rig
 
-__all__ = ["mass_coupling", "mass_weights", "polygon_quadrature", "triangulate"]
+__all__ = ["block_quadrature", "mass_coupling", "mass_weights", "polygon_quadrature",
+           "triangulate"]
 
 _N_QUAD = 64
 _N_TRI = 12
+_N_BLOCK = 12
 
 
 def mass_weights(rig: Rig, n_quad: int = _N_QUAD) -> tuple[np.ndarray, np.ndarray]:
@@ -26,11 +31,18 @@ def mass_weights(rig: Rig, n_quad: int = _N_QUAD) -> tuple[np.ndarray, np.ndarra
 
     Returns
     -------
-    points : (n_q,) or (n_q, 2) array [m], quadrature nodes then the lumped masses' positions
+    points : (n_q,) or (n_q, 2) array [m], quadrature nodes then the lumped masses' positions;
+        on a body (n_q, 6) locations, each node and mass along x, y and z
     weights : (n_gauges, n_q) array [kg]: m_r[phi] = weights[r] @ phi(points)
     """
     st = rig.structure
     mm = np.array([m.mass for m in st.masses])
+    if st.kind == "body":
+        qp, qw = block_quadrature(st.blocks, _N_BLOCK)
+        pts = np.vstack([qp, np.array([[m.x, m.y, m.z] for m in st.masses]).reshape(-1, 3)])
+        w = np.concatenate([qw * st.density, mm])
+        locs = np.vstack([np.column_stack([pts, np.tile(e, (len(pts), 1))]) for e in np.eye(3)])
+        return locs, relaxation_shapes(rig, locs) * np.tile(w, 3)[None, :]
     if st.kind == "beam":
         xi, wi = np.polynomial.legendre.leggauss(n_quad)
         x = 0.5 * st.length * (xi + 1.0)
@@ -108,6 +120,29 @@ def polygon_quadrature(polygon: np.ndarray, n: int = _N_TRI) -> tuple[np.ndarray
         area2 = abs(e1[0] * e2[1] - e1[1] * e2[0])
         pts.append(a + np.outer(s, e1) + np.outer(t, e2))
         wts.append(jw * area2)
+    return np.vstack(pts), np.concatenate(wts)
+
+
+def block_quadrature(blocks, n: int = _N_BLOCK) -> tuple[np.ndarray, np.ndarray]:
+    """Points and weights integrating over a union of axis-aligned boxes (an n x n x n
+    Gauss-Legendre rule in each, exact for degree <= 2 n - 1 along each axis).
+
+    Parameters
+    ----------
+    blocks : ((x0, y0, z0), (x1, y1, z1)) corners of each box [m]
+
+    Returns
+    -------
+    points : (n_q, 3) [m]; weights : (n_q,) [m^3]
+    """
+    g, w = np.polynomial.legendre.leggauss(n)
+    g, w = 0.5 * (g + 1.0), 0.5 * w
+    pts, wts = [], []
+    for lo, hi in blocks:
+        lo, size = np.asarray(lo, dtype=float), np.subtract(hi, lo)
+        axes = [lo[a] + size[a] * g for a in range(3)]
+        pts.append(np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3))
+        wts.append(np.einsum("i,j,k->ijk", w, w, w).ravel() * float(np.prod(size)))
     return np.vstack(pts), np.concatenate(wts)
 
 

@@ -26,51 +26,67 @@ __all__ = [
     "Structure",
     "inside_polygon",
     "load_rig",
+    "locations",
     "parse_rig",
     "rig_to_dict",
 ]
 
 
+UP = (0.0, 0.0, 1.0)
+"""The measuring direction of beams and plates: +w, out of their plane."""
+
+
 @dataclass(frozen=True)
 class LumpedMass:
-    """A point mass rigidly attached to the structure [kg] at (x, y) [m]."""
+    """A point mass rigidly attached to the structure [kg] at (x, y, z) [m]."""
 
     x: float
     mass: float
     y: float = 0.0
+    z: float = 0.0
 
 
 @dataclass(frozen=True)
 class Gauge:
-    """A force gauge; ``scale`` converts the raw channel to N acting on the structure in +w."""
+    """A force gauge; ``scale`` converts the raw channel to N acting on the structure in +w
+    (on a body: along ``direction``, a unit vector)."""
 
     name: str
     x: float
     y: float = 0.0
     scale: float = 1.0
+    z: float = 0.0
+    direction: tuple[float, float, float] = UP
 
 
 @dataclass(frozen=True)
 class ForcePoint:
     """A point where an unknown external force acts (an actuator pole).
 
-    ``gap`` is the static air gap [m] with the structure at w = 0, or None when unknown.
+    ``gap`` is the static air gap [m] with the structure at w = 0, or None when unknown. On a
+    body the force acts along ``direction`` (a unit vector, toward the magnet: motion along it
+    closes the gap).
     """
 
     name: str
     x: float
     y: float = 0.0
     gap: float | None = None
+    z: float = 0.0
+    direction: tuple[float, float, float] = UP
 
 
 @dataclass(frozen=True)
 class Sensor:
-    """A point displacement sensor; ``scale`` converts the raw channel to m in +w."""
+    """A point displacement sensor; ``scale`` converts the raw channel to m in +w (on a body:
+    along ``direction``)."""
 
     name: str
     x: float
     y: float = 0.0
     scale: float = 1.0
+    z: float = 0.0
+    direction: tuple[float, float, float] = UP
 
 
 @dataclass(frozen=True)
@@ -126,6 +142,8 @@ class Structure:
 
     For a beam, ``length`` [m] and ``mass_per_length`` [kg/m] along x in [0, length].
     For a plate, ``outline`` (n_vertices, 2) [m] and ``mass_per_area`` [kg/m^2].
+    For a 3-D body, ``blocks`` (axis-aligned boxes ((x0, y0, z0), (x1, y1, z1)) [m] that do not
+    overlap) and ``density`` [kg/m^3].
     """
 
     kind: str
@@ -134,15 +152,21 @@ class Structure:
     mass_per_area: float | None = None
     outline: tuple[tuple[float, float], ...] | None = None
     masses: tuple[LumpedMass, ...] = ()
+    density: float | None = None
+    blocks: tuple[tuple[tuple[float, float, float], tuple[float, float, float]], ...] = ()
 
     @property
     def dim(self) -> int:
-        return 1 if self.kind == "beam" else 2
+        return {"beam": 1, "plate": 2}.get(self.kind, 3)
 
-    def contains(self, x: float, y: float = 0.0, tol: float = 1e-9) -> bool:
-        """Whether (x, y) lies on the structure (within ``tol`` [m])."""
+    def contains(self, x: float, y: float = 0.0, z: float = 0.0, tol: float = 1e-9) -> bool:
+        """Whether (x, y[, z]) lies on the structure (within ``tol`` [m])."""
         if self.kind == "beam":
             return -tol <= x <= self.length + tol
+        if self.kind == "body":
+            p = np.array([x, y, z])
+            return any(bool(np.all((np.asarray(lo) - tol <= p) & (p <= np.asarray(hi) + tol)))
+                       for lo, hi in self.blocks)
         return bool(inside_polygon(np.asarray(self.outline), np.array([[x, y]]), tol)[0])
 
     @property
@@ -150,6 +174,9 @@ class Structure:
         """Distributed plus lumped mass [kg]."""
         if self.kind == "beam":
             distributed = self.mass_per_length * self.length
+        elif self.kind == "body":
+            distributed = self.density * sum(float(np.prod(np.subtract(hi, lo)))
+                                             for lo, hi in self.blocks)
         else:
             v = np.asarray(self.outline)
             x, y = v[:, 0], v[:, 1]
@@ -183,24 +210,41 @@ class Rig:
     def sensor_names(self) -> list[str]:
         return [s.name for s in self.sensors]
 
-    @staticmethod
-    def _coords(items) -> np.ndarray:
+    @property
+    def is_body(self) -> bool:
+        """Whether the structure is a 3-D body (its points are located with a direction)."""
+        return self.structure.kind == "body"
+
+    def _coords(self, items) -> np.ndarray:
+        if self.is_body:
+            return locations(items)
         return np.array([[p.x, p.y] for p in items], dtype=float).reshape(-1, 2)
 
     @property
     def gauge_points(self) -> np.ndarray:
-        """(n_gauges, 2) [m]."""
+        """(n_gauges, 2) (x, y) [m]; on a body (n_gauges, 6) locations (see :func:`locations`)."""
         return self._coords(self.gauges)
 
     @property
     def force_points(self) -> np.ndarray:
-        """(n_forces, 2) [m]."""
+        """(n_forces, 2) (x, y) [m]; on a body (n_forces, 6) locations."""
         return self._coords(self.forces)
 
     @property
     def sensor_points(self) -> np.ndarray:
-        """(n_sensors, 2) [m]."""
+        """(n_sensors, 2) (x, y) [m]; on a body (n_sensors, 6) locations."""
         return self._coords(self.sensors)
+
+
+def locations(items) -> np.ndarray:
+    """Locations of points on a 3-D body: rows (x, y, z, dx, dy, dz), a point [m] and the unit
+    direction in which a force acts or a displacement is measured there.
+
+    Every scalar quantity on a body (a gauge's reaction, a pole's force, a probe's or a scan
+    record's displacement) is the component of a vector along its direction, so a location is
+    what a shape or a relaxation shape is evaluated at.
+    """
+    return np.array([[p.x, p.y, p.z, *p.direction] for p in items], dtype=float).reshape(-1, 6)
 
 
 # --------------------------------------------------------------------------------------------
@@ -285,6 +329,61 @@ def load_rig(path: str | Path) -> Rig:
     return parse_rig(doc, source=str(path))
 
 
+KINDS = ("beam", "plate", "body")
+"""Structure kinds: a beam in plane bending, a plate in out-of-plane bending, a 3-D body."""
+RIGID_MODES = {"beam": 2, "plate": 3, "body": 6}
+"""Rigid-body modes of each kind, and so the number of statically determinate gauges."""
+
+
+def _blocks(r: _Reader, st: dict) -> tuple:
+    """A body's ``structure.blocks``: axis-aligned boxes {min = [x, y, z], max = [x, y, z]}."""
+    raw = st.get("blocks")
+    if not isinstance(raw, list) or not raw:
+        raise r.fail("structure.blocks", "must list at least one block "
+                     "{min = [x, y, z], max = [x, y, z]} (m)")
+    out = []
+    for k, blk in enumerate(raw):
+        key = f"structure.blocks[{k}]"
+        corners = []
+        for end in ("min", "max"):
+            v = blk.get(end) if isinstance(blk, dict) else None
+            if (not isinstance(v, list) or len(v) != 3
+                    or not all(isinstance(c, int | float) and not isinstance(c, bool)
+                               and math.isfinite(c) for c in v)):
+                raise r.fail(f"{key}.{end}", "must be a corner [x, y, z] of three numbers (m)")
+            corners.append(tuple(float(c) for c in v))
+        lo, hi = corners
+        if not all(a < b for a, b in zip(lo, hi, strict=True)):
+            raise r.fail(f"{key}.max", f"= {list(hi)} must exceed min = {list(lo)} in x, y and z")
+        for j, (lo2, hi2) in enumerate(out):
+            if all(max(a, c) < min(b, d) - 1e-12 for a, b, c, d in zip(lo, hi, lo2, hi2,
+                                                                     strict=True)):
+                raise r.fail(key, f"overlaps structure.blocks[{j}] (its mass would count twice)")
+        out.append((lo, hi))
+    return tuple(out)
+
+
+def _direction(r: _Reader, item: dict, path: str, body: bool) -> tuple[float, float, float]:
+    """A point's unit ``direction`` (required on a body; beams and plates act along +w)."""
+    if "direction" not in item:
+        if body:
+            raise r.fail(f"{path}.direction", "is missing: on a body every gauge, force and "
+                         "sensor needs its direction [dx, dy, dz]")
+        return UP
+    if not body:
+        raise r.fail(f"{path}.direction", "applies to a 3-D body only (beams and plates act "
+                     "along +w)")
+    v = item["direction"]
+    if (not isinstance(v, list) or len(v) != 3
+            or not all(isinstance(c, int | float) and not isinstance(c, bool)
+                       and math.isfinite(c) for c in v)):
+        raise r.fail(f"{path}.direction", f"must be [dx, dy, dz], three numbers; found {v!r}")
+    norm = math.sqrt(sum(c * c for c in v))
+    if norm == 0.0:
+        raise r.fail(f"{path}.direction", "must not be zero")
+    return tuple(float(c) / norm for c in v)
+
+
 def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     """Validate a rig given as a parsed TOML document (see :func:`load_rig`)."""
     r = _Reader(source)
@@ -296,8 +395,9 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
 
     st = r.table(doc, "structure")
     kind = r.text(st, "kind", "structure", required=False, default="beam")
-    if kind not in ("beam", "plate"):
-        raise r.fail("structure.kind", f"must be 'beam' or 'plate', found {kind!r}")
+    if kind not in KINDS:
+        raise r.fail("structure.kind", f"must be 'beam', 'plate' or 'body', found {kind!r}")
+    body = kind == "body"
     masses_raw = st.get("masses", [])
     if not isinstance(masses_raw, list):
         raise r.fail("structure.masses", "must be an array of {x, mass} tables")
@@ -305,7 +405,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
         length = r.number(st, "length", "structure", positive=True)
         mpl = r.number(st, "mass_per_length", "structure", positive=True)
         structure_kw = dict(length=length, mass_per_length=mpl)
-    else:
+    elif kind == "plate":
         mpa = r.number(st, "mass_per_area", "structure", positive=True)
         outline = st.get("outline")
         if (not isinstance(outline, list) or len(outline) < 3
@@ -313,6 +413,9 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
             raise r.fail("structure.outline", "must list at least 3 [x, y] vertices")
         structure_kw = dict(mass_per_area=mpa,
                             outline=tuple((float(a), float(b)) for a, b in outline))
+    else:
+        structure_kw = dict(density=r.number(st, "density", "structure", positive=True),
+                            blocks=_blocks(r, st))
     masses = []
     for k, m in enumerate(masses_raw):
         key = f"structure.masses[{k}]"
@@ -320,12 +423,13 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
             raise r.fail(key, "must be a table {x = ..., mass = ...}")
         masses.append(LumpedMass(
             x=r.number(m, "x", key),
-            y=r.number(m, "y", key, required=kind == "plate", default=0.0),
+            y=r.number(m, "y", key, required=kind != "beam", default=0.0),
+            z=r.number(m, "z", key, required=body, default=0.0),
             mass=r.number(m, "mass", key, positive=True),
         ))
     structure = Structure(kind=kind, masses=tuple(masses), **structure_kw)
     for k, m in enumerate(masses):
-        if not structure.contains(m.x, m.y):
+        if not structure.contains(m.x, m.y, m.z):
             raise r.fail(f"structure.masses[{k}].x", f"= {m.x} lies off the structure")
 
     def points(key: str, extra: tuple[str, ...]) -> list[dict]:
@@ -336,7 +440,9 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
             entry = dict(
                 name=r.text(item, "name", path),
                 x=r.number(item, "x", path),
-                y=r.number(item, "y", path, required=kind == "plate", default=0.0),
+                y=r.number(item, "y", path, required=kind != "beam", default=0.0),
+                z=r.number(item, "z", path, required=body, default=0.0),
+                direction=_direction(r, item, path, body),
             )
             for e in extra:
                 if e == "gap":
@@ -345,10 +451,13 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
                     entry[e] = r.number(item, e, path, required=False, default=1.0)
                     if entry[e] == 0.0:
                         raise r.fail(f"{path}.{e}", "must not be zero")
-            if not structure.contains(entry["x"], entry["y"]):
-                where = (f"x = {entry['x']} lies off the structure (0 <= x <= {structure.length})"
-                         if kind == "beam" else
-                         f"(x, y) = ({entry['x']}, {entry['y']}) lies outside the outline")
+            if not structure.contains(entry["x"], entry["y"], entry["z"]):
+                where = {"beam": f"x = {entry['x']} lies off the structure "
+                                 f"(0 <= x <= {structure.length})",
+                         "plate": f"(x, y) = ({entry['x']}, {entry['y']}) lies outside the "
+                                  "outline",
+                         "body": f"(x, y, z) = ({entry['x']}, {entry['y']}, {entry['z']}) lies "
+                                 "in none of the structure's blocks"}[kind]
                 raise r.fail(f"{path}.x", where)
             out.append(entry)
         return out
@@ -381,7 +490,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
         raise r.fail("actuator.current", f"= '{actuator.current}' is also {seen[actuator.current]}")
 
     # statics: gauge count, distinct points
-    needed = 2 if kind == "beam" else 3
+    needed = RIGID_MODES[kind]
     if len(gauges) != needed:
         raise r.fail("gauges", f"has {len(gauges)} entries; a {kind} on statically determinate "
                      f"gauges needs exactly {needed}")
@@ -394,12 +503,13 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
         raise r.fail("forces", f"has {len(forces)} entries; at most {len(gauges)} forces "
                      "(one per gauge) can be determined")
     for key, items in (("gauges", gauges), ("forces", forces), ("sensors", sensors)):
-        pts = Rig._coords(items)
+        pts = locations(items)          # on a body, one point may carry two directions
         for a in range(len(items)):
             for b in range(a):
-                if np.hypot(*(pts[a] - pts[b])) < 1e-6:
+                if np.linalg.norm(pts[a, :3] - pts[b, :3]) < 1e-6 and (
+                        not body or np.linalg.norm(pts[a, 3:] - pts[b, 3:]) < 1e-6):
                     raise r.fail(f"{key}[{a}].x", f"puts '{items[a].name}' at the same point as "
-                                 f"'{items[b].name}'")
+                                 f"'{items[b].name}'" + (" in the same direction" if body else ""))
     return Rig(name=name, structure=structure, gauges=gauges, forces=forces, sensors=sensors,
                actuator=actuator, frequency=frequency, source=source)
 
@@ -407,23 +517,25 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
 def rig_to_dict(rig: Rig) -> dict[str, Any]:
     """The rig as a TOML-ready document (inverse of :func:`parse_rig`)."""
     st = rig.structure
-    plate = st.kind == "plate"
+    axes = ("x", "y", "z")[:st.dim]
     structure: dict[str, Any] = {"kind": st.kind}
-    if plate:
+    if st.kind == "plate":
         structure["mass_per_area"] = st.mass_per_area
         structure["outline"] = [list(v) for v in st.outline]
+    elif st.kind == "body":
+        structure["density"] = st.density
+        structure["blocks"] = [{"min": list(lo), "max": list(hi)} for lo, hi in st.blocks]
     else:
         structure["length"] = st.length
         structure["mass_per_length"] = st.mass_per_length
     if st.masses:
-        structure["masses"] = [
-            {"x": m.x, **({"y": m.y} if plate else {}), "mass": m.mass} for m in st.masses
-        ]
+        structure["masses"] = [{**{a: getattr(m, a) for a in axes}, "mass": m.mass}
+                               for m in st.masses]
 
     def point(p, extra):
-        d = {"name": p.name, "x": p.x}
-        if plate:
-            d["y"] = p.y
+        d = {"name": p.name, **{a: getattr(p, a) for a in axes}}
+        if st.kind == "body":
+            d["direction"] = list(p.direction)
         for e in extra:
             v = getattr(p, e)
             if v is not None and not (e == "scale" and v == 1.0):

@@ -35,10 +35,21 @@ def combinations(rig: Rig) -> tuple[tuple[str, ...], np.ndarray]:
     """Linear combinations of the forces that are reported: each force, the total (the
     resultant) and its first moments sum(f x) [N m] (and sum(f y) on a plate).
 
+    On a body the total is the sum of the forces along their own directions (the actuator's
+    pull when its poles act along one direction); the resultant's components ``resultant_x``,
+    ``_y``, ``_z`` [N] and its moment about the origin ``moment_x``, ``_y``, ``_z`` [N m]
+    (sum of (x_n - 0) x d_n f_n) follow.
+
     Returns names and the (n_combinations, n_forces) matrix.
     """
     n_f = len(rig.forces)
     pts = rig.force_points
+    if rig.is_body:
+        d = pts[:, 3:]
+        arm = np.cross(pts[:, :3], d)
+        return ((*rig.force_names, "total", "resultant_x", "resultant_y", "resultant_z",
+                 "moment_x", "moment_y", "moment_z"),
+                np.vstack([np.eye(n_f), np.ones(n_f), d.T, arm.T]))
     names = [*rig.force_names, "total", "moment_x"]
     rows = [*np.eye(n_f), np.ones(n_f), pts[:, 0]]
     if rig.structure.kind == "plate":

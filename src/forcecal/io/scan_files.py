@@ -2,7 +2,9 @@
 
 HDF5 and NPZ hold the same content under the same names: ``x`` (n_points,) or (n_points, 2)
 [m], ``response`` (n_points, n_samples) [m/s] or [m], ``reference`` (n_points, n_samples) [A],
-scalar ``fs`` [Hz] and the string ``quantity`` ("velocity" or "displacement").
+scalar ``fs`` [Hz] and the string ``quantity`` ("velocity" or "displacement"). A scan of a 3-D
+body gives ``x`` as (n_records, 3) and ``direction`` (n_records, 3), the measuring direction of
+every record (default +z); a point measured along three axes is three records.
 """
 
 from __future__ import annotations
@@ -23,9 +25,10 @@ __all__ = ["SCAN_SUFFIXES", "read_scan", "write_scan_hdf5", "write_scan_npz"]
 
 SCAN_SUFFIXES = (".uff", ".unv", ".h5", ".hdf5", ".npz")
 _KEYS = ("x", "response", "reference", "fs", "quantity")
+_OPTIONAL = ("direction",)
 
 
-def read_scan(path: str | Path, reference_label: str = "Ref") -> Scan:
+def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = False) -> Scan:
     """Read a scan, choosing the reader from the file suffix.
 
     Parameters
@@ -34,6 +37,8 @@ def read_scan(path: str | Path, reference_label: str = "Ref") -> Scan:
         ``.uff``/``.unv`` (Universal File), ``.h5``/``.hdf5`` or ``.npz``.
     reference_label : str
         For a Universal File: text in id line 2 of the reference records.
+    locations : bool
+        For a 3-D body: every record's point comes with its measuring direction, (n, 6).
 
     Returns
     -------
@@ -42,17 +47,17 @@ def read_scan(path: str | Path, reference_label: str = "Ref") -> Scan:
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix in (".uff", ".unv"):
-        return read_scan_uff(path, reference_label=reference_label)
+        return read_scan_uff(path, reference_label=reference_label, locations=locations)
     if suffix in (".h5", ".hdf5"):
-        return read_scan_hdf5(path)
+        return read_scan_hdf5(path, locations)
     if suffix == ".npz":
-        return read_scan_npz(path)
+        return read_scan_npz(path, locations)
     raise InputError(
         f"scan '{path}': unknown file type '{path.suffix}'; accepted: {', '.join(SCAN_SUFFIXES)}"
     )
 
 
-def read_scan_npz(path: str | Path) -> Scan:
+def read_scan_npz(path: str | Path, locations: bool = False) -> Scan:
     """Read a scan from an ``.npz`` archive (arrays named as in the module docstring)."""
     path = _existing(path)
     try:
@@ -63,23 +68,24 @@ def read_scan_npz(path: str | Path) -> Scan:
         raise InputError(f"scan '{path}': a single array (.npy content), not an NPZ archive")
     try:
         with loaded:
-            content = {key: loaded[key] for key in loaded.files if key in _KEYS}
+            content = {key: loaded[key] for key in loaded.files if key in _KEYS + _OPTIONAL}
     except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
         raise InputError(f"scan '{path}': not a readable NPZ archive ({_first_line(exc)})") from exc
-    return _scan_from(content, path)
+    return _scan_from(content, path, locations)
 
 
-def read_scan_hdf5(path: str | Path) -> Scan:
+def read_scan_hdf5(path: str | Path, locations: bool = False) -> Scan:
     """Read a scan from an HDF5 file (root datasets named as in the module docstring)."""
     path = _existing(path)
     try:
         with h5py.File(path, "r") as h5:
             content = {
-                key: h5[key][()] for key in _KEYS if key in h5 and isinstance(h5[key], h5py.Dataset)
+                key: h5[key][()] for key in _KEYS + _OPTIONAL
+                if key in h5 and isinstance(h5[key], h5py.Dataset)
             }
     except OSError as exc:
         raise InputError(f"scan '{path}': not a readable HDF5 file ({_first_line(exc)})") from exc
-    return _scan_from(content, path)
+    return _scan_from(content, path, locations)
 
 
 def write_scan_npz(scan: Scan, path: str | Path) -> Path:
@@ -99,8 +105,10 @@ def write_scan_hdf5(scan: Scan, path: str | Path) -> Path:
 
 def _content_of(scan: Scan) -> dict[str, np.ndarray]:
     x = scan.points[:, 0] if scan.points.shape[1] == 1 else scan.points
+    located = scan.points.shape[1] == 6
     return {
-        "x": np.asarray(x, dtype=float),
+        "x": np.asarray(x[:, :3] if located else x, dtype=float),
+        **({"direction": np.asarray(x[:, 3:], dtype=float)} if located else {}),
         "response": scan.response,
         "reference": scan.reference,
         "fs": np.float64(scan.fs),
@@ -115,14 +123,19 @@ def _existing(path: str | Path) -> Path:
     return path
 
 
-def _scan_from(content: Mapping[str, np.ndarray], path: Path) -> Scan:
+def _scan_from(content: Mapping[str, np.ndarray], path: Path, locations: bool = False) -> Scan:
     """Build a Scan from the named arrays, naming the first missing or malformed one."""
     for key in _KEYS:
         if key not in content:
             raise InputError(f"scan '{path}': missing '{key}' (expected {', '.join(_KEYS)})")
     x = _float_array(content["x"], "x", path)
-    if x.ndim not in (1, 2) or (x.ndim == 2 and x.shape[1] not in (1, 2)):
-        raise InputError(f"scan '{path}': 'x' has shape {x.shape}; expected (n,) or (n, 2)")
+    top = 3 if locations else 2
+    if x.ndim not in (1, 2) or (x.ndim == 2 and not 1 <= x.shape[1] <= top):
+        raise InputError(f"scan '{path}': 'x' has shape {x.shape}; expected (n,) or (n, "
+                         f"{'2 or 3' if locations else 2})" + ("" if locations else
+                         " (a scan with z and directions is for a body rig)"))
+    if locations:
+        x = _located(x, content.get("direction"), path)
     fs = _float_array(content["fs"], "fs", path)
     if fs.size != 1 or not np.isfinite(fs.item()) or fs.item() <= 0:
         raise InputError(f"scan '{path}': 'fs' must be one positive number (Hz), found {fs}")
@@ -134,6 +147,26 @@ def _scan_from(content: Mapping[str, np.ndarray], path: Path) -> Scan:
         quantity=_text(content["quantity"], path),
         source=str(path),
     )
+
+
+def _located(x: np.ndarray, direction: np.ndarray | None, path: Path) -> np.ndarray:
+    """(n, 6) rows (x, y, z, dx, dy, dz): coordinates padded with zeros, unit directions."""
+    xyz = np.zeros((len(x), 3))
+    xyz[:, :(1 if x.ndim == 1 else x.shape[1])] = x.reshape(len(x), -1)
+    if direction is None:
+        d = np.tile([0.0, 0.0, 1.0], (len(x), 1))
+    else:
+        d = _float_array(direction, "direction", path)
+        if d.shape != (len(x), 3):
+            raise InputError(f"scan '{path}': 'direction' has shape {d.shape}; expected "
+                             f"({len(x)}, 3), one unit vector per record")
+        norm = np.linalg.norm(d, axis=1)
+        if not np.all(np.isfinite(norm)) or np.any(norm == 0):
+            k = int(np.argmin(np.isfinite(norm) & (norm > 0)))
+            raise InputError(f"scan '{path}': 'direction' of record {k + 1} is zero or not "
+                             "finite")
+        d = d / norm[:, None]
+    return np.column_stack([xyz, d])
 
 
 def _float_array(value: np.ndarray, key: str, path: Path) -> np.ndarray:

@@ -45,7 +45,8 @@ _RATE_DIGITS = 6  # significant digits of the abscissa increment as a UFF stores
 # reading
 
 
-def read_scan_uff(path: str | Path, reference_label: str = "Ref") -> Scan:
+def read_scan_uff(path: str | Path, reference_label: str = "Ref",
+                  locations: bool = False) -> Scan:
     """Read an SLDV scan from a Universal File (ASCII or binary).
 
     Parameters
@@ -54,12 +55,19 @@ def read_scan_uff(path: str | Path, reference_label: str = "Ref") -> Scan:
         The ``.uff``/``.unv`` file.
     reference_label : str
         Text that id line 2 of every reference record contains (``Ref1  Current``).
+    locations : bool
+        For a 3-D body: a node may carry up to three vibration records, one per response
+        direction (X, Y, Z, or their negatives: a 3-D SLDV's components), and every record
+        becomes a row located by (x, y, z, dx, dy, dz). The node's reference record serves all
+        of its directions when it has one; otherwise each direction has its own, paired by
+        response direction.
 
     Returns
     -------
     Scan
         ``points`` (n_points, n_dim) [m] ordered by node number, n_dim = 2 when any y
         coordinate is non-zero, else 1 (z, the measuring direction, is not a scan coordinate);
+        with ``locations``, (n_records, 6) ordered by node then direction;
         ``response`` (n_points, n_samples) [m/s] or [m]; ``reference`` (n_points, n_samples)
         [A]; ``fs`` [Hz] = 1 / abscissa increment.
 
@@ -76,16 +84,22 @@ def read_scan_uff(path: str | Path, reference_label: str = "Ref") -> Scan:
     geometry = _geometry_of(sets, path, "scan")
     records = _split_time_records(sets, path, reference_label)
     vibrations, references, _ = records
-    nodes = _paired_nodes(records, geometry, path, reference_label)
+    if locations:
+        rows = _located_rows(records, geometry, path, reference_label)
+        points = np.array([[*geometry[n], *_axis_vector(code)] for n, code, _, _ in rows])
+    else:
+        nodes = _paired_nodes(records, geometry, path, reference_label)
+        rows = [(n, _PLUS_Z, vibrations[n][0], references[n][0]) for n in nodes]
+        points = _scan_points(geometry, nodes)
     factor = _length_factor(sets, path)
-    quantity = _scan_quantity(nodes, vibrations, path)
-    step, n_samples = _common_sampling(nodes, vibrations, references, path)
-    response = np.array([_values(vibrations[n][0], n, path, factor) for n in nodes])
-    reference = np.array([_values(references[n][0], n, path, 1.0) for n in nodes])
+    quantity = _scan_quantity([(n, v) for n, _, v, _ in rows], path)
+    step, n_samples = _common_sampling(rows, path)
+    response = np.array([_values(v, n, path, factor) for n, _, v, _ in rows])
+    reference = np.array([_values(r, n, path, 1.0) for n, _, _, r in rows])
     return Scan(
-        points=_scan_points(geometry, nodes),
-        response=response.reshape(len(nodes), n_samples),
-        reference=reference.reshape(len(nodes), n_samples),
+        points=points,
+        response=response.reshape(len(rows), n_samples),
+        reference=reference.reshape(len(rows), n_samples),
         fs=_rate_from_increment(step),
         quantity=quantity,
         source=str(path),
@@ -246,14 +260,70 @@ def _paired_nodes(
     return sorted(vibrations)
 
 
-def _scan_quantity(nodes: list[int], vibrations: dict[int, list[dict]], path: str | Path) -> str:
+def _located_rows(records: tuple[dict, ...], geometry: dict[int, tuple], path: str | Path,
+                  label: str) -> list[tuple[int, int, dict, dict]]:
+    """(node, response direction, vibration, reference) of every vibration record of a 3-D
+    scan, ordered by node then direction (see :func:`read_scan_uff`)."""
+    vibrations, references, others = records
+    rows = []
+    for node in sorted(references):
+        if node not in vibrations:
+            raise DataError(
+                f"scan '{path}': node {node} has a reference record but no vibration record "
+                f"(velocity or displacement){_describe_others({node: others.get(node, [])})}"
+            )
+    for node in sorted(vibrations):
+        if node not in geometry:
+            raise DataError(f"scan '{path}': node {node} has time records but no coordinates "
+                            "(dataset 2411 or 15)")
+        refs = references.get(node, [])
+        if not refs:
+            raise DataError(f"scan '{path}': node {node} has a vibration record but no "
+                            f"reference record (id line 2 containing '{label}')")
+        seen: set[int] = set()
+        for vib in sorted(vibrations[node], key=lambda r: abs(_direction_code(r))):
+            code = _direction_code(vib)
+            if abs(code) not in (1, 2, 3):
+                raise DataError(f"scan '{path}': node {node}: response direction {code} is not a "
+                                "translation (X, Y, Z: 1, 2, 3 or their negatives)")
+            if abs(code) in seen:
+                raise DataError(f"scan '{path}': node {node} has two vibration records along "
+                                f"axis {'XYZ'[abs(code) - 1]}; expected one per direction")
+            seen.add(abs(code))
+            ref = refs[0] if len(refs) == 1 else next(
+                (r for r in refs if _direction_code(r) == code), None)
+            if ref is None:
+                raise DataError(f"scan '{path}': node {node} has {len(refs)} reference records, "
+                                f"none with the response direction {code} of its vibration "
+                                "record")
+            rows.append((node, code, vib, ref))
+    return rows
+
+
+def _direction_code(record: dict) -> int:
+    """A record's response direction: 1, 2, 3 = +X, +Y, +Z, negative for minus (default +Z)."""
+    try:
+        return int(record.get("rsp_dir", _PLUS_Z))
+    except (TypeError, ValueError):
+        return 0
+
+
+def _axis_vector(code: int) -> np.ndarray:
+    """Unit vector of a response direction code (1, 2, 3 or negative)."""
+    e = np.zeros(3)
+    e[abs(code) - 1] = np.sign(code)
+    return e
+
+
+def _scan_quantity(vibrations: list[tuple[int, dict]], path: str | Path) -> str:
     """'velocity' or 'displacement', common to all vibration records."""
-    first = _vibration_quantity(vibrations[nodes[0]][0])
-    for node in nodes:
-        quantity = _vibration_quantity(vibrations[node][0])
+    node0, first_record = vibrations[0]
+    first = _vibration_quantity(first_record)
+    for node, record in vibrations:
+        quantity = _vibration_quantity(record)
         if quantity != first:
             raise DataError(
-                f"scan '{path}': node {node} records {quantity} but node {nodes[0]} records "
+                f"scan '{path}': node {node} records {quantity} but node {node0} records "
                 f"{first}; a scan holds one quantity"
             )
     return str(first)
@@ -281,31 +351,25 @@ def _describe_others(others: dict[int, list[dict]]) -> str:
     return f"; found: {', '.join(found[:3])}{more}"
 
 
-def _common_sampling(
-    nodes: list[int],
-    vibrations: dict[int, list[dict]],
-    references: dict[int, list[dict]],
-    path: str | Path,
-) -> tuple[float, int]:
-    """Abscissa increment [s] and sample count shared by every record."""
-    first = vibrations[nodes[0]][0]
-    step0, n0 = _step_of(first, nodes[0], path), len(np.atleast_1d(first.get("data", [])))
-    for node in nodes:
-        for kind, record in (
-            ("vibration", vibrations[node][0]),
-            ("reference", references[node][0]),
-        ):
+def _common_sampling(rows: list[tuple[int, int, dict, dict]], path: str | Path
+                     ) -> tuple[float, int]:
+    """Abscissa increment [s] and sample count shared by every record of the rows
+    (node, direction, vibration, reference)."""
+    node0, _, first, _ = rows[0]
+    step0, n0 = _step_of(first, node0, path), len(np.atleast_1d(first.get("data", [])))
+    for node, _, vibration, reference in rows:
+        for kind, record in (("vibration", vibration), ("reference", reference)):
             n = len(np.atleast_1d(record.get("data", [])))
             if n != n0:
                 raise DataError(
                     f"scan '{path}': node {node}: {kind} record has {n} samples, expected {n0} "
-                    f"(as node {nodes[0]})"
+                    f"(as node {node0})"
                 )
             step = _step_of(record, node, path)
             if abs(step - step0) > 1e-6 * step0:
                 raise DataError(
                     f"scan '{path}': node {node}: {kind} record sampled every {step:.6g} s, "
-                    f"expected {step0:.6g} s (as node {nodes[0]})"
+                    f"expected {step0:.6g} s (as node {node0})"
                 )
     if n0 < 2:
         raise DataError(f"scan '{path}': records hold {n0} samples; at least 2 needed")
@@ -406,14 +470,45 @@ def write_scan_uff(
                 f"scan '{scan.source}': {name} holds NaN or infinite samples; a UFF cannot "
                 "store them"
             )
-    nodes = int(node_offset) + np.arange(scan.n_points)
-    sets = [_node_set(nodes, scan.points)]
-    for node, response, reference in zip(nodes, scan.response, scan.reference, strict=True):
-        sets.append(_vibration_set(int(node), response, scan.fs, scan.quantity, binary))
-        sets.append(_reference_set(int(node), reference, scan.fs, binary))
+    if scan.points.shape[1] == 6:
+        sets = _located_sets(scan, int(node_offset), binary, path)
+    else:
+        nodes = int(node_offset) + np.arange(scan.n_points)
+        sets = [_node_set(nodes, scan.points)]
+        for node, response, reference in zip(nodes, scan.response, scan.reference, strict=True):
+            sets.append(_vibration_set(int(node), response, scan.fs, scan.quantity, binary))
+            sets.append(_reference_set(int(node), reference, scan.fs, binary))
     with atomic_path(path) as tmp:
         _write_sets(sets, tmp)
     return Path(path)
+
+
+def _located_sets(scan: Scan, node_offset: int, binary: bool, path) -> list[dict]:
+    """Datasets of a 3-D scan (rows located by (x, y, z, dx, dy, dz)): one node per distinct
+    point, a vibration record per row with its response direction, and one reference record
+    per node when its rows share the acquisition (equal references), else one per row."""
+    pts = scan.points[:, :3]
+    unique, node_of_row = np.unique(pts, axis=0, return_inverse=True)
+    node_of_row = node_of_row.ravel()
+    nodes = node_offset + np.arange(len(unique))
+    sets = [_node_set(nodes, unique)]
+    for k in range(len(unique)):
+        rows = np.flatnonzero(node_of_row == k)
+        node = int(nodes[k])
+        shared = all(np.array_equal(scan.reference[r], scan.reference[rows[0]]) for r in rows)
+        for r in rows:
+            d = scan.points[r, 3:]
+            axis = int(np.argmax(np.abs(d)))
+            if abs(d[axis]) < (1 - 1e-9) * np.linalg.norm(d):
+                raise DataError(f"scan '{path}': row {r + 1} measures along {d.tolist()}; a UFF "
+                                "response direction is X, Y or Z")
+            code = int(np.sign(d[axis])) * (axis + 1)
+            sets.append(_vibration_set(node, scan.response[r], scan.fs, scan.quantity, binary,
+                                       code))
+            if not shared or r == rows[0]:
+                sets.append(_reference_set(node, scan.reference[r], scan.fs, binary,
+                                           code if not shared else _PLUS_Z))
+    return sets
 
 
 def _node_set(nodes: np.ndarray, points: np.ndarray) -> dict:
@@ -433,14 +528,17 @@ def _node_set(nodes: np.ndarray, points: np.ndarray) -> dict:
     )
 
 
-def _vibration_set(node: int, values: np.ndarray, fs: float, quantity: str, binary: bool) -> dict:
+def _vibration_set(node: int, values: np.ndarray, fs: float, quantity: str, binary: bool,
+                   direction: int = _PLUS_Z) -> dict:
     ordinate, unit, word = _ORDINATE_OF_QUANTITY[quantity]
-    return _time_set(node, values, fs, binary, ("Vib", f"Vib  {word}"), (ordinate, 1, word, unit))
+    return _time_set(node, values, fs, binary, ("Vib", f"Vib  {word}"), (ordinate, 1, word, unit),
+                     direction)
 
 
-def _reference_set(node: int, values: np.ndarray, fs: float, binary: bool) -> dict:
+def _reference_set(node: int, values: np.ndarray, fs: float, binary: bool,
+                   direction: int = _PLUS_Z) -> dict:
     ordinate = (_GENERAL_ORDINATE, 0, "Current", "A")
-    return _time_set(node, values, fs, binary, ("Ref1", "Ref1  Current"), ordinate)
+    return _time_set(node, values, fs, binary, ("Ref1", "Ref1  Current"), ordinate, direction)
 
 
 def _time_set(
@@ -450,6 +548,7 @@ def _time_set(
     binary: bool,
     ids: tuple[str, str],
     ordinate: tuple[int, int, str, str],
+    direction: int = _PLUS_Z,
 ) -> dict:
     """One dataset 58 (binary: 58b) time record with an even abscissa."""
     data = np.asarray(values, dtype=float)
@@ -460,7 +559,7 @@ def _time_set(
         id2=ids[1],
         func_type=_TIME_RESPONSE,
         rsp_node=node,
-        rsp_dir=_PLUS_Z,
+        rsp_dir=direction,
         ref_node=0,
         ref_dir=0,
         abscissa_spacing=1,

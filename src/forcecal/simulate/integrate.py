@@ -89,9 +89,12 @@ def _finish_record(out: dict | None) -> dict | None:
     return {k: np.ascontiguousarray(v.T) for k, v in out.items()}
 
 
-def pole_points(model: BeamModel | PlateModel, poles) -> np.ndarray:
+def pole_points(model, poles) -> np.ndarray:
     """Where the poles act, as ``model.row`` takes them: x (n,) on a beam, (x, y) (n, 2) on a
-    plate (a model with ``dim == 2``)."""
+    plate (a model with ``dim == 2``), locations (x, y, z, dx, dy, dz) (n, 6) on a body."""
+    if getattr(model, "dim", 1) == 3:
+        return np.array([[p.x, p.y, p.z, *p.direction] for p in poles],
+                        dtype=float).reshape(-1, 6)
     if getattr(model, "dim", 1) == 2:
         return np.array([[p.x, p.y] for p in poles], dtype=float).reshape(-1, 2)
     return np.array([p.x for p in poles])

@@ -25,12 +25,15 @@ MU0 = 4e-7 * math.pi
 @dataclass(frozen=True)
 class Pole:
     """One pole face: the force point's name, position x [m], static gap at w = 0 [m] and,
-    on a plate, the second coordinate y [m] (ignored by a beam)."""
+    on a plate, the second coordinate y [m] (ignored by a beam); on a body also z [m] and the
+    unit ``direction`` of the pull (motion along it closes the gap)."""
 
     name: str
     x: float
     gap: float
     y: float = 0.0
+    z: float = 0.0
+    direction: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,5 @@
-"""Built-in virtual rigs: the paper's beam, a calibration campaign, a near-resonance drive, and
-a plate on three gauges.
+"""Built-in virtual rigs: the paper's beam, a calibration campaign, a near-resonance drive, a
+plate on three gauges, and a 3-D block on six gauges with measuring directions.
 
 Every preset is a complete description: structure, gauges, magnets, sensors, noise, the SLDV
 scan and the runs. The drive's true frequency deliberately differs from the nominal one written
@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 from .magnet import Drive, Magnet, Pole
 
-__all__ = ["PRESETS", "BeamSpec", "NoiseSpec", "PlateSpec", "Preset", "RunSpec", "ScanSpec",
-           "get_preset"]
+__all__ = ["PRESETS", "BeamSpec", "BodySpec", "NoiseSpec", "PlateSpec", "Preset", "RunSpec",
+           "ScanSpec", "get_preset"]
 
 
 @dataclass(frozen=True)
@@ -81,6 +81,41 @@ class PlateSpec:
 
 
 @dataclass(frozen=True)
+class BodySpec:
+    """A rectangular aluminium block [0, a] x [0, b] x [0, c] (a housing) on six stiff force
+    gauges, each measuring along its own direction.
+
+    ``masses`` are (x, y, z m, kg), ``gauges`` (name, x, y, z m, dx, dy, dz); the default is a
+    3-2-1 mount: three gauges along z under the block, two along x on one end, one along y on a
+    side. The block is meshed by ``mesh = (nx, ny, nz)`` hexahedra.
+    """
+
+    a: float = 0.5                              # m, along x
+    b: float = 0.3                              # m, along y
+    c: float = 0.04                             # m, along z
+    youngs_modulus: float = 70e9                # Pa
+    poisson: float = 0.33
+    density: float = 2700.0                     # kg/m^3
+    mesh: tuple[int, int, int] = (12, 8, 2)
+    damping_ratio: float = 0.01                 # of the first bending mode (stiffness-prop.)
+    masses: tuple[tuple[float, float, float, float], ...] = ((0.27, 0.15, 0.04, 0.3),)
+    gauges: tuple[tuple[str, float, float, float, float, float, float], ...] = (
+        ("Z1", 0.0, 0.15, 0.0, 0, 0, 1), ("Z2", 0.5, 0.02, 0.0, 0, 0, 1),
+        ("Z3", 0.5, 0.28, 0.0, 0, 0, 1), ("X1", 0.0, 0.02, 0.02, 1, 0, 0),
+        ("X2", 0.0, 0.28, 0.02, 1, 0, 0), ("Y1", 0.25, 0.0, 0.02, 0, 1, 0))
+    gauge_stiffness: float = 2e9                # N/m
+
+    @property
+    def size(self) -> tuple[float, float, float]:
+        return (self.a, self.b, self.c)
+
+    @property
+    def blocks(self) -> tuple:
+        """The block as the rig file describes it: ((x0, y0, z0), (x1, y1, z1)) [m]."""
+        return (((0.0, 0.0, 0.0), self.size),)
+
+
+@dataclass(frozen=True)
 class NoiseSpec:
     """Standard deviations of the white measurement noise, in SI units."""
 
@@ -107,13 +142,16 @@ class RunSpec:
 @dataclass(frozen=True)
 class ScanSpec:
     """A sequential SLDV scan: ``n_points`` evenly along a beam, or on a plate an
-    ``grid = (n_x, n_y)`` grid of points over the whole rectangle, edges included."""
+    ``grid = (n_x, n_y)`` grid of points over the whole rectangle, edges included. On a body the
+    grid covers the top face and ``heights`` rows of points the four side faces, and a 3-D
+    SLDV measures every point along x, y and z in one acquisition."""
 
     drives: tuple[Drive, ...]
     n_points: int = 61
     record: float = 0.5                        # s per point
     gap: float | None = None
-    grid: tuple[int, int] | None = None        # plate only
+    grid: tuple[int, int] | None = None        # plate and body only
+    heights: int = 3                           # body only
 
 
 @dataclass(frozen=True)
@@ -127,7 +165,7 @@ class Preset:
 
     name: str
     description: str
-    beam: BeamSpec | PlateSpec
+    beam: BeamSpec | PlateSpec | BodySpec
     magnets: tuple[Magnet, ...]
     sensors: tuple[tuple[str, float], ...] | tuple[tuple[str, float, float], ...]
     scan: ScanSpec
@@ -137,13 +175,17 @@ class Preset:
     noise: NoiseSpec = field(default_factory=NoiseSpec)
 
     @property
-    def structure(self) -> BeamSpec | PlateSpec:
+    def structure(self) -> BeamSpec | PlateSpec | BodySpec:
         """The structure's specification (the same object as ``beam``)."""
         return self.beam
 
     @property
     def is_plate(self) -> bool:
         return isinstance(self.beam, PlateSpec)
+
+    @property
+    def is_body(self) -> bool:
+        return isinstance(self.beam, BodySpec)
 
 
 _F_TRUE = 20.0 * (1 + 7e-4)          # the generator runs 0.07 % fast
@@ -224,7 +266,30 @@ def _plate() -> Preset:
     )
 
 
-PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign, "plate": _plate}
+_F_BODY = 250.0 * (1 - 4e-4)         # the generator runs 0.04 % slow
+
+
+def _body() -> Preset:
+    drive = Drive("current", dc=2.0, ac=1.0, frequency=_F_BODY)
+    magnet = Magnet(poles=(Pole("F1", 0.22, 1.0e-3, y=0.15, z=0.04),
+                           Pole("F2", 0.32, 1.0e-3, y=0.15, z=0.04)))
+    return Preset(
+        name="body",
+        description="aluminium block 0.5 m x 0.3 m x 40 mm on six gauges (3-2-1 mount: three "
+                    "along z, two along x, one along y), a U-core magnet above its top face "
+                    "(2 forces, 6 gauges), four probes, current drive with a DC bias at 250 Hz, "
+                    "3-D scan of the top face (13 x 9) and of the four sides at three heights",
+        beam=BodySpec(), magnets=(magnet,),
+        sensors=(("s1", 0.05, 0.25, 0.04, 0, 0, 1), ("s2", 0.45, 0.25, 0.04, 0, 0, 1),
+                 ("s3", 0.05, 0.05, 0.04, 0, 0, 1), ("s4", 0.45, 0.05, 0.04, 0, 0, 1)),
+        scan=ScanSpec(drives=(drive,), grid=(13, 9), heights=3, record=0.25),
+        runs=(RunSpec("body", drives=(drive,), duration=1.0),),
+        nominal_frequency=250.0,
+    )
+
+
+PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign, "plate": _plate,
+           "body": _body}
 
 
 def get_preset(name: str) -> Preset:
@@ -236,6 +301,6 @@ def get_preset(name: str) -> Preset:
     return PRESETS[name]()
 
 
-def first_mode_beta(beam: BeamSpec | PlateSpec, f1: float) -> float:
+def first_mode_beta(beam: BeamSpec | PlateSpec | BodySpec, f1: float) -> float:
     """Stiffness-proportional coefficient [s] giving ``damping_ratio`` at f1 [Hz]."""
     return 2 * beam.damping_ratio / (2 * math.pi * f1)

@@ -1,7 +1,9 @@
 """The virtual rig: builds the finite-element model of a preset and records runs and scans.
 
-The structure is a beam (:mod:`.beam`) or a rectangular plate (:mod:`.plate`); a plate takes
-every point (gauge, pole, probe, scan point, lumped mass) as (x, y).
+The structure is a beam (:mod:`.beam`), a rectangular plate (:mod:`.plate`) or a block
+(:mod:`.solid`); a plate takes every point (gauge, pole, probe, scan point, lumped mass) as
+(x, y), a block as a location (x, y, z, dx, dy, dz): a point and the direction along which a
+gauge or a pole acts or a probe or the SLDV measures.
 
 Measurements carry seeded white noise; the ground truth (pole forces, gaps, displacement field,
 the inertia term of each gauge) is returned beside them.
@@ -20,7 +22,8 @@ from .beam import BeamModel, assemble_beam, natural_frequencies
 from .integrate import Response, integrate
 from .magnet import Drive, Magnet
 from .plate import PlateModel, assemble_plate
-from .presets import BeamSpec, PlateSpec, Preset, RunSpec, first_mode_beta
+from .presets import BeamSpec, BodySpec, PlateSpec, Preset, RunSpec, first_mode_beta
+from .solid import SolidModel, assemble_solid
 
 __all__ = [
     "Truth",
@@ -36,7 +39,7 @@ __all__ = [
     "scan_response",
 ]
 
-Model = BeamModel | PlateModel
+Model = BeamModel | PlateModel | SolidModel
 
 
 @dataclass(frozen=True)
@@ -44,8 +47,8 @@ class Truth:
     """Ground truth of one run.
 
     pole_force : (n_poles, n_samples) [N]; gap : (n_poles, n_samples) [m];
-    nodes : (n_nodes,) [m] on a beam, (n_nodes, 2) (x, y) on a plate;
-    w : (n_nodes, n_samples) [m] deflection at the FE nodes;
+    nodes : (n_nodes,) [m] on a beam, (n_nodes, 2) (x, y) on a plate, (n_nodes, 3) on a body;
+    w : (n_nodes, n_samples) [m] deflection at the FE nodes (on a body its z component);
     inertia : (n_gauges, n_samples) [N], J_r = integral(rho psi_r w_tt) + lumped terms.
     """
 
@@ -65,6 +68,8 @@ def build_model(preset: Preset) -> Model:
     b = preset.beam
     if isinstance(b, PlateSpec):
         return _build_plate(b)
+    if isinstance(b, BodySpec):
+        return _build_body(b)
     springs = tuple((x, b.gauge_stiffness) for _, x in b.gauges)
     undamped = assemble_beam(b.length, b.ei, b.mass_per_length, b.n_elements, b.masses, springs)
     f1 = _first_bending(undamped)
@@ -77,6 +82,14 @@ def _build_plate(p: PlateSpec) -> PlateModel:
     args = (p.a, p.b, p.flexural_rigidity, p.mass_per_area, p.poisson, p.mesh, p.masses, springs)
     f1 = _first_bending(assemble_plate(*args))
     return assemble_plate(*args, beta=first_mode_beta(p, f1))
+
+
+def _build_body(p: BodySpec) -> SolidModel:
+    springs = tuple((*g[1:], p.gauge_stiffness) for g in p.gauges)
+    args = (p.size, p.youngs_modulus, p.poisson, p.density, p.mesh)
+    f1 = _first_bending(assemble_solid(*args, masses=p.masses, springs=springs))
+    return assemble_solid(*args, masses=p.masses, springs=springs,
+                          beta=first_mode_beta(p, f1))
 
 
 def _first_bending(model: Model) -> float:
@@ -103,6 +116,23 @@ def public_rig(preset: Preset) -> Rig:
     """What the lab writes in its rig file: geometry, masses, channels; no stiffness, no truth."""
     b = preset.beam
     mag = preset.magnets[0]
+    if isinstance(b, BodySpec):
+        return Rig(
+            name=f"virtual {preset.name} rig",
+            structure=Structure(kind="body", density=b.density, blocks=b.blocks,
+                                masses=tuple(LumpedMass(x=x, y=y, z=z, mass=m)
+                                             for x, y, z, m in b.masses)),
+            gauges=tuple(Gauge(name=n, x=x, y=y, z=z, direction=_unit(d))
+                         for n, x, y, z, *d in b.gauges),
+            forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, z=p.z, gap=p.gap,
+                                    direction=_unit(p.direction))
+                         for m in preset.magnets for p in m.poles),
+            sensors=tuple(Sensor(name=n, x=x, y=y, z=z, direction=_unit(d))
+                          for n, x, y, z, *d in preset.sensors),
+            actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
+                              turns=mag.turns, pole_area=mag.pole_area),
+            frequency=preset.nominal_frequency,
+        )
     if isinstance(b, PlateSpec):
         return Rig(
             name=f"virtual {preset.name} rig",
@@ -131,9 +161,17 @@ def public_rig(preset: Preset) -> Rig:
     )
 
 
+def _unit(d) -> tuple[float, float, float]:
+    v = np.asarray(d, dtype=float)
+    return tuple(float(c) for c in v / np.linalg.norm(v))
+
+
 def _points(preset: Preset, items) -> np.ndarray:
-    """Coordinates of named points ``(name, x[, y])`` as ``model.row`` takes them: (n,) x on a
-    beam, (n, 2) (x, y) on a plate."""
+    """Coordinates of named points ``(name, x[, y[, z, dx, dy, dz]])`` as ``model.row`` takes
+    them: (n,) x on a beam, (n, 2) (x, y) on a plate, (n, 6) locations on a body."""
+    if preset.is_body:
+        return np.array([[x, y, z, *_unit(d)] for _, x, y, z, *d in items],
+                        dtype=float).reshape(-1, 6)
     if preset.is_plate:
         return np.array([[x, y] for _, x, y in items], dtype=float).reshape(-1, 2)
     return np.array([x for _, x in items])
@@ -151,9 +189,17 @@ def relaxation_modes(model: Model, preset: Preset) -> np.ndarray:
 
     Beam on gauges at xa, xb: (xb - x)/(xb - xa) and (x - xa)/(xb - xa). Plate on three
     gauges: the barycentric coordinates of the gauge triangle, psi_r = c0 + c1 x + c2 y with
-    psi_r(g_s) = delta_rs. Both are rigid motions, exact in the element bases.
+    psi_r(g_s) = delta_rs. Block on six gauges: the rigid motion t_r + theta_r x x whose
+    component along every gauge's direction is delta_rs at that gauge. All are rigid motions,
+    exact in the element bases.
     """
     spec = preset.beam
+    if isinstance(spec, BodySpec):
+        g = _points(preset, spec.gauges)
+        # column m of a: d_s . u_m(g_s) for the translations e_m and the rotations e_m x x
+        a = np.hstack([g[:, 3:], np.cross(g[:, :3], g[:, 3:])])
+        coef = np.linalg.inv(a)                      # column r: psi_r's (t, theta)
+        return np.stack([model.rigid_mode(coef[:3, r], coef[3:, r]) for r in range(len(g))])
     if isinstance(spec, BeamSpec):
         (_, xa), (_, xb) = spec.gauges
         span = xb - xa
@@ -205,10 +251,13 @@ def measure_run(preset: Preset, spec: RunSpec, model: Model, r: Response,
 
 def run_truth(preset: Preset, model: Model, r: Response) -> Truth:
     """The ground truth of a simulated response."""
-    per_node = 4 if isinstance(model, PlateModel) else 2          # w is the first nodal DOF
+    if isinstance(model, SolidModel):
+        w = r.u[2::3]                                             # u_z of every node
+    else:
+        w = r.u[0::4 if isinstance(model, PlateModel) else 2]     # w is the first nodal DOF
     return Truth(
         t=r.t, pole_names=tuple(p.name for m in preset.magnets for p in m.poles),
-        pole_force=r.pole_force, gap=r.gap, nodes=model.nodes, w=r.u[0::per_node],
+        pole_force=r.pole_force, gap=r.gap, nodes=model.nodes, w=w,
         inertia=_inertia(model, preset, r.a), current=r.current, flux=r.flux,
     )
 
@@ -226,9 +275,26 @@ def record_scan(preset: Preset, rng: np.random.Generator,
 
 
 def scan_points(preset: Preset) -> np.ndarray:
-    """The scan grid [m]: (n_points,) along a beam; (n_x * n_y, 2) over a plate, x fastest."""
+    """The scan grid [m]: (n_points,) along a beam; (n_x * n_y, 2) over a plate, x fastest; on
+    a body the locations (n, 6) of the records: every point of the top face's grid and of the
+    side faces' rows (at ``heights`` levels strictly between bottom and top), along x, y and z
+    (the three records of a point follow each other)."""
     spec = preset.scan
     b = preset.beam
+    if isinstance(b, BodySpec):
+        nx, ny = spec.grid
+        xs, ys = np.linspace(0.0, b.a, nx), np.linspace(0.0, b.b, ny)
+        zs = b.c * np.arange(1, spec.heights + 1) / (spec.heights + 1)
+        gx, gy = np.meshgrid(xs, ys, indexing="xy")
+        faces = [np.column_stack([gx.ravel(), gy.ravel(), np.full(gx.size, b.c)])]
+        for x0 in (0.0, b.a):
+            yy, zz = np.meshgrid(ys, zs, indexing="xy")
+            faces.append(np.column_stack([np.full(yy.size, x0), yy.ravel(), zz.ravel()]))
+        for y0 in (0.0, b.b):
+            xx, zz = np.meshgrid(xs, zs, indexing="xy")
+            faces.append(np.column_stack([xx.ravel(), np.full(xx.size, y0), zz.ravel()]))
+        pts = np.vstack(faces)
+        return np.hstack([np.repeat(pts, 3, axis=0), np.tile(np.eye(3), (len(pts), 1))])
     if isinstance(b, PlateSpec):
         if spec.grid is None:
             raise ValueError(f"preset '{preset.name}': a plate scan needs ScanSpec.grid (n_x, n_y)")
@@ -255,11 +321,14 @@ def measure_scan(preset: Preset, model: Model, r: Response,
     per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
     x = scan_points(preset)
     velocity = model.row(x) @ r.v                            # (n_points, n_total)
-    starts = rng.integers(0, per_period, size=len(x))
+    # a 3-D SLDV measures a point's three components in one acquisition
+    per_point = 3 if preset.is_body else 1
+    starts = np.repeat(rng.integers(0, per_period, size=len(x) // per_point), per_point)
     idx = starts[:, None] + np.arange(n_rec)[None, :]
     response = np.take_along_axis(velocity, idx, axis=1)
     reference = r.current[0][idx]
     response = response + preset.noise.ldv * rng.standard_normal(response.shape)
-    reference = reference + preset.noise.current * rng.standard_normal(reference.shape)
+    noise = rng.standard_normal((len(x) // per_point, n_rec))
+    reference = reference + preset.noise.current * np.repeat(noise, per_point, axis=0)
     return Scan(points=x, response=response, reference=reference, fs=preset.fs,
                 quantity="velocity", source="scan.uff")
