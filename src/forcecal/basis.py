@@ -52,6 +52,8 @@ __all__ = [
 _RANK_TOL = 1e-10
 #: Default cap on the order tried by :func:`fit_shape`.
 _MAX_ORDER = 20
+#: In 3-D, the order tried before the faces' distinguishable functions are counted.
+_MAX_ORDER_3D = 12
 
 
 def n_functions(order: int, n_dim: int) -> int:
@@ -193,13 +195,20 @@ class PolynomialBasis:
         Extent mapped to [-1, 1]: [[x_min, x_max]] or [[x_min, x_max], [y_min, y_max]].
     coefficients : (n_funcs, n_funcs) upper-triangular array [1]
         R^-1: column r holds the Legendre coefficients of beta_r, so that
-        beta(x) = legendre_vandermonde(x) @ coefficients.
+        beta(x) = legendre_vandermonde(x)[:, columns] @ coefficients.
+    columns : (n_funcs,) int array or None
+        The raw functions kept (None: all). In 3-D, points on a body's faces cannot tell some
+        polynomials apart (a product of the faces' equations vanishes on all of them); such a
+        function adds nothing the earlier ones do not already give at the points, and is left
+        out, so the interior takes the least varying extension (within a degree the
+        functions varying least along z come first).
     """
 
     order: int
     domain: np.ndarray
     coefficients: np.ndarray
     family: str = "legendre"
+    columns: np.ndarray | None = None
 
     @property
     def n_dim(self) -> int:
@@ -222,14 +231,24 @@ class PolynomialBasis:
         -------
         (n_points, n_funcs) array [1]
         """
-        return raw_functions(points, self.domain, self.order, self.family) @ self.coefficients
+        raw = raw_functions(points, self.domain, self.order, self.family)
+        if self.columns is not None:
+            raw = raw[:, self.columns]
+        return raw @ self.coefficients
+
+    def functions_up_to(self, order: int) -> int:
+        """How many of the basis functions have an order up to ``order``."""
+        n = n_functions(order, self.n_dim)
+        return n if self.columns is None else int(np.count_nonzero(self.columns < n))
 
     def truncate(self, order: int) -> PolynomialBasis:
         """The nested basis of a lower order (its leading functions)."""
         if not 1 <= order <= self.order:
             raise DimensionError(f"order must be in 1..{self.order}; got {order}")
-        n = n_functions(order, self.n_dim)
-        return PolynomialBasis(order, self.domain, self.coefficients[:n, :n].copy(), self.family)
+        n = self.functions_up_to(order)
+        cols = None if self.columns is None else self.columns[:n].copy()
+        return PolynomialBasis(order, self.domain, self.coefficients[:n, :n].copy(), self.family,
+                               cols)
 
 
 def _as_weights(weights: object, n_points: int) -> np.ndarray:
@@ -289,13 +308,17 @@ def orthonormal_basis(
     pts = _as_points(points, dom.shape[0])
     _check_inside(pts, dom)
     n_funcs = n_functions(order, dom.shape[0])
-    if n_funcs > pts.shape[0]:
+    if n_funcs > pts.shape[0] and dom.shape[0] < 3:       # 3-D: counted after deflation
         raise ConditioningError(
             f"a basis of order {order} has {n_funcs} functions; {pts.shape[0]} points cannot "
             "support it"
         )
     sw = np.sqrt(_as_weights(weights, pts.shape[0]))[:, None]
     v = sw * raw_functions(pts, dom, order, family)
+    columns = None
+    if dom.shape[0] == 3:
+        columns = _distinguishable(v)
+        v = v[:, columns]
     # QR twice ("twice is enough"): the second pass makes V R^-1 orthonormal to rounding
     _, r1 = np.linalg.qr(v)
     d = np.abs(np.diag(r1))
@@ -311,7 +334,31 @@ def orthonormal_basis(
     # unique sign convention: positive diagonal of R (beta_0 is a positive constant)
     r_inv = r_inv * np.sign(np.diag(r_inv))
     return PolynomialBasis(order=int(order), domain=dom, coefficients=np.triu(r_inv),
-                           family=family)
+                           family=family, columns=columns)
+
+
+_FACE_TOL = 1e-8
+
+
+def _distinguishable(v: np.ndarray) -> np.ndarray:
+    """Indices of the columns of v that are not (numerically) combinations of earlier ones.
+
+    Columns are scaled to unit norm, then a QR factorisation in their own order measures what
+    each adds to the earlier ones: |R_jj| below ``_FACE_TOL`` means nothing new.
+    """
+    norms = np.linalg.norm(v, axis=0)
+    keep = norms > 0
+    vn = v / np.where(keep, norms, 1.0)
+    kept: list[int] = []
+    q = np.zeros((v.shape[0], 0))
+    for j in np.flatnonzero(keep):
+        c = vn[:, j] - q @ (q.T @ vn[:, j])
+        c = c - q @ (q.T @ c)                               # twice is enough
+        size = float(np.linalg.norm(c))
+        if size > _FACE_TOL ** 0.5:
+            q = np.column_stack([q, c / size])
+            kept.append(int(j))
+    return np.array(kept, dtype=int)
 
 
 @dataclass(frozen=True)
@@ -471,38 +518,40 @@ def fit_shape(
         criterion_used = "fixed"
     else:
         top = _default_max_order(n, n_dim) if max_order is None else int(max_order)
+        if n_dim == 3 and max_order is None:
+            top = _MAX_ORDER_3D
         if top < 1:
             raise DataError(f"max_order must be >= 1; got {top}")
         orders = np.arange(1, top + 1)
         criterion_used = criterion
-    top_funcs = n_functions(int(orders[-1]), n_dim)
+    top_funcs = n_functions(int(orders[-1]), n_dim) if n_dim < 3 else 0
     if top_funcs >= n:
         raise DataError(
             f"order {int(orders[-1])} has {top_funcs} functions; {n} scan points leave no "
             "residual degree of freedom (lower max_order)"
         )
 
-    while True:
-        try:
-            full = orthonormal_basis(pts, dom, int(orders[-1]), w, family=family)
-            break
-        except ConditioningError:
-            # points on a few lines or surfaces (a body scanned on its faces) support only
-            # the orders whose functions they tell apart
-            if order is not None or len(orders) == 1:
-                raise
-            orders = orders[:-1]
+    full = orthonormal_basis(pts, dom, int(orders[-1]), w, family=family)
+    if n_dim == 3 and order is None and max_order is None:
+        # a body's faces tell fewer functions apart than the order's count: the largest order
+        # is the one whose distinguishable functions stay within a third of the points
+        counts = np.array([full.functions_up_to(int(p)) for p in orders])
+        top = max(int(np.count_nonzero(counts <= max(n // 3, 1))), 1)
+        orders = orders[:top]
+        full = full.truncate(int(orders[-1]))
     sw = np.sqrt(w)[:, None]
     b = full.evaluate(pts) * sw  # (n, P), orthonormal columns
     yw = y * sw
     c_all = b.T @ yw
     floor = max((64.0 * np.finfo(float).eps) ** 2 * float(np.sum(yw**2)), np.finfo(float).tiny)
+    n_funcs = np.array([full.functions_up_to(int(p)) for p in orders])
+    if n_funcs[-1] >= n:
+        raise DataError(f"order {int(orders[-1])} has {n_funcs[-1]} functions; {n} scan points "
+                        "leave no residual degree of freedom (lower max_order)")
     rss = np.empty(orders.size)
-    for i, p in enumerate(orders):
-        k = n_functions(int(p), n_dim)
+    for i, k in enumerate(n_funcs):
         resid = yw - b[:, :k] @ c_all[:k]
         rss[i] = float(np.sum(resid**2))
-    n_funcs = np.array([n_functions(int(p), n_dim) for p in orders])
     rss_eff = np.maximum(rss, floor)
     n_obs = n * m
     if criterion_used == "bic":

@@ -95,6 +95,7 @@ class SpatialModel:
                 "domain": s.basis.domain.tolist(),
                 "family": s.basis.family,
                 "basis": s.basis.coefficients.tolist(),
+                **({} if s.basis.columns is None else {"columns": s.basis.columns.tolist()}),
                 "coefficients_re": s.coefficients.real.tolist(),
                 "coefficients_im": s.coefficients.imag.tolist(),
                 "residual_std": s.residual_std,
@@ -125,7 +126,9 @@ class SpatialModel:
         def shape(s: dict) -> ShapeFit:
             basis = PolynomialBasis(int(s["order"]), np.asarray(s["domain"], dtype=float),
                                     np.asarray(s["basis"], dtype=float),
-                                    s.get("family", "legendre"))
+                                    s.get("family", "legendre"),
+                                    np.asarray(s["columns"], dtype=int) if "columns" in s
+                                    else None)
             coef = np.asarray(s["coefficients_re"]) + 1j * np.asarray(s["coefficients_im"])
             return ShapeFit(
                 basis=basis, coefficients=coef, order=int(s["order"]),

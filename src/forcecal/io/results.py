@@ -39,10 +39,11 @@ def estimate_summary(est: ForceEstimate) -> dict:
     forces = {name: harmonics(est.force[k], est.force_std[k], est.static[k])
               for k, name in enumerate(est.force_names)}
     forces["total"] = harmonics(est.total, est.total_std, est.static.sum(axis=0))
-    resultant = {}                        # first moments of the forces (amplitudes in N m)
+    resultant, components = {}, {}       # first moments (N m); a body's resultant vector (N)
     for k, name in enumerate(est.combination_names):
-        if name.startswith("moment"):
-            resultant[name] = harmonics(est.combination[k], est.combination_std[k], None)
+        if name.startswith(("moment", "resultant")):
+            target = resultant if name.startswith("moment") else components
+            target[name] = harmonics(est.combination[k], est.combination_std[k], None)
     c = est.coordinates
     return {
         "run": est.run_name,
@@ -51,6 +52,7 @@ def estimate_summary(est: ForceEstimate) -> dict:
         "dc_observed": est.dc_observed,
         "forces": forces,
         "resultant_moments": resultant,
+        **({"resultant_components": components} if components else {}),
         "split_well_determined": bool(est.psi_condition <= SPLIT_CONDITION),
         "inertia_share": est.inertia_share,
         "waveform_std_n": est.waveform_std,

@@ -582,13 +582,26 @@ def _time_set(
 def _write_sets(sets: list[dict], path: Path) -> None:
     """Write datasets with pyuff, overwriting ``path``.
 
+    A Universal File is its datasets one after another, so each ASCII dataset is written by
+    pyuff to a file of its own and the pieces are joined: pyuff re-reads the file it appends to
+    after every dataset, which makes one growing file cost time quadratic in the number of
+    records. Binary (58b) scans are written in one file.
     pyuff's binary writer reopens the file by name and leaves the reopened handle to the
     garbage collector; the ResourceWarning that follows is pyuff's, silenced here only.
     """
+    import tempfile
+
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResourceWarning)
-        pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
-        gc.collect()
+        if any(d.get("binary") for d in sets):   # pyuff writes 58b only into a whole file
+            pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+            gc.collect()
+            return
+    with tempfile.TemporaryDirectory() as tmp, open(path, "wb") as out:
+        for k, dataset in enumerate(sets):
+            piece = Path(tmp) / f"{k}.uff"
+            pyuff.UFF(str(piece)).write_sets([dataset], mode="overwrite")
+            out.write(piece.read_bytes())
 
 
 # --------------------------------------------------------------------------------------------

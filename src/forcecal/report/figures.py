@@ -53,6 +53,7 @@ __all__ = [
     "fig_residuals",
     "fig_shapes",
     "fig_shapes_2d",
+    "fig_shapes_body",
     "fig_signals",
     "law_harmonics",
     "png_bytes",
@@ -229,6 +230,38 @@ def fig_shapes(shapes: HarmonicShapes, model: SpatialModel, n_fine: int = 401) -
                  title_fontsize="small", alignment="left", framealpha=0.9)
     lo, hi = right.get_ylim()
     right.set_ylim(min(lo, -0.1), max(hi, 1.1))
+    return fig
+
+
+def fig_shapes_body(shapes: HarmonicShapes, model: SpatialModel) -> Figure:
+    """Harmonic shapes of a 3-D body: every scan record's measured phasor against the vector
+    model at its location, Re and Im, one panel per harmonic, one colour per axis.
+
+    Points on the diagonal are records the model reproduces; the spread about it is the scan's
+    noise plus what the polynomials miss.
+    """
+    harmonics = [int(n) for n in model.harmonics]
+    fig = Figure(figsize=(3.8 * len(harmonics) + 0.8, 3.8), layout="constrained")
+    axes = fig.subplots(1, len(harmonics), squeeze=False)[0]
+    axis_of = np.argmax(np.abs(shapes.points[:, 3:]), axis=1)
+    for k, (ax, n) in enumerate(zip(axes, harmonics, strict=True)):
+        measured = shapes.values[n - 1] * 1e6
+        fitted = model.shape_values(n, shapes.points) * 1e6
+        top = float(np.max(np.abs(np.concatenate([measured.view(float), fitted.view(float)]))))
+        ax.plot([-top, top], [-top, top], color="0.6", lw=0.8)
+        for a, colour in zip(range(3), ("C0", "C1", "C2"), strict=True):
+            sel = axis_of == a
+            if np.any(sel):
+                ax.plot(measured[sel].real, fitted[sel].real, ".", color=colour, ms=3,
+                        label=f"along {'xyz'[a]}")
+                ax.plot(measured[sel].imag, fitted[sel].imag, ".", color=colour, ms=3)
+        ax.set_aspect("equal")
+        ax.set_xlabel("measured Re, Im [um]")
+        if k == 0:
+            ax.set_ylabel("vector model [um]")
+            ax.legend(fontsize=8, loc="upper left")
+        ax.set_title(f"harmonic {n}: {n * model.f0:.1f} Hz, order {model.shapes[k].order}",
+                     fontsize=9)
     return fig
 
 

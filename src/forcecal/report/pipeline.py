@@ -28,6 +28,7 @@ from .figures import (
     fig_residuals,
     fig_shapes,
     fig_shapes_2d,
+    fig_shapes_body,
     fig_signals,
     law_harmonics,
     save_png,
@@ -89,8 +90,8 @@ def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
     model = build_spatial_model(rig, scan, n_harmonics=n_harmonics, criterion=criterion,
                                 shapes=hs, basis=basis)
     model.save(out / "model.json")
-    fig = (fig_shapes(hs, model) if rig.structure.kind == "beam"
-           else fig_shapes_2d(hs, model))
+    fig = {"beam": fig_shapes, "plate": fig_shapes_2d,
+           "body": fig_shapes_body}[rig.structure.kind](hs, model)
     shapes_png = save_png(fig, figs / "shapes.png")
     sections = [_model_section(model, shapes_png, fig)]
     summary = []

@@ -20,7 +20,7 @@ from ..io.run_files import write_run_csv, write_table_csv
 from ..io.uff import write_scan_uff
 from ..rig import rig_to_dict
 from .beam import natural_frequencies
-from .presets import PlateSpec, Preset, get_preset
+from .presets import BodySpec, PlateSpec, Preset, get_preset
 from .virtual_rig import Truth, build_model, public_rig, record_run, record_scan
 
 __all__ = ["write_simulation", "write_truth"]
@@ -42,6 +42,13 @@ def write_truth(out: Path, name: str, truth: Truth) -> None:
 
 def _structure_facts(preset: Preset) -> dict:
     s = preset.beam
+    if isinstance(s, BodySpec):
+        return {
+            "structure": "body",
+            "size_m": list(s.size), "youngs_modulus_Pa": s.youngs_modulus,
+            "poisson": s.poisson, "density_kg_m3": s.density, "mesh": list(s.mesh),
+            "gauge_stiffness_N_m": s.gauge_stiffness,
+        }
     if isinstance(s, PlateSpec):
         return {
             "structure": "plate",

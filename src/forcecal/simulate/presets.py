@@ -266,7 +266,7 @@ def _plate() -> Preset:
     )
 
 
-_F_BODY = 250.0 * (1 - 4e-4)         # the generator runs 0.04 % slow
+_F_BODY = 150.0 * (1 - 4e-4)         # the generator runs 0.04 % slow
 
 
 def _body() -> Preset:
@@ -277,14 +277,14 @@ def _body() -> Preset:
         name="body",
         description="aluminium block 0.5 m x 0.3 m x 40 mm on six gauges (3-2-1 mount: three "
                     "along z, two along x, one along y), a U-core magnet above its top face "
-                    "(2 forces, 6 gauges), four probes, current drive with a DC bias at 250 Hz, "
+                    "(2 forces, 6 gauges), four probes, current drive with a DC bias at 150 Hz, "
                     "3-D scan of the top face (13 x 9) and of the four sides at three heights",
         beam=BodySpec(), magnets=(magnet,),
         sensors=(("s1", 0.05, 0.25, 0.04, 0, 0, 1), ("s2", 0.45, 0.25, 0.04, 0, 0, 1),
                  ("s3", 0.05, 0.05, 0.04, 0, 0, 1), ("s4", 0.45, 0.05, 0.04, 0, 0, 1)),
         scan=ScanSpec(drives=(drive,), grid=(13, 9), heights=3, record=0.25),
         runs=(RunSpec("body", drives=(drive,), duration=1.0),),
-        nominal_frequency=250.0,
+        nominal_frequency=150.0,
     )
 
 

@@ -294,6 +294,8 @@ def scan_points(preset: Preset) -> np.ndarray:
             xx, zz = np.meshgrid(xs, zs, indexing="xy")
             faces.append(np.column_stack([xx.ravel(), np.full(xx.size, y0), zz.ravel()]))
         pts = np.vstack(faces)
+        _, first = np.unique(pts.round(12), axis=0, return_index=True)
+        pts = pts[np.sort(first)]                  # the side faces share their corner columns
         return np.hstack([np.repeat(pts, 3, axis=0), np.tile(np.eye(3), (len(pts), 1))])
     if isinstance(b, PlateSpec):
         if spec.grid is None:
