@@ -40,17 +40,21 @@ def rms(x):
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-@pytest.fixture(scope="module")
-def body():
-    preset = get_preset("body")
+def _simulate(preset, seed):
+    """The block's FE model, public rig, a noisy scan and run, the run's truth and response."""
     fe = build_model(preset)
     rig = public_rig(preset)
     spec = preset.runs[0]
     r = simulate_response(preset, spec.drives, None, spec.duration, fe)
-    rng = np.random.default_rng(7)
+    rng = np.random.default_rng(seed)
     scan = measure_scan(preset, fe, scan_response(preset, fe), rng)
     run = measure_run(preset, spec, fe, r, rng)
     return preset, fe, rig, scan, run, run_truth(preset, fe, r), r
+
+
+@pytest.fixture(scope="module")
+def body():
+    return _simulate(get_preset("body"), 7)
 
 
 def _doc(rig):
@@ -219,14 +223,7 @@ def test_tilted_poles_are_reconstructed_along_their_direction(body):
     mag = preset.magnets[0]
     tilted = dataclasses.replace(preset, magnets=(dataclasses.replace(mag, poles=tuple(
         dataclasses.replace(p, direction=d) for p in mag.poles)),))
-    fe = build_model(tilted)
-    rig = public_rig(tilted)
-    spec = tilted.runs[0]
-    r = simulate_response(tilted, spec.drives, None, spec.duration, fe)
-    rng = np.random.default_rng(11)
-    scan = measure_scan(tilted, fe, scan_response(tilted, fe), rng)
-    run = measure_run(tilted, spec, fe, r, rng)
-    truth = run_truth(tilted, fe, r)
+    _, _, rig, scan, run, truth, _ = _simulate(tilted, 11)
     y_gauge = run.channel("Y1")
     assert rms(y_gauge - y_gauge.mean()) > 10.0                    # in-plane load is real
     est = reconstruct(rig, build_spatial_model(rig, scan), run)

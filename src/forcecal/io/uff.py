@@ -231,19 +231,14 @@ def _paired_nodes(
     label: str,
 ) -> list[int]:
     """Sorted scan nodes, each with exactly one vibration and one reference record."""
-    vibrations, references, others = records
+    vibrations, references, _ = records
     for node in sorted(vibrations):
         if node not in references:
             raise DataError(
                 f"scan '{path}': node {node} has a vibration record but no reference record "
                 f"(id line 2 containing '{label}')"
             )
-    for node in sorted(references):
-        if node not in vibrations:
-            raise DataError(
-                f"scan '{path}': node {node} has a reference record but no vibration record "
-                f"(velocity or displacement){_describe_others({node: others.get(node, [])})}"
-            )
+    _check_references_paired(records, path)
     for node in sorted(vibrations):
         for kind, by_node in (("vibration", vibrations), ("reference", references)):
             if len(by_node[node]) > 1:
@@ -260,18 +255,24 @@ def _paired_nodes(
     return sorted(vibrations)
 
 
-def _located_rows(records: tuple[dict, ...], geometry: dict[int, tuple], path: str | Path,
-                  label: str) -> list[tuple[int, int, dict, dict]]:
-    """(node, response direction, vibration, reference) of every vibration record of a 3-D
-    scan, ordered by node then direction (see :func:`read_scan_uff`)."""
+def _check_references_paired(records: tuple[dict, ...], path: str | Path) -> None:
+    """Every node with a reference record has a vibration record."""
     vibrations, references, others = records
-    rows = []
     for node in sorted(references):
         if node not in vibrations:
             raise DataError(
                 f"scan '{path}': node {node} has a reference record but no vibration record "
                 f"(velocity or displacement){_describe_others({node: others.get(node, [])})}"
             )
+
+
+def _located_rows(records: tuple[dict, ...], geometry: dict[int, tuple], path: str | Path,
+                  label: str) -> list[tuple[int, int, dict, dict]]:
+    """(node, response direction, vibration, reference) of every vibration record of a 3-D
+    scan, ordered by node then direction (see :func:`read_scan_uff`)."""
+    vibrations, references, _ = records
+    rows = []
+    _check_references_paired(records, path)
     for node in sorted(vibrations):
         if node not in geometry:
             raise DataError(f"scan '{path}': node {node} has time records but no coordinates "
