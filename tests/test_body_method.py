@@ -264,3 +264,13 @@ def test_report_on_a_body_draws_the_vector_model(body, tmp_path):
     path = run_report(rig, scan, [run], tmp_path / "rep")
     assert path.is_file() and (tmp_path / "rep" / "figures" / "shapes.png").stat().st_size > 5000
     assert "resultant_z" in (tmp_path / "rep" / f"{run.name}.json").read_text()
+
+
+def test_oblique_scan_record_is_refused_by_name(body):
+    from forcecal.errors import InputError
+
+    rig, scan = body[2], body[3]
+    pts = scan.points.copy()
+    pts[4, 3:] = [0.6, 0.0, 0.8]
+    with pytest.raises(InputError, match=r"record 5 measures along .*not along x, y or z"):
+        build_spatial_model(rig, dataclasses.replace(scan, points=pts))

@@ -21,7 +21,7 @@ from .inertia import mass_coupling
 from .records import Scan
 from .rig import Rig, inside_polygon
 from .scan import HarmonicShapes, harmonic_shapes
-from .vector_basis import AXES, VectorShapeFit, as_locations, fit_vector_shape
+from .vector_basis import AXES, VectorShapeFit, fit_vector_shape
 
 __all__ = [
     "SpatialModel",
@@ -296,7 +296,6 @@ def _inverse_variance(std: np.ndarray) -> np.ndarray:
 def _check_points_on_structure(rig: Rig, scan: Scan) -> None:
     pts = structure_coordinates(rig, scan.points, source=f"scan '{scan.source}'")
     if rig.is_body:
-        as_locations(pts)
         for k, p in enumerate(pts):
             if not rig.structure.contains(*p[:3], tol=1e-6):
                 raise InputError(f"scan '{scan.source}': point {k + 1} at (x, y, z) = "
