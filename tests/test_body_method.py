@@ -274,3 +274,18 @@ def test_oblique_scan_record_is_refused_by_name(body):
     pts[4, 3:] = [0.6, 0.0, 0.8]
     with pytest.raises(InputError, match=r"record 5 measures along .*not along x, y or z"):
         build_spatial_model(rig, dataclasses.replace(scan, points=pts))
+
+
+def test_instantaneous_gaps_on_a_body(body):
+    """Each pole's gap closes by the body's displacement along the pole's direction."""
+    from forcecal.campaign import pole_motion
+
+    _, _, rig, scan, run, truth, _ = body
+    model = build_spatial_model(rig, scan)
+    motion = pole_motion(rig, model, run, reconstruct(rig, model, run))
+    err = motion.gaps(truth.t) - truth.gap
+    dc = err.mean(axis=1)
+    amplitude = 0.5 * (truth.gap.max(axis=1) - truth.gap.min(axis=1))
+    assert np.all(np.abs(truth.gap.mean(axis=1) - 1e-3) > 1e-6)   # a DC deflection to find
+    assert np.all(np.abs(dc) < 0.2e-6)
+    assert np.all(np.max(np.abs(err - dc[:, None]), axis=1) < 0.02 * amplitude)

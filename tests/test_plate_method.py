@@ -205,3 +205,23 @@ def test_inside_polygon_on_a_concave_outline():
     points = np.array([[0.1, 0.1], [0.1, 0.3], [0.3, 0.3], [0.5, 0.2], [0.2, 0.3], [0.6, 0.1]])
     np.testing.assert_array_equal(inside_polygon(outline, points),
                                   [True, False, True, True, True, False])
+
+
+def test_instantaneous_gaps_on_a_plate(plate_lab):
+    """The poles' gaps from the plate's shapes, coordinates and probes' DC follow the truth
+    (the pole positions are (x, y) points: a beam's x alone would not evaluate the shape)."""
+    from forcecal.campaign import pole_motion
+    from forcecal.io.run_files import read_run
+    from forcecal.io.uff import read_scan_uff
+    from forcecal.rig import load_rig
+
+    rig = load_rig(plate_lab / "rig.toml")
+    model = build_spatial_model(rig, read_scan_uff(plate_lab / "scan.uff"))
+    run = read_run(plate_lab / "runs" / "plate.csv")
+    motion = pole_motion(rig, model, run, reconstruct(rig, model, run))
+    truth = np.load(plate_lab / "truth" / "plate.npz")
+    err = motion.gaps(truth["time"]) - truth["gap"]
+    dc = err.mean(axis=1)
+    amplitude = 0.5 * (truth["gap"].max(axis=1) - truth["gap"].min(axis=1))
+    assert np.all(np.abs(dc) < 0.2e-6)                      # the mean deflection is 4 um
+    assert np.all(np.max(np.abs(err - dc[:, None]), axis=1) < 0.02 * amplitude)

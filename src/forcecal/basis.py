@@ -337,14 +337,15 @@ def orthonormal_basis(
                            family=family, columns=columns)
 
 
-_FACE_TOL = 1e-8
+_NEW_TOL = 1e-4
+"""Smallest part of a unit-norm column, orthogonal to the kept ones, that counts as new."""
 
 
 def _distinguishable(v: np.ndarray) -> np.ndarray:
     """Indices of the columns of v that are not (numerically) combinations of earlier ones.
 
-    Columns are scaled to unit norm, then a QR factorisation in their own order measures what
-    each adds to the earlier ones: |R_jj| below ``_FACE_TOL`` means nothing new.
+    Columns are scaled to unit norm, then Gram-Schmidt in their own order measures what each
+    adds to the kept ones: less than ``_NEW_TOL`` means nothing new.
     """
     norms = np.linalg.norm(v, axis=0)
     keep = norms > 0
@@ -355,7 +356,7 @@ def _distinguishable(v: np.ndarray) -> np.ndarray:
         c = vn[:, j] - q @ (q.T @ vn[:, j])
         c = c - q @ (q.T @ c)                               # twice is enough
         size = float(np.linalg.norm(c))
-        if size > _FACE_TOL ** 0.5:
+        if size > _NEW_TOL:
             q = np.column_stack([q, c / size])
             kept.append(int(j))
     return np.array(kept, dtype=int)

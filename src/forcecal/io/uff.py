@@ -15,6 +15,7 @@ at most 6 significant digits.
 from __future__ import annotations
 
 import gc
+import tempfile
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
@@ -447,7 +448,9 @@ def write_scan_uff(
     Dataset 2411 (nodes, coordinates [m]) then, per point, the vibration record (id line 2
     ``Vib  Velocity`` or ``Vib  Displacement``, ordinate type 11 or 8) and the reference
     record (id line 2 ``Ref1  Current``, unit A), both time records (function type 1) with
-    response node = the point's node, direction +Z.
+    response node = the point's node, direction +Z. A 3-D scan (points as (n, 6) locations)
+    gets one node per distinct point and each record its response direction (+-X, Y, Z); a
+    node's rows that share one reference record (one acquisition) get one reference record.
 
     Parameters
     ----------
@@ -590,8 +593,6 @@ def _write_sets(sets: list[dict], path: Path) -> None:
     pyuff's binary writer reopens the file by name and leaves the reopened handle to the
     garbage collector; the ResourceWarning that follows is pyuff's, silenced here only.
     """
-    import tempfile
-
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResourceWarning)
         if any(d.get("binary") for d in sets):   # pyuff writes 58b only into a whole file

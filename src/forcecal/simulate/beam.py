@@ -10,10 +10,11 @@ This model is the simulator's own physics: it knows nothing of the estimator's b
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 
 import numpy as np
 import scipy.linalg
+
+from .modal import ModalModel
 
 __all__ = [
     "BeamModel",
@@ -70,7 +71,7 @@ def hermite_row(nodes: np.ndarray, x: float | np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class BeamModel:
+class BeamModel(ModalModel):
     """Assembled beam on point springs.
 
     Attributes
@@ -91,17 +92,6 @@ class BeamModel:
     bending_stiffness: np.ndarray
     springs: tuple[tuple[float, float], ...] = field(default=())
     beta: float = 0.0
-
-    @property
-    def n_dof(self) -> int:
-        return self.stiffness.shape[0]
-
-    @cached_property
-    def modes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Undamped modes: ``(w2, phi)``, w2 (n_dof,) [rad^2/s^2] ascending (clipped at 0),
-        phi (n_dof, n_dof) mass-normalised (``phi.T M phi = I``). Computed once per model."""
-        w2, phi = scipy.linalg.eigh(self.stiffness, self.mass)
-        return np.clip(w2, 0.0, None), phi
 
     def row(self, x):
         """See :func:`hermite_row`."""

@@ -22,11 +22,12 @@ the interface :func:`forcecal.simulate.integrate.integrate` uses of a beam (``st
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
 import scipy.linalg
+
+from .modal import ModalModel
 
 __all__ = [
     "PlateModel",
@@ -131,7 +132,7 @@ def bfs_row(xs: np.ndarray, ys: np.ndarray, points) -> np.ndarray:
 
 
 @dataclass(frozen=True)
-class PlateModel:
+class PlateModel(ModalModel):
     """Assembled rectangular plate on point springs.
 
     Attributes
@@ -157,21 +158,10 @@ class PlateModel:
     beta: float = 0.0
 
     @property
-    def n_dof(self) -> int:
-        return self.stiffness.shape[0]
-
-    @property
     def nodes(self) -> np.ndarray:
         """(n_nodes, 2) node coordinates [m], node j * (nx + 1) + i at (xs[i], ys[j])."""
         gx, gy = np.meshgrid(self.xs, self.ys, indexing="xy")
         return np.column_stack([gx.ravel(), gy.ravel()])
-
-    @cached_property
-    def modes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Undamped modes: ``(w2, phi)``, w2 (n_dof,) [rad^2/s^2] ascending (clipped at 0),
-        phi (n_dof, n_dof) mass-normalised (``phi.T M phi = I``). Computed once per model."""
-        w2, phi = scipy.linalg.eigh(self.stiffness, self.mass)
-        return np.clip(w2, 0.0, None), phi
 
     def row(self, points) -> np.ndarray:
         """See :func:`bfs_row`: (n, 2) points -> (n, n_dof)."""

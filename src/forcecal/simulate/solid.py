@@ -27,11 +27,11 @@ the interface :func:`forcecal.simulate.integrate.integrate` uses of a beam (``st
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from functools import cached_property
 from typing import ClassVar
 
 import numpy as np
-import scipy.linalg
+
+from .modal import ModalModel
 
 __all__ = [
     "SolidModel",
@@ -148,7 +148,7 @@ def solid_row(xs: np.ndarray, ys: np.ndarray, zs: np.ndarray, locations) -> np.n
 
 
 @dataclass(frozen=True)
-class SolidModel:
+class SolidModel(ModalModel):
     """Assembled elastic block on point springs.
 
     Attributes
@@ -175,21 +175,10 @@ class SolidModel:
     beta: float = 0.0
 
     @property
-    def n_dof(self) -> int:
-        return self.stiffness.shape[0]
-
-    @property
     def nodes(self) -> np.ndarray:
         """(n_nodes, 3) node coordinates [m] in the global node order."""
         gz, gy, gx = np.meshgrid(self.zs, self.ys, self.xs, indexing="ij")
         return np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
-
-    @cached_property
-    def modes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Undamped modes: ``(w2, phi)``, w2 (n_dof,) [rad^2/s^2] ascending (clipped at 0),
-        phi (n_dof, n_dof) mass-normalised (``phi.T M phi = I``). Computed once per model."""
-        w2, phi = scipy.linalg.eigh(self.stiffness, self.mass)
-        return np.clip(w2, 0.0, None), phi
 
     def row(self, locations) -> np.ndarray:
         """See :func:`solid_row`: (n, 6) locations -> (n, n_dof)."""
