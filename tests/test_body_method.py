@@ -234,7 +234,7 @@ def test_tilted_poles_are_reconstructed_along_their_direction(body):
 
 def test_modes_basis_is_refused_for_a_body(body):
     rig, scan = body[2], body[3]
-    with pytest.raises(Exception, match="mode-shape basis serves beams and plates"):
+    with pytest.raises(Exception, match="the modes basis does not serve a body"):
         build_spatial_model(rig, scan, basis="modes")
 
 

@@ -1,10 +1,12 @@
 """Sensors -> generalized coordinates (METHOD.md section 3, step 4; eq. 15, 16).
 
 Per harmonic n the probe phasors obey S_n(l_j) = phi_n(l_j) Q_n + noise. Q_n follows by least
-squares weighted by each probe's noise (estimated from its own fit residuals). The problem
-needs no more coordinates than sensors (the corrected eq. 16: Nq <= NS) and sensors away from
-the nodes of phi_n: the gain of the sensor set on each shape is reported, and a set that sees
-a shape too faintly is refused.
+squares weighted by each probe's noise: Q_n = G_n S_n with the weighted least-squares map
+G_n = (phi^H W phi)^-1 phi^H W (:func:`coordinate_map`, the one implementation used by the
+batch estimate, the streaming estimator and the uncertainty propagation). The problem needs no
+more coordinates than sensors (the corrected eq. 16: Nq <= NS) and sensors away from the nodes
+of phi_n: the gain of the sensor set on each shape is reported, and a set that sees a shape too
+faintly is refused (:func:`check_sensor_gain`).
 """
 
 from __future__ import annotations
@@ -17,12 +19,24 @@ import scipy.stats
 from .errors import ConditioningError
 from .harmonics import HarmonicFit
 from .rig import Rig
-from .spatial import SpatialModel, structure_coordinates, structure_grid
+from .spatial import SpatialModel
 
-__all__ = ["MIN_SENSOR_GAIN", "Coordinates", "generalized_coordinates", "sensor_gain"]
+__all__ = [
+    "MIN_SENSOR_GAIN",
+    "Coordinates",
+    "check_sensor_gain",
+    "coordinate_map",
+    "generalized_coordinates",
+    "sensor_gain",
+    "sensor_rows",
+    "sensor_weights",
+]
 
 MIN_SENSOR_GAIN = 0.05
 """Smallest RMS of |phi_n| at the sensors, relative to its maximum over the structure."""
+MISFIT_LEVEL = 0.99
+"""Chi-square quantile above which the sensors contradict the shape and Q's uncertainty is
+inflated by the reduced chi-square (the Birge ratio)."""
 
 
 @dataclass(frozen=True)
@@ -31,13 +45,18 @@ class Coordinates:
 
     Attributes
     ----------
-    harmonics : (n_h,) int
-    q : (n_h,) complex [1]: w(x) at harmonic n is phi_n(x) Q_n
-    q_std : (n_h,) [1] standard uncertainty of Re Q_n and of Im Q_n, scaled by the reduced
-        chi-square when the sensors disagree with the shape beyond their noise
-    gain : (n_h,) [1] RMS |phi_n| at the sensors / max |phi_n| on the structure
-    chi2 : (n_h,) [1] reduced chi-square of the sensor fit (about 1 when the shape fits;
-        NaN with a single sensor)
+    harmonics : (n_h,) int ndarray
+        The model's harmonics.
+    q : (n_h,) complex ndarray
+        [1] w(x) at harmonic n is phi_n(x) Q_n.
+    q_std : (n_h,) ndarray
+        [1] standard uncertainty of Re Q_n and of Im Q_n, scaled by the reduced chi-square
+        when the sensors disagree with the shape beyond their noise.
+    gain : (n_h,) ndarray
+        [1] RMS |phi_n| at the sensors / max |phi_n| on the structure.
+    chi2 : (n_h,) ndarray
+        [1] reduced chi-square of the sensor fit (about 1 when the shape fits; NaN with a
+        single sensor).
     """
 
     harmonics: np.ndarray
@@ -47,16 +66,79 @@ class Coordinates:
     chi2: np.ndarray
 
 
+def sensor_rows(model: SpatialModel, rig: Rig, n: int) -> np.ndarray:
+    """phi_n at the sensors, (n_sensors,) complex [m]."""
+    return model.shape_values(n, rig.structure.coordinates(rig.sensor_points))
+
+
 def sensor_gain(model: SpatialModel, rig: Rig, n: int) -> float:
-    """RMS |phi_n| at the sensors relative to its maximum along the structure [1]."""
-    peak = np.max(np.abs(model.shape_values(n, structure_grid(rig))))
+    """RMS |phi_n| at the sensors relative to its maximum over the structure [1]."""
+    peak = np.max(np.abs(model.shape_values(n, rig.structure.grid())))
     at = sensor_rows(model, rig, n)
     return float(np.sqrt(np.mean(np.abs(at) ** 2)) / peak)
 
 
-def sensor_rows(model: SpatialModel, rig: Rig, n: int) -> np.ndarray:
-    """phi_n at the sensors, (n_sensors,) complex [m]."""
-    return model.shape_values(n, structure_coordinates(rig, rig.sensor_points))
+def check_sensor_gain(model: SpatialModel, rig: Rig, n: int, what: str) -> float:
+    """The sensors' gain on harmonic n's shape, refused when they sit near a node.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    rig : Rig
+    n : int
+        The harmonic.
+    what : str
+        Who asks, at the start of the message (``run 'r01.csv'``, ``stream``).
+
+    Returns
+    -------
+    float
+        :func:`sensor_gain`.
+
+    Raises
+    ------
+    ConditioningError
+        When the gain is below ``MIN_SENSOR_GAIN``.
+    """
+    gain = sensor_gain(model, rig, n)
+    if gain < MIN_SENSOR_GAIN:
+        raise ConditioningError(
+            f"{what}: sensors {', '.join(rig.sensor_names)} sit near a node of the "
+            f"harmonic-{n} shape (they see {gain:.1%} of its peak; at least "
+            f"{MIN_SENSOR_GAIN:.0%} is needed): move a sensor")
+    return gain
+
+
+def sensor_weights(std: np.ndarray) -> np.ndarray:
+    """Inverse variances 1 / std^2 of the sensors' phasors (finite for noise-free data)."""
+    weights: np.ndarray = 1.0 / np.maximum(np.asarray(std, dtype=float), 1e-150) ** 2
+    return weights
+
+
+def coordinate_map(phi: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The weighted least-squares map from sensor phasors to coordinates (eq. 15, 16).
+
+    Parameters
+    ----------
+    phi : (n_sensors,) or (n_sensors, n_shapes) complex ndarray
+        [m] the shapes at the sensors.
+    weights : (n_sensors,) ndarray
+        Inverse noise variances of the sensors (any common scale).
+
+    Returns
+    -------
+    gain : (n_sensors,) or (n_shapes, n_sensors) complex ndarray
+        G with Q = G @ S.
+    information : float or (n_shapes, n_shapes) ndarray
+        phi^H W phi: the coordinates' covariance is its inverse (per unit weight).
+    """
+    w = np.asarray(weights, dtype=float)
+    if phi.ndim == 1:
+        info = float(np.sum(w * np.abs(phi) ** 2))
+        return w * np.conj(phi) / info, np.asarray(info)
+    a = np.conj(phi.T) * w                                         # (n_shapes, n_sensors)
+    info_m = a @ phi
+    return np.linalg.solve(info_m, a), info_m
 
 
 def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
@@ -65,7 +147,16 @@ def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
 
     Parameters
     ----------
-    sensors : harmonic fit of the sensor channels, phasors (n_sensors, H+1) [m]
+    model : SpatialModel
+    rig : Rig
+    sensors : HarmonicFit
+        Harmonic fit of the sensor channels, phasors (n_sensors, H+1) [m].
+    run_name : str
+        Named in messages.
+
+    Returns
+    -------
+    Coordinates
 
     Raises
     ------
@@ -74,18 +165,12 @@ def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
     """
     qs, stds, gains, chi2 = [], [], [], []
     for n in model.harmonics:
+        gains.append(check_sensor_gain(model, rig, int(n), f"run '{run_name}'"))
         phi = sensor_rows(model, rig, int(n))
         s = sensors.phasors[:, n]
-        sig = sensors.phasor_std[:, n]
-        gain = sensor_gain(model, rig, int(n))
-        if gain < MIN_SENSOR_GAIN:
-            raise ConditioningError(
-                f"run '{run_name}': sensors {', '.join(rig.sensor_names)} sit near a node of the "
-                f"harmonic-{n} shape (they see {gain:.1%} of its peak; at least "
-                f"{MIN_SENSOR_GAIN:.0%} is needed): move a sensor")
-        w = 1.0 / np.maximum(sig, 1e-150) ** 2             # noise-free data: finite weights
-        info = np.sum(w * np.abs(phi) ** 2)
-        q = np.sum(w * np.conj(phi) * s) / info
+        w = sensor_weights(sensors.phasor_std[:, n])
+        gain, info = coordinate_map(phi, w)
+        q = complex(gain @ s)
         resid = s - phi * q
         dof = 2 * (len(s) - 1)
         red = float(np.sum(w * np.abs(resid) ** 2) / dof) if dof > 0 else np.nan
@@ -93,8 +178,7 @@ def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
         qs.append(q)
         # the shape misses the sensors by more than their noise (1 % significance): the model
         # error is real, and Q is only known to within it (Birge ratio)
-        misfit = red if dof > 0 and red > scipy.stats.chi2.ppf(0.99, dof) / dof else 1.0
-        stds.append(float(np.sqrt(misfit / info)))
-        gains.append(gain)
+        misfit = red if dof > 0 and red > scipy.stats.chi2.ppf(MISFIT_LEVEL, dof) / dof else 1.0
+        stds.append(float(np.sqrt(misfit / float(info))))
     return Coordinates(harmonics=model.harmonics.copy(), q=np.array(qs), q_std=np.array(stds),
                        gain=np.array(gains), chi2=np.array(chi2))

@@ -1,24 +1,29 @@
 """Forces from reactions and inertia (METHOD.md sections 2 and 3, steps 5 and 6).
 
-Per harmonic n >= 1: J_{r,n} = m_{r,n} (-(n w0)^2) Q_n and F_n = Psi^+ (J_n - R_n); the DC part
-has no inertia, F_0 = -Psi^+ (R_0 - R_0,tare). The reactions-only (static) estimate,
--Psi^+ R(t) sample by sample, is returned beside it as the baseline.
+Per harmonic n >= 1: F_n = Psi^+ (J_n - R_n) (:func:`force_solve`) with the inertia term J_n of
+:func:`forcecal.inertia.inertia_term`; the DC part has no inertia, F_0 = -Psi^+ (R_0 - R_0,tare).
+Which harmonics enter at all is one policy (:func:`kept_harmonics`), shared by the batch and the
+streaming estimators. The reactions-only (static) estimate, -Psi^+ R(t) sample by sample, is
+returned beside it as the baseline.
 
-Standard uncertainties come from :mod:`forcecal.uncertainty`: linear propagation from the noise
-of every channel and from the scan model's shape coefficients.
+:func:`reconstruct` is the batch estimate of one run, written as the method's steps. Standard
+uncertainties come from :mod:`forcecal.uncertainty`: linear propagation from the noise of every
+channel and from the scan model's shape coefficients.
 """
 
 from __future__ import annotations
 
 import warnings
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .coordinates import Coordinates, generalized_coordinates
+from .checks import check_clipping, check_record_length
+from .coordinates import Coordinates, generalized_coordinates, sensor_rows
 from .errors import DataError, InputError
-from .harmonics import fit_harmonics, fundamental_uncertainty, refine_fundamental
-from .io.run_files import check_clipping
+from .harmonics import HarmonicFit, fit_harmonics, fundamental_uncertainty, refine_fundamental
+from .inertia import inertia_term
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
@@ -27,16 +32,28 @@ from .uncertainty import (
     combinations,
     gauge_variance,
     inertia_variance,
+    shape_operators,
     unresolved_inertia_bound,
 )
 
-__all__ = ["ForceEstimate", "channels_si", "implied_phasors", "reconstruct"]
+__all__ = [
+    "SIGNIFICANT_REACTION",
+    "ForceEstimate",
+    "channels_si",
+    "force_solve",
+    "implied_phasors",
+    "kept_harmonics",
+    "reconstruct",
+    "significant_reactions",
+]
 
 SPLIT_CONDITION = 30.0
 """cond(Psi) above which the split between the forces is flagged as poorly determined."""
 
 FREQUENCY_MISMATCH = 0.01
 """Relative difference between a run's and the scan's fundamental that draws a warning."""
+SIGNIFICANT_REACTION = 5.0
+"""A harmonic without a shape is kept when a gauge shows it above this many noise stds."""
 
 
 @dataclass(frozen=True)
@@ -120,8 +137,94 @@ class ForceEstimate:
         return float(np.sqrt(np.sum(self.total_std[1:] ** 2) + np.sum(drift)))
 
 
+def force_solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray) -> np.ndarray:
+    """F = Psi^+ (J - R) (eq. 8, 24 corrected): the forces from the inertia term and the
+    reactions, exact when there are as many forces as gauges, least squares otherwise.
+
+    Parameters
+    ----------
+    pinv : (n_forces, n_gauges) ndarray
+        [1] Psi^+.
+    inertia : (n_gauges, ...) ndarray
+        [N] J (phasors of any harmonics, or samples).
+    reactions : (n_gauges, ...) ndarray
+        [N] R, the forces the gauges exert on the structure.
+
+    Returns
+    -------
+    (n_forces, ...) ndarray [N]
+    """
+    forces: np.ndarray = pinv @ (inertia - reactions)
+    return forces
+
+
+def significant_reactions(reactions: np.ndarray, std: np.ndarray,
+                          factor: float = SIGNIFICANT_REACTION) -> np.ndarray:
+    """Harmonics that some gauge shows above ``factor`` times its noise.
+
+    Parameters
+    ----------
+    reactions : (n_gauges, H+1) complex ndarray
+        [N] reaction phasors.
+    std : (n_gauges, H+1) ndarray
+        [N] their standard uncertainties.
+    factor : float
+        The threshold in noise stds.
+
+    Returns
+    -------
+    (H+1,) bool ndarray
+    """
+    significant: np.ndarray = np.any(np.abs(reactions) > factor * std, axis=0)
+    return significant
+
+
+def kept_harmonics(n_harmonics: int, shaped: Iterable[int], significant: np.ndarray,
+                   dc: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Which harmonics enter the forces, and which of them with their inertia.
+
+    The policy of both estimators: the DC (when the gauges measure it), every harmonic with a
+    shape in the scan model (inertia compensated), and every other harmonic that the reactions
+    show (``significant``: its inertia is not compensated and is counted in the uncertainty).
+
+    Parameters
+    ----------
+    n_harmonics : int
+        H.
+    shaped : iterable of int
+        The harmonics with a shape in the model.
+    significant : (H+1,) bool ndarray
+        Harmonics the data show (:func:`significant_reactions`).
+    dc : bool
+        Whether the DC is kept.
+
+    Returns
+    -------
+    with_inertia : (H+1,) bool ndarray
+    kept : (H+1,) bool ndarray
+    """
+    with_inertia = np.zeros(n_harmonics + 1, dtype=bool)
+    for n in shaped:
+        if 1 <= n <= n_harmonics:
+            with_inertia[n] = True
+    kept = with_inertia | np.asarray(significant, dtype=bool)
+    kept[0] = dc
+    return with_inertia, kept
+
+
 def channels_si(rig: Rig, run: Run) -> dict[str, np.ndarray]:
-    """Gauge, sensor, current and (if any) flux channels in SI with the rig's scales."""
+    """Gauge, sensor, current and (if any) flux channels in SI with the rig's scales.
+
+    Parameters
+    ----------
+    rig : Rig
+    run : Run
+
+    Returns
+    -------
+    dict
+        Channel name -> (n_samples,) ndarray [N, m, A, Wb].
+    """
     out = {g.name: g.scale * run.channel(g.name) for g in rig.gauges}
     out.update({s.name: s.scale * run.channel(s.name) for s in rig.sensors})
     act = rig.actuator
@@ -131,16 +234,102 @@ def channels_si(rig: Rig, run: Run) -> dict[str, np.ndarray]:
     return out
 
 
-def _psi_pinv(rig: Rig) -> tuple[np.ndarray, float]:
-    psi = force_matrix(rig)
-    return np.linalg.pinv(psi), float(np.linalg.cond(psi))
-
-
 def _series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
     """Evaluate phasors (..., H+1) at times t -> (..., n_t)."""
     n = np.arange(phasors.shape[-1])
     e = np.exp(1j * 2 * np.pi * f0 * np.outer(n, t))
-    return (phasors @ e).real
+    series: np.ndarray = (phasors @ e).real
+    return series
+
+
+@dataclass(frozen=True)
+class _Records:
+    """A run's channels in SI, grouped as the method uses them."""
+
+    current: np.ndarray
+    sensors: np.ndarray
+    gauges: np.ndarray
+
+
+def _records(rig: Rig, run: Run) -> _Records:
+    """Step 0: the channels in SI, checked for clipping, at least one of them driven."""
+    sig = channels_si(rig, run)
+    for name, values in sig.items():
+        check_clipping(values, name, run.source, run.fs)
+    rec = _Records(current=sig[rig.actuator.current],
+                   sensors=np.stack([sig[s] for s in rig.sensor_names]),
+                   gauges=np.stack([sig[g] for g in rig.gauge_names]))
+    if not _driven(rec):
+        raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
+    return rec
+
+
+def _driven(rec: _Records) -> list[np.ndarray]:
+    """The records that are not constant (constant ones say nothing of the fundamental)."""
+    return [r for r in np.vstack([rec.current, rec.sensors, rec.gauges])
+            if np.std(r) > 1e-9 * (np.max(np.abs(r)) + 1e-300)]
+
+
+def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
+                 h: int) -> tuple[float, float, list[str]]:
+    """Step 1: the run's refined fundamental, its uncertainty, and a note when it differs from
+    the scan model's."""
+    assert rig.frequency is not None
+    check_record_length(run, rig.frequency)
+    records = _driven(rec)
+    f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
+    f0_std = fundamental_uncertainty(records, run.fs, f0, h, t0=run.t0)
+    notes = []
+    if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
+        msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
+               f"{model.f0:.4g} Hz; its shapes may not apply")
+        warnings.warn(msg, stacklevel=3)
+        notes.append(msg)
+    return f0, f0_std, notes
+
+
+def _tare_dc(rig: Rig, tare: Run | None) -> np.ndarray:
+    """(n_gauges,) [N] the gauges' DC in a zero-current record (zero without one)."""
+    if tare is None:
+        return np.zeros(len(rig.gauges))
+    t_sig = channels_si(rig, tare)
+    return np.array([t_sig[g].mean() for g in rig.gauge_names])
+
+
+def _inertia(rig: Rig, model: SpatialModel, coords: Coordinates, s_fit: HarmonicFit,
+             a_r: np.ndarray, w0: float, h: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
+    """Step 5: J_{r,n} of every shaped harmonic, with its variance in every combination."""
+    n_c = a_r.shape[0]
+    inertia = np.zeros((len(rig.gauges), h + 1), dtype=complex)
+    var = np.zeros((n_c, h + 1, 2))
+    ops = shape_operators(model, rig)
+    shaped = []
+    for k, n in enumerate(model.harmonics):
+        n = int(n)
+        if n > h:
+            continue
+        inertia[:, n] = inertia_term(model.couplings[k], coords.q[k], n * w0)
+        var[:, n, :] = inertia_variance(model, ops, k, s_fit, a_r, n * w0, coords.q_std[k])
+        shaped.append(n)
+    return inertia, var, shaped
+
+
+def _unresolved(rig: Rig, model: SpatialModel, s_fit: HarmonicFit, a_r: np.ndarray,
+                with_inertia: np.ndarray, kept: np.ndarray, w0: float,
+                var: np.ndarray) -> list[str]:
+    """Harmonics kept without a shape: their inertia's bound enters the variance ``var``
+    (updated in place); returns a note per harmonic."""
+    notes = []
+    n_g = len(rig.gauges)
+    for n in np.flatnonzero(kept & ~with_inertia):
+        if n == 0:
+            continue
+        bound = unresolved_inertia_bound(rig, s_fit, int(n), w0)
+        var[:, n, :] += (bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1))[:, None]
+        notes.append(f"harmonic {n}: no shape in the scan model "
+                     f"({model.dropped.get(int(n), 'not scanned')}); its inertia, up to "
+                     f"{bound:.2g} N, is not compensated and is counted in the uncertainty")
+    return notes
 
 
 def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None = None,
@@ -149,104 +338,72 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
 
     Parameters
     ----------
-    rig : the rig; model : the spatial model from the scan
-    run : the recording (gauge, sensor and current channels named as in the rig)
-    n_harmonics : H, harmonics 0..H are estimated (default: as many as the scan was fitted with)
-    tare : a zero-current record whose gauge DC is subtracted
-    ac_coupled : the gauges do not measure DC (piezoelectric): the DC force is not estimated
+    rig : Rig
+        The rig.
+    model : SpatialModel
+        The spatial model from the scan.
+    run : Run
+        The recording (gauge, sensor and current channels named as in the rig).
+    n_harmonics : int, optional
+        H: harmonics 0..H are estimated (default: as many as the scan was fitted with).
+    tare : Run, optional
+        A zero-current record whose gauge DC is subtracted.
+    ac_coupled : bool
+        The gauges do not measure DC (piezoelectric): the DC force is not estimated.
+
+    Returns
+    -------
+    ForceEstimate
     """
     if rig.frequency is None:
         raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing")
-    sig = channels_si(rig, run)
-    for name, values in sig.items():
-        check_clipping(values, name, run.source, run.fs)
     h = n_harmonics or len(model.snr)
-    current = sig[rig.actuator.current]
-    sensors = np.stack([sig[s] for s in rig.sensor_names])
-    gauges = np.stack([sig[g] for g in rig.gauge_names])
-    records = [r for r in np.vstack([current, sensors, gauges])
-               if np.std(r) > 1e-9 * (np.max(np.abs(r)) + 1e-300)]     # constant ones say nothing
-    if not records:
-        raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
-    check_record_length(run, rig.frequency)
-    f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
-    f0_std = fundamental_uncertainty(records, run.fs, f0, h, t0=run.t0)
-    notes = []
-    if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
-        msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
-               f"{model.f0:.4g} Hz; its shapes may not apply")
-        warnings.warn(msg, stacklevel=2)
-        notes.append(msg)
-    g_fit = fit_harmonics(gauges, run.fs, f0, h, t0=run.t0)
-    s_fit = fit_harmonics(sensors, run.fs, f0, h, t0=run.t0)
+    rec = _records(rig, run)
+    f0, f0_std, notes = _fundamental(rig, model, run, rec, h)
+    g_fit = fit_harmonics(rec.gauges, run.fs, f0, h, t0=run.t0)
+    s_fit = fit_harmonics(rec.sensors, run.fs, f0, h, t0=run.t0)
     coords = generalized_coordinates(model, rig, s_fit, run.source)
-    pinv, cond = _psi_pinv(rig)
     psi = force_matrix(rig)
-    n_g, n_f = len(rig.gauges), len(rig.forces)
-
+    pinv, cond = np.linalg.pinv(psi), float(np.linalg.cond(psi))
+    tare_dc = _tare_dc(rig, tare)
     reactions = g_fit.phasors.copy()                                 # (n_g, H+1)
-    if tare is not None:
-        t_sig = channels_si(rig, tare)
-        tare_dc = np.array([t_sig[g].mean() for g in rig.gauge_names])
-        reactions[:, 0] -= tare_dc
-    inertia = np.zeros((n_g, h + 1), dtype=complex)
-    with_inertia = np.zeros(h + 1, dtype=bool)
-    w0 = 2 * np.pi * f0
+    reactions[:, 0] -= tare_dc
     combo_names, combo = combinations(rig)
     a_r = combo @ pinv                                               # (n_c, n_g)
-    var = np.repeat(gauge_variance(a_r, g_fit)[:, :, None], 2, axis=2)   # (n_c, H+1, Re/Im)
-    for k, n in enumerate(model.harmonics):
-        n = int(n)
-        if n > h:
-            continue
-        w0n = n * w0
-        inertia[:, n] = model.couplings[k] * (-(w0n**2)) * coords.q[k]
-        with_inertia[n] = True
-        var[:, n, :] += inertia_variance(model, rig, k, s_fit, pinv, combo, w0n,
-                                         coords.q_std[k])
-    # harmonics the scan could not resolve: kept only where the reactions show them; their
-    # inertia is not compensated, and its bound is stated as an uncertainty
-    kept = with_inertia.copy()
-    kept[0] = True
-    for n in range(1, h + 1):
-        if with_inertia[n] or not np.any(np.abs(reactions[:, n]) > 5 * g_fit.phasor_std[:, n]):
-            continue
-        kept[n] = True
-        bound = unresolved_inertia_bound(rig, s_fit, n, w0)
-        var[:, n, :] += (bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1))[:, None]
-        notes.append(f"harmonic {n}: no shape in the scan model "
-                     f"({model.dropped.get(n, 'not scanned')}); its inertia, up to {bound:.2g} N, "
-                     "is not compensated and is counted in the uncertainty")
+    w0 = 2 * np.pi * f0
+    inertia, var, shaped = _inertia(rig, model, coords, s_fit, a_r, w0, h)
+    var += gauge_variance(a_r, g_fit)[:, :, None]
+    with_inertia, kept = kept_harmonics(
+        h, shaped, significant_reactions(reactions, g_fit.phasor_std), dc=True)
+    notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0, var)
     reactions[:, ~kept] = 0.0
     inertia[:, ~kept] = 0.0
     var[:, ~kept, :] = 0.0
-    force = pinv @ (inertia - reactions)
-    static = pinv @ (-reactions)
+    force = force_solve(pinv, inertia, reactions)
+    static = force_solve(pinv, np.zeros_like(reactions), reactions)
     if ac_coupled:
         force[:, 0] = 0.0
         static[:, 0] = 0.0
         var[:, 0, :] = 0.0
-    consistency = np.linalg.norm(psi @ force - (inertia - reactions), axis=0)
     std = np.sqrt(var.mean(axis=2))
     std[:, 0] = np.sqrt(var[:, 0, 0])                                # DC is real
     if cond > SPLIT_CONDITION:
         notes.append(f"cond(Psi) = {cond:.3g}: the force points are close together, so the split "
                      f"between {', '.join(rig.force_names)} is poorly determined (see their "
                      "uncertainties); the resultant (total and moments) is well determined")
-    t = run.time
-    static_series = pinv @ (-gauges)
-    if tare is not None:
-        static_series = static_series + (pinv @ tare_dc)[:, None]
+    static_series = force_solve(pinv, tare_dc[:, None], rec.gauges)
     if ac_coupled:
         static_series = static_series - static_series.mean(axis=1, keepdims=True)
+    n_f = len(rig.forces)
     return ForceEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
         gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
         force=force, force_std=std[:n_f], total=force.sum(axis=0), total_std=std[n_f],
         combination_names=combo_names, combination=combo @ force, combination_std=std,
         static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
-        kept=kept, coordinates=coords, time=t, series=_series(force, f0, t),
-        static_series=static_series, psi_condition=cond, consistency=consistency,
+        kept=kept, coordinates=coords, time=run.time, series=_series(force, f0, run.time),
+        static_series=static_series, psi_condition=cond,
+        consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
         dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std,
     )
 
@@ -258,9 +415,19 @@ def implied_phasors(rig: Rig, model: SpatialModel, run: Run,
     Gauges: the reactions used by the estimate; sensors: their DC as measured and, per
     harmonic, phi_n(l_j) Q_n (the model's view of the motion); the current: its own fit. A run
     built from these phasors is one the estimate explains exactly (synthetic runs, checks).
-    """
-    from .coordinates import sensor_rows
 
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel
+    run : Run
+    estimate : ForceEstimate
+
+    Returns
+    -------
+    dict
+        Channel name -> (H+1,) complex ndarray.
+    """
     h = len(estimate.harmonics) - 1
     sig = channels_si(rig, run)
     out = {g: estimate.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
@@ -277,17 +444,30 @@ def implied_phasors(rig: Rig, model: SpatialModel, run: Run,
     return out
 
 
-def check_record_length(run: Run, f0: float) -> None:
-    """DataError when a record holds fewer than five periods of the drive."""
-    periods = run.n_samples / run.fs * f0
-    if periods < 5:
-        raise DataError(f"run '{run.source}': the record holds {periods:.1f} periods of "
-                        f"{f0:.4g} Hz; at least 5 are needed")
+def refined_fundamental(records: list[np.ndarray], fs: float, rig: Rig, n_harmonics: int,
+                        what: str, t0: float = 0.0) -> float:
+    """:func:`refine_fundamental` with errors that name the file and the rig's key.
 
+    Parameters
+    ----------
+    records : list of ndarray
+        Driven records of the run.
+    fs : float
+        [Hz] sampling rate.
+    rig : Rig
+        Its ``frequency`` is the nominal drive frequency.
+    n_harmonics : int
+        H.
+    what : str
+        Named in messages.
+    t0 : float
+        [s] time of the first sample.
 
-def refined_fundamental(records, fs: float, rig: Rig, n_harmonics: int, what: str,
-                        t0: float = 0.0) -> float:
-    """:func:`refine_fundamental` with errors that name the file and the rig's key."""
+    Returns
+    -------
+    float [Hz]
+    """
+    assert rig.frequency is not None
     try:
         return refine_fundamental(records, fs, rig.frequency, n_harmonics, t0=t0)
     except DataError as exc:

@@ -8,7 +8,10 @@ structure combined so that the matrix [psi_r(g_s)] is the identity:
 - plate in out-of-plane bending: w = 1, x, y;
 - 3-D body: u = t + theta x (x - c), three translations and three rotations. A gauge, a force
   or a sensor on a body measures the component d . u along its direction d, so every shape is
-  evaluated at *locations* (x, y, z, dx, dy, dz) (:func:`forcecal.rig.locations`).
+  evaluated at *locations* (x, y, z, dx, dy, dz) (:func:`forcecal.structures.locations`).
+
+Each structure kind answers its rigid modes (:meth:`forcecal.structures.Structure.rigid_modes`);
+this module only combines them.
 
 The gauges hold the structure statically determinately when there are as many as rigid modes
 and that matrix is invertible (the paper's conditions II-IV; on a body it is singular when, for
@@ -21,71 +24,30 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import ConditioningError
-from .rig import RIGID_MODES, Rig
+from .rig import Rig
 
-__all__ = ["force_matrix", "relaxation_shapes", "rigid_modes"]
+__all__ = ["force_matrix", "relaxation_shapes"]
 
 _MAX_COND = 1e8
 
 
-def rigid_modes(kind: str, points: np.ndarray, centre: np.ndarray | None = None,
-                scale: float = 1.0) -> np.ndarray:
-    """Rigid-body modes evaluated at points (beam, plate) or locations (body).
-
-    Parameters
-    ----------
-    kind : "beam" (modes 1, x), "plate" (modes 1, x, y) or "body" (the translations along x, y,
-        z, then the rotations about axes through ``centre``, divided by ``scale``)
-    points : (n_points, 2) (x, y) [m], or on a body (n_points, 6) locations
-    centre : (3,) [m] the rotations' centre on a body (default the origin)
-    scale : [m] length dividing the rotations, so that every mode is of order 1
-
-    Returns
-    -------
-    (n_modes, n_points) array [1, m]
-    """
-    pts = np.atleast_2d(np.asarray(points, dtype=float))
-    if kind == "body":
-        if pts.shape[1] != 6:
-            raise ValueError(f"a body's shapes take locations (n, 6); got shape {pts.shape}")
-        r = pts[:, :3] - (np.zeros(3) if centre is None else centre)
-        d = pts[:, 3:]
-        # d . (theta x r) = theta . (r x d)
-        return np.vstack([d.T, np.cross(r, d).T / scale])
-    rows = [np.ones(len(pts)), pts[:, 0]]
-    if kind == "plate":
-        rows.append(pts[:, 1])
-    return np.stack(rows)
-
-
-def _frame(rig: Rig) -> tuple[np.ndarray | None, float]:
-    """Centre and length scale of a body's rotations: the gauges' centroid and spread."""
-    if not rig.is_body:
-        return None, 1.0
-    g = rig.gauge_points[:, :3]
-    centre = g.mean(axis=0)
-    return centre, max(float(np.max(np.linalg.norm(g - centre, axis=1))), 1e-9)
-
-
 def _coefficients(rig: Rig) -> np.ndarray:
     """(n_gauges, n_modes) coefficients C with psi = C @ modes."""
-    kind = rig.structure.kind
-    centre, scale = _frame(rig)
-    at_gauges = rigid_modes(kind, rig.gauge_points, centre, scale)     # (n_modes, n_gauges)
-    if at_gauges.shape[1] != RIGID_MODES[kind]:
+    st = rig.structure
+    gauges = st.coordinates(rig.gauge_points)
+    at_gauges = st.rigid_modes(gauges, st.frame(gauges))           # (n_modes, n_gauges)
+    if at_gauges.shape[1] != st.n_rigid:
         raise ConditioningError(
-            f"rig '{rig.source}': {at_gauges.shape[1]} gauges for {RIGID_MODES[kind]} "
+            f"rig '{rig.source}': {at_gauges.shape[1]} gauges for {st.n_rigid} "
             "rigid-body modes; the support is not statically determinate")
     cond = np.linalg.cond(at_gauges)
     if not np.isfinite(cond) or cond > _MAX_COND:
-        why = ("some rigid motion moves none of them, e.g. their lines of action all meet "
-               "one line or all lie parallel to one plane" if kind == "body" else
-               "gauges on one line, or at one point")
         raise ConditioningError(
             f"rig '{rig.source}': the gauges {', '.join(rig.gauge_names)} do not hold the "
             f"structure statically determinately (their relaxation shapes are not independent: "
-            f"{why})")
-    return np.linalg.inv(at_gauges)
+            f"{st.singular_support})")
+    inverse: np.ndarray = np.linalg.inv(at_gauges)
+    return inverse
 
 
 def relaxation_shapes(rig: Rig, points: np.ndarray) -> np.ndarray:
@@ -93,21 +55,32 @@ def relaxation_shapes(rig: Rig, points: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    rig : the rig (its gauges and structure kind)
-    points : (n_points,) x or (n_points, 2) (x, y) [m]; on a body (n_points, 6) locations
+    rig : Rig
+        The rig (its gauges and structure).
+    points : ndarray
+        Rig points ((n_points, 2) (x, y) [m]; on a body (n_points, 6) locations) or the
+        structure's own coordinates (x (n_points,) on a beam).
 
     Returns
     -------
-    (n_gauges, n_points) array [1]
+    (n_gauges, n_points) ndarray [1]
     """
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim == 1:
-        pts = np.column_stack([pts, np.zeros_like(pts)])
-    centre, scale = _frame(rig)
-    return _coefficients(rig) @ rigid_modes(rig.structure.kind, pts, centre, scale)
+    st = rig.structure
+    frame = st.frame(st.coordinates(rig.gauge_points))
+    shapes: np.ndarray = _coefficients(rig) @ st.rigid_modes(st.coordinates(points), frame)
+    return shapes
 
 
 def force_matrix(rig: Rig) -> np.ndarray:
     """Psi[r, n] = psi_r(x_n) (on a body d_n . psi_r(x_n)): how each external force loads each
-    relaxed gauge, (n_gauges, n_forces) [1]."""
+    relaxed gauge.
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    (n_gauges, n_forces) ndarray [1]
+    """
     return relaxation_shapes(rig, rig.force_points)

@@ -1,7 +1,9 @@
 """The rig: structure, force gauges, force points, sensors and actuator channels.
 
 A rig is read from the TOML file described in INTERFACES.md section 1 and validated before any
-computation: every message names the file and the key at fault.
+computation: every message names the file and the key at fault. The parser is the one place
+that looks at ``structure.kind``: it picks the structure's class from
+:data:`forcecal.structures.KINDS`, and everything downstream asks that object.
 """
 
 from __future__ import annotations
@@ -14,7 +16,9 @@ from typing import Any
 
 import numpy as np
 
+from ._toml import TableReader
 from .errors import RigError
+from .structures import KINDS, UP, LumpedMass, Structure, locations
 
 __all__ = [
     "Actuator",
@@ -24,26 +28,11 @@ __all__ = [
     "Rig",
     "Sensor",
     "Structure",
-    "inside_polygon",
     "load_rig",
     "locations",
     "parse_rig",
     "rig_to_dict",
 ]
-
-
-UP = (0.0, 0.0, 1.0)
-"""The measuring direction of beams and plates: +w, out of their plane."""
-
-
-@dataclass(frozen=True)
-class LumpedMass:
-    """A point mass rigidly attached to the structure [kg] at (x, y, z) [m]."""
-
-    x: float
-    mass: float
-    y: float = 0.0
-    z: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -108,83 +97,6 @@ class Actuator:
         return 4e-7 * math.pi * self.turns**2 * self.pole_area / 4.0
 
 
-def inside_polygon(polygon: np.ndarray, points: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """Which points lie inside a simple polygon or within ``tol`` of its edges.
-
-    Parameters
-    ----------
-    polygon : (n_vertices, 2) [m]; points : (n_points, 2) [m]
-
-    Returns
-    -------
-    (n_points,) bool
-    """
-    v = np.asarray(polygon, dtype=float)
-    p = np.atleast_2d(np.asarray(points, dtype=float))
-    a, b = v, np.roll(v, -1, axis=0)                                 # edges a -> b
-    px, py = p[:, 0:1], p[:, 1:2]
-    # even-odd rule: edges that straddle the point's height, crossed to its right
-    straddle = (a[:, 1] > py) != (b[:, 1] > py)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        x_cross = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
-    inside = np.count_nonzero(straddle & (px < x_cross), axis=1) % 2 == 1
-    # distance to every edge, so that points on the outline count
-    d = b - a
-    length2 = np.maximum(np.sum(d**2, axis=1), 1e-300)
-    u = np.clip(((px - a[:, 0]) * d[:, 0] + (py - a[:, 1]) * d[:, 1]) / length2, 0.0, 1.0)
-    dist = np.hypot(px - (a[:, 0] + u * d[:, 0]), py - (a[:, 1] + u * d[:, 1]))
-    return inside | np.any(dist <= tol, axis=1)
-
-
-@dataclass(frozen=True)
-class Structure:
-    """The elastic body: its kind, extent and mass distribution.
-
-    For a beam, ``length`` [m] and ``mass_per_length`` [kg/m] along x in [0, length].
-    For a plate, ``outline`` (n_vertices, 2) [m] and ``mass_per_area`` [kg/m^2].
-    For a 3-D body, ``blocks`` (axis-aligned boxes ((x0, y0, z0), (x1, y1, z1)) [m] that do not
-    overlap) and ``density`` [kg/m^3].
-    """
-
-    kind: str
-    length: float | None = None
-    mass_per_length: float | None = None
-    mass_per_area: float | None = None
-    outline: tuple[tuple[float, float], ...] | None = None
-    masses: tuple[LumpedMass, ...] = ()
-    density: float | None = None
-    blocks: tuple[tuple[tuple[float, float, float], tuple[float, float, float]], ...] = ()
-
-    @property
-    def dim(self) -> int:
-        return {"beam": 1, "plate": 2}.get(self.kind, 3)
-
-    def contains(self, x: float, y: float = 0.0, z: float = 0.0, tol: float = 1e-9) -> bool:
-        """Whether (x, y[, z]) lies on the structure (within ``tol`` [m])."""
-        if self.kind == "beam":
-            return -tol <= x <= self.length + tol
-        if self.kind == "body":
-            p = np.array([x, y, z])
-            return any(bool(np.all((np.asarray(lo) - tol <= p) & (p <= np.asarray(hi) + tol)))
-                       for lo, hi in self.blocks)
-        return bool(inside_polygon(np.asarray(self.outline), np.array([[x, y]]), tol)[0])
-
-    @property
-    def total_mass(self) -> float:
-        """Distributed plus lumped mass [kg]."""
-        if self.kind == "beam":
-            distributed = self.mass_per_length * self.length
-        elif self.kind == "body":
-            distributed = self.density * sum(float(np.prod(np.subtract(hi, lo)))
-                                             for lo, hi in self.blocks)
-        else:
-            v = np.asarray(self.outline)
-            x, y = v[:, 0], v[:, 1]
-            area = 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
-            distributed = self.mass_per_area * area
-        return distributed + sum(m.mass for m in self.masses)
-
-
 @dataclass(frozen=True)
 class Rig:
     """A complete rig description (INTERFACES.md section 1)."""
@@ -211,107 +123,39 @@ class Rig:
         return [s.name for s in self.sensors]
 
     @property
-    def is_body(self) -> bool:
-        """Whether the structure is a 3-D body (its points are located with a direction)."""
-        return self.structure.kind == "body"
-
-    def _coords(self, items) -> np.ndarray:
-        if self.is_body:
-            return locations(items)
-        return np.array([[p.x, p.y] for p in items], dtype=float).reshape(-1, 2)
-
-    @property
     def gauge_points(self) -> np.ndarray:
-        """(n_gauges, 2) (x, y) [m]; on a body (n_gauges, 6) locations (see :func:`locations`)."""
-        return self._coords(self.gauges)
+        """Rig points of the gauges: (n_gauges, 2) (x, y) [m]; on a body (n_gauges, 6)
+        locations (see :func:`forcecal.structures.locations`)."""
+        return self.structure.rig_points(self.gauges)
 
     @property
     def force_points(self) -> np.ndarray:
-        """(n_forces, 2) (x, y) [m]; on a body (n_forces, 6) locations."""
-        return self._coords(self.forces)
+        """Rig points of the force points, as :attr:`gauge_points`."""
+        return self.structure.rig_points(self.forces)
 
     @property
     def sensor_points(self) -> np.ndarray:
-        """(n_sensors, 2) (x, y) [m]; on a body (n_sensors, 6) locations."""
-        return self._coords(self.sensors)
-
-
-def locations(items) -> np.ndarray:
-    """Locations of points on a 3-D body: rows (x, y, z, dx, dy, dz), a point [m] and the unit
-    direction in which a force acts or a displacement is measured there.
-
-    Every scalar quantity on a body (a gauge's reaction, a pole's force, a probe's or a scan
-    record's displacement) is the component of a vector along its direction, so a location is
-    what a shape or a relaxation shape is evaluated at.
-    """
-    return np.array([[p.x, p.y, p.z, *p.direction] for p in items], dtype=float).reshape(-1, 6)
+        """Rig points of the sensors, as :attr:`gauge_points`."""
+        return self.structure.rig_points(self.sensors)
 
 
 # --------------------------------------------------------------------------------------------
 # reading and validation
-
-
-class _Reader:
-    """Typed access to a TOML table with messages that name the file and the key."""
-
-    def __init__(self, source: str):
-        self.source = source
-
-    def fail(self, key: str, what: str) -> RigError:
-        return RigError(f"rig '{self.source}': key '{key}' {what}")
-
-    def number(self, table: dict, key: str, path: str, *, required=True, positive=False,
-               default=None) -> float | None:
-        full = f"{path}.{key}" if path else key
-        if key not in table:
-            if required:
-                raise self.fail(full, "is missing")
-            return default
-        value = table[key]
-        if isinstance(value, bool) or not isinstance(value, int | float):
-            raise self.fail(full, f"must be a number, found {value!r}")
-        value = float(value)
-        if not math.isfinite(value):
-            raise self.fail(full, f"must be finite, found {value!r}")
-        if positive and value <= 0:
-            raise self.fail(full, f"must be positive, found {value!r}")
-        return value
-
-    def text(self, table: dict, key: str, path: str, *, required=True, default=None):
-        full = f"{path}.{key}" if path else key
-        if key not in table:
-            if required:
-                raise self.fail(full, "is missing")
-            return default
-        value = table[key]
-        if not isinstance(value, str) or not value.strip():
-            raise self.fail(full, f"must be a non-empty string, found {value!r}")
-        return value
-
-    def table(self, doc: dict, key: str, *, required=True) -> dict:
-        if key not in doc:
-            if required:
-                raise self.fail(key, "is missing (a [" + key + "] table)")
-            return {}
-        value = doc[key]
-        if not isinstance(value, dict):
-            raise self.fail(key, "must be a table")
-        return value
-
-    def array_of_tables(self, doc: dict, key: str) -> list[dict]:
-        if key not in doc:
-            raise self.fail(key, f"is missing (at least one [[{key}]] table)")
-        value = doc[key]
-        if not isinstance(value, list) or not all(isinstance(v, dict) for v in value):
-            raise self.fail(key, f"must be an array of tables [[{key}]]")
-        return value
-
 
 _KNOWN_TOP = {"name", "structure", "gauges", "forces", "sensors", "actuator", "acquisition"}
 
 
 def load_rig(path: str | Path) -> Rig:
     """Read and validate a rig file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The rig file (TOML).
+
+    Returns
+    -------
+    Rig
 
     Raises
     ------
@@ -329,158 +173,145 @@ def load_rig(path: str | Path) -> Rig:
     return parse_rig(doc, source=str(path))
 
 
-KINDS = ("beam", "plate", "body")
-"""Structure kinds: a beam in plane bending, a plate in out-of-plane bending, a 3-D body."""
-RIGID_MODES = {"beam": 2, "plate": 3, "body": 6}
-"""Rigid-body modes of each kind, and so the number of statically determinate gauges."""
-
-
-def _blocks(r: _Reader, st: dict) -> tuple:
-    """A body's ``structure.blocks``: axis-aligned boxes {min = [x, y, z], max = [x, y, z]}."""
-    raw = st.get("blocks")
-    if not isinstance(raw, list) or not raw:
-        raise r.fail("structure.blocks", "must list at least one block "
-                     "{min = [x, y, z], max = [x, y, z]} (m)")
-    out = []
-    for k, blk in enumerate(raw):
-        key = f"structure.blocks[{k}]"
-        corners = []
-        for end in ("min", "max"):
-            v = blk.get(end) if isinstance(blk, dict) else None
-            if (not isinstance(v, list) or len(v) != 3
-                    or not all(isinstance(c, int | float) and not isinstance(c, bool)
-                               and math.isfinite(c) for c in v)):
-                raise r.fail(f"{key}.{end}", "must be a corner [x, y, z] of three numbers (m)")
-            corners.append(tuple(float(c) for c in v))
-        lo, hi = corners
-        if not all(a < b for a, b in zip(lo, hi, strict=True)):
-            raise r.fail(f"{key}.max", f"= {list(hi)} must exceed min = {list(lo)} in x, y and z")
-        for j, (lo2, hi2) in enumerate(out):
-            if all(max(a, c) < min(b, d) - 1e-12 for a, b, c, d in zip(lo, hi, lo2, hi2,
-                                                                     strict=True)):
-                raise r.fail(key, f"overlaps structure.blocks[{j}] (its mass would count twice)")
-        out.append((lo, hi))
-    return tuple(out)
-
-
-def _direction(r: _Reader, item: dict, path: str, body: bool) -> tuple[float, float, float]:
-    """A point's unit ``direction`` (required on a body; beams and plates act along +w)."""
-    if "direction" not in item:
-        if body:
-            raise r.fail(f"{path}.direction", "is missing: on a body every gauge, force and "
-                         "sensor needs its direction [dx, dy, dz]")
-        return UP
-    if not body:
-        raise r.fail(f"{path}.direction", "applies to a 3-D body only (beams and plates act "
-                     "along +w)")
-    v = item["direction"]
-    if (not isinstance(v, list) or len(v) != 3
-            or not all(isinstance(c, int | float) and not isinstance(c, bool)
-                       and math.isfinite(c) for c in v)):
-        raise r.fail(f"{path}.direction", f"must be [dx, dy, dz], three numbers; found {v!r}")
-    norm = math.sqrt(sum(c * c for c in v))
-    if norm == 0.0:
-        raise r.fail(f"{path}.direction", "must not be zero")
-    return tuple(float(c) / norm for c in v)
-
-
 def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
-    """Validate a rig given as a parsed TOML document (see :func:`load_rig`)."""
-    r = _Reader(source)
+    """Validate a rig given as a parsed TOML document (see :func:`load_rig`).
+
+    Parameters
+    ----------
+    doc : dict
+        The parsed document.
+    source : str
+        The file's name, quoted in every message.
+
+    Returns
+    -------
+    Rig
+    """
+    r = TableReader(source)
     unknown = set(doc) - _KNOWN_TOP
     if unknown:
         raise r.fail(sorted(unknown)[0], "is not a rig key (expected one of "
                      + ", ".join(sorted(_KNOWN_TOP)) + ")")
     name = r.text(doc, "name", "", required=False, default=Path(source).stem)
+    structure = _structure(r, r.table(doc, "structure"))
+    gauges = tuple(Gauge(**g) for g in _points(r, doc, "gauges", structure, ("scale",)))
+    forces = tuple(ForcePoint(**f) for f in _points(r, doc, "forces", structure, ("gap",)))
+    sensors = tuple(Sensor(**s) for s in _points(r, doc, "sensors", structure, ("scale",)))
+    actuator = _actuator(r, r.table(doc, "actuator", required=False))
+    acq = r.table(doc, "acquisition", required=False)
+    frequency = r.number(acq, "frequency", "acquisition", required=False, positive=True)
+    _check_names(r, gauges, forces, sensors, actuator)
+    _check_statics(r, structure, gauges, forces, sensors)
+    return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,
+               forces=forces, sensors=sensors, actuator=actuator, frequency=frequency,
+               source=source)
 
-    st = r.table(doc, "structure")
+
+def _structure(r: TableReader, st: dict[str, Any]) -> Structure:
+    """The ``[structure]`` table: its kind picks the class, which reads its own keys."""
     kind = r.text(st, "kind", "structure", required=False, default="beam")
-    if kind not in KINDS:
-        raise r.fail("structure.kind", f"must be 'beam', 'plate' or 'body', found {kind!r}")
-    body = kind == "body"
+    cls = KINDS.get(kind or "")
+    if cls is None:
+        names = ", ".join(f"'{k}'" for k in KINDS)
+        raise r.fail("structure.kind", f"must be one of {names}, found {kind!r}")
     masses_raw = st.get("masses", [])
     if not isinstance(masses_raw, list):
         raise r.fail("structure.masses", "must be an array of {x, mass} tables")
-    if kind == "beam":
-        length = r.number(st, "length", "structure", positive=True)
-        mpl = r.number(st, "mass_per_length", "structure", positive=True)
-        structure_kw = dict(length=length, mass_per_length=mpl)
-    elif kind == "plate":
-        mpa = r.number(st, "mass_per_area", "structure", positive=True)
-        outline = st.get("outline")
-        if (not isinstance(outline, list) or len(outline) < 3
-                or not all(isinstance(v, list) and len(v) == 2 for v in outline)):
-            raise r.fail("structure.outline", "must list at least 3 [x, y] vertices")
-        structure_kw = dict(mass_per_area=mpa,
-                            outline=tuple((float(a), float(b)) for a, b in outline))
-    else:
-        structure_kw = dict(density=r.number(st, "density", "structure", positive=True),
-                            blocks=_blocks(r, st))
     masses = []
     for k, m in enumerate(masses_raw):
         key = f"structure.masses[{k}]"
         if not isinstance(m, dict):
             raise r.fail(key, "must be a table {x = ..., mass = ...}")
         masses.append(LumpedMass(
-            x=r.number(m, "x", key),
-            y=r.number(m, "y", key, required=kind != "beam", default=0.0),
-            z=r.number(m, "z", key, required=body, default=0.0),
-            mass=r.number(m, "mass", key, positive=True),
+            x=r.required(m, "x", key),
+            y=_coordinate(r, m, "y", key, cls.axes),
+            z=_coordinate(r, m, "z", key, cls.axes),
+            mass=r.required(m, "mass", key, positive=True),
         ))
-    structure = Structure(kind=kind, masses=tuple(masses), **structure_kw)
-    for k, m in enumerate(masses):
-        if not structure.contains(m.x, m.y, m.z):
-            raise r.fail(f"structure.masses[{k}].x", f"= {m.x} lies off the structure")
+    structure = cls.from_table(r, st, tuple(masses))
+    for k, lm in enumerate(masses):
+        if not structure.contains(lm.x, lm.y, lm.z):
+            raise r.fail(f"structure.masses[{k}].x", f"= {lm.x} lies off the structure")
+    return structure
 
-    def points(key: str, extra: tuple[str, ...]) -> list[dict]:
-        items = r.array_of_tables(doc, key)
-        out = []
-        for k, item in enumerate(items):
-            path = f"{key}[{k}]"
-            entry = dict(
-                name=r.text(item, "name", path),
-                x=r.number(item, "x", path),
-                y=r.number(item, "y", path, required=kind != "beam", default=0.0),
-                z=r.number(item, "z", path, required=body, default=0.0),
-                direction=_direction(r, item, path, body),
-            )
-            for e in extra:
-                if e == "gap":
-                    entry[e] = r.number(item, "gap", path, required=False, positive=True)
-                else:
-                    entry[e] = r.number(item, e, path, required=False, default=1.0)
-                    if entry[e] == 0.0:
-                        raise r.fail(f"{path}.{e}", "must not be zero")
-            if not structure.contains(entry["x"], entry["y"], entry["z"]):
-                where = {"beam": f"x = {entry['x']} lies off the structure "
-                                 f"(0 <= x <= {structure.length})",
-                         "plate": f"(x, y) = ({entry['x']}, {entry['y']}) lies outside the "
-                                  "outline",
-                         "body": f"(x, y, z) = ({entry['x']}, {entry['y']}, {entry['z']}) lies "
-                                 "in none of the structure's blocks"}[kind]
-                raise r.fail(f"{path}.x", where)
-            out.append(entry)
-        return out
 
-    gauges = tuple(Gauge(**g) for g in points("gauges", ("scale",)))
-    forces = tuple(ForcePoint(**f) for f in points("forces", ("gap",)))
-    sensors = tuple(Sensor(**s) for s in points("sensors", ("scale",)))
+def _optional(r: TableReader, table: dict[str, Any], key: str, path: str,
+              default: float) -> float:
+    """An optional number with its default."""
+    value = r.number(table, key, path, required=False)
+    return default if value is None else value
 
-    act = r.table(doc, "actuator", required=False)
-    actuator = Actuator(
-        current=r.text(act, "current", "actuator", required=False, default="i"),
+
+def _coordinate(r: TableReader, item: dict[str, Any], axis: str, path: str,
+                axes: tuple[str, ...]) -> float:
+    """Coordinate ``axis`` of a point: required when the structure has that axis, else 0."""
+    return r.required(item, axis, path) if axis in axes else _optional(r, item, axis, path, 0.0)
+
+
+def _direction(r: TableReader, item: dict[str, Any], path: str,
+               directed: bool) -> tuple[float, float, float]:
+    """A point's unit ``direction`` (required where the structure's points carry one; beams
+    and plates act along +w)."""
+    if "direction" not in item:
+        if directed:
+            raise r.fail(f"{path}.direction", "is missing: on a body every gauge, force and "
+                         "sensor needs its direction [dx, dy, dz]")
+        return UP
+    if not directed:
+        raise r.fail(f"{path}.direction", "applies to a 3-D body only (beams and plates act "
+                     "along +w)")
+    v = r.vector(item, "direction", path, 3, "[dx, dy, dz], three numbers")
+    norm = math.sqrt(sum(c * c for c in v))
+    if norm == 0.0:
+        raise r.fail(f"{path}.direction", "must not be zero")
+    return (v[0] / norm, v[1] / norm, v[2] / norm)
+
+
+def _points(r: TableReader, doc: dict[str, Any], key: str, structure: Structure,
+            extra: tuple[str, ...]) -> list[dict[str, Any]]:
+    """The entries of ``[[key]]`` as keyword arguments of Gauge, ForcePoint or Sensor."""
+    out = []
+    for k, item in enumerate(r.array_of_tables(doc, key)):
+        path = f"{key}[{k}]"
+        entry: dict[str, Any] = dict(
+            name=r.text(item, "name", path),
+            x=r.required(item, "x", path),
+            y=_coordinate(r, item, "y", path, structure.axes),
+            z=_coordinate(r, item, "z", path, structure.axes),
+            direction=_direction(r, item, path, structure.directed),
+        )
+        for e in extra:
+            if e == "gap":
+                entry[e] = r.number(item, "gap", path, required=False, positive=True)
+            else:
+                entry[e] = _optional(r, item, e, path, 1.0)
+                if entry[e] == 0.0:
+                    raise r.fail(f"{path}.{e}", "must not be zero")
+        if not structure.contains(entry["x"], entry["y"], entry["z"]):
+            raise r.fail(f"{path}.x", structure.outside(entry["x"], entry["y"], entry["z"]))
+        out.append(entry)
+    return out
+
+
+def _actuator(r: TableReader, act: dict[str, Any]) -> Actuator:
+    """The ``[actuator]`` table (every key optional)."""
+    return Actuator(
+        current=r.text(act, "current", "actuator", required=False, default="i") or "i",
         flux=r.text(act, "flux", "actuator", required=False, default=None),
         turns=r.number(act, "turns", "actuator", required=False, positive=True),
         pole_area=r.number(act, "pole_area", "actuator", required=False, positive=True),
-        current_scale=r.number(act, "current_scale", "actuator", required=False, default=1.0),
-        flux_scale=r.number(act, "flux_scale", "actuator", required=False, default=1.0),
+        current_scale=_optional(r, act, "current_scale", "actuator", 1.0),
+        flux_scale=_optional(r, act, "flux_scale", "actuator", 1.0),
     )
-    acq = r.table(doc, "acquisition", required=False)
-    frequency = r.number(acq, "frequency", "acquisition", required=False, positive=True)
 
-    # names: unique across every channel kind
+
+def _check_names(r: TableReader, gauges: tuple[Gauge, ...], forces: tuple[ForcePoint, ...],
+                 sensors: tuple[Sensor, ...], actuator: Actuator) -> None:
+    """Names unique across every channel kind, and none reserved for an output column."""
     seen: dict[str, str] = {}
-    for key, items in (("gauges", gauges), ("forces", forces), ("sensors", sensors)):
+    groups: tuple[tuple[str, tuple[Gauge, ...] | tuple[ForcePoint, ...] | tuple[Sensor, ...]],
+                  ...] = (("gauges", gauges), ("forces", forces), ("sensors", sensors))
+    for key, items in groups:
         for k, item in enumerate(items):
             if item.name in seen or item.name in ("time", "total"):
                 other = seen.get(item.name, "a reserved column name")
@@ -489,11 +320,14 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     if actuator.current in seen:
         raise r.fail("actuator.current", f"= '{actuator.current}' is also {seen[actuator.current]}")
 
-    # statics: gauge count, distinct points
-    needed = RIGID_MODES[kind]
+
+def _check_statics(r: TableReader, structure: Structure, gauges: tuple[Gauge, ...],
+                   forces: tuple[ForcePoint, ...], sensors: tuple[Sensor, ...]) -> None:
+    """Gauge count, at least one sensor and one force, no two points at one place."""
+    needed = structure.n_rigid
     if len(gauges) != needed:
-        raise r.fail("gauges", f"has {len(gauges)} entries; a {kind} on statically determinate "
-                     f"gauges needs exactly {needed}")
+        raise r.fail("gauges", f"has {len(gauges)} entries; a {structure.kind} on statically "
+                     f"determinate gauges needs exactly {needed}")
     if not sensors:
         raise r.fail("sensors", "is empty: each harmonic's shape needs at least one "
                      "displacement sensor (no more shapes than sensors)")
@@ -502,39 +336,40 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     if len(forces) > len(gauges):
         raise r.fail("forces", f"has {len(forces)} entries; at most {len(gauges)} forces "
                      "(one per gauge) can be determined")
-    for key, items in (("gauges", gauges), ("forces", forces), ("sensors", sensors)):
+    directed = structure.directed
+    groups: tuple[tuple[str, tuple[Gauge, ...] | tuple[ForcePoint, ...] | tuple[Sensor, ...]],
+                  ...] = (("gauges", gauges), ("forces", forces), ("sensors", sensors))
+    for key, items in groups:
         pts = locations(items)          # on a body, one point may carry two directions
         for a in range(len(items)):
             for b in range(a):
                 if np.linalg.norm(pts[a, :3] - pts[b, :3]) < 1e-6 and (
-                        not body or np.linalg.norm(pts[a, 3:] - pts[b, 3:]) < 1e-6):
+                        not directed or np.linalg.norm(pts[a, 3:] - pts[b, 3:]) < 1e-6):
                     raise r.fail(f"{key}[{a}].x", f"puts '{items[a].name}' at the same point as "
-                                 f"'{items[b].name}'" + (" in the same direction" if body else ""))
-    return Rig(name=name, structure=structure, gauges=gauges, forces=forces, sensors=sensors,
-               actuator=actuator, frequency=frequency, source=source)
+                                 f"'{items[b].name}'" + (" in the same direction" if directed
+                                                         else ""))
 
 
 def rig_to_dict(rig: Rig) -> dict[str, Any]:
-    """The rig as a TOML-ready document (inverse of :func:`parse_rig`)."""
+    """The rig as a TOML-ready document (inverse of :func:`parse_rig`).
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    dict
+    """
     st = rig.structure
-    axes = ("x", "y", "z")[:st.dim]
-    structure: dict[str, Any] = {"kind": st.kind}
-    if st.kind == "plate":
-        structure["mass_per_area"] = st.mass_per_area
-        structure["outline"] = [list(v) for v in st.outline]
-    elif st.kind == "body":
-        structure["density"] = st.density
-        structure["blocks"] = [{"min": list(lo), "max": list(hi)} for lo, hi in st.blocks]
-    else:
-        structure["length"] = st.length
-        structure["mass_per_length"] = st.mass_per_length
+    structure = st.to_dict()
     if st.masses:
-        structure["masses"] = [{**{a: getattr(m, a) for a in axes}, "mass": m.mass}
+        structure["masses"] = [{**{a: getattr(m, a) for a in st.axes}, "mass": m.mass}
                                for m in st.masses]
 
-    def point(p, extra):
-        d = {"name": p.name, **{a: getattr(p, a) for a in axes}}
-        if st.kind == "body":
+    def point(p: Gauge | ForcePoint | Sensor, extra: tuple[str, ...]) -> dict[str, Any]:
+        d: dict[str, Any] = {"name": p.name, **{a: getattr(p, a) for a in st.axes}}
+        if st.directed:
             d["direction"] = list(p.direction)
         for e in extra:
             v = getattr(p, e)
@@ -549,7 +384,7 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         "forces": [point(f, ("gap",)) for f in rig.forces],
         "sensors": [point(s, ("scale",)) for s in rig.sensors],
     }
-    act = {"current": rig.actuator.current}
+    act: dict[str, Any] = {"current": rig.actuator.current}
     for key in ("flux", "turns", "pole_area"):
         v = getattr(rig.actuator, key)
         if v is not None:

@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from .basis import PolynomialBasis, ShapeFit, fit_shape, shape_similarity
+from .basis import PolynomialBasis, ShapeFit, shape_similarity
 from .errors import DataError, InputError
 from .inertia import mass_coupling
 from .records import Scan
-from .rig import Rig, inside_polygon
+from .rig import Rig
 from .scan import HarmonicShapes, harmonic_shapes
-from .vector_basis import AXES, VectorShapeFit, fit_vector_shape
+from .vector_basis import AXES, VectorShapeFit
 
 __all__ = [
     "SpatialModel",
@@ -181,43 +181,50 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
 
     Parameters
     ----------
-    rig : the rig (structure extent, mass distribution, gauges)
-    scan : the SLDV scan; its points must lie on the structure
-    n_harmonics : H, harmonics 1..H are considered; those below ``MIN_SNR`` are dropped
-    criterion : "gcv" or "bic", how each shape's order is chosen
-    shapes : the measured harmonic shapes, when already computed from ``scan``
-    basis : "polynomial" (orthonormal Legendre polynomials, the black box the paper prefers)
-        or "modes" (rigid motions plus the bending modes of the structure pinned at its gauges,
-        the physical alternative); either is orthonormalized on the scan points
+    rig : Rig
+        The rig (structure extent, mass distribution, gauges).
+    scan : Scan
+        The SLDV scan; its points must lie on the structure.
+    n_harmonics : int
+        H: harmonics 1..H are considered; those below ``MIN_SNR`` are dropped.
+    criterion : str
+        "gcv" or "bic", how each shape's order is chosen.
+    shapes : HarmonicShapes, optional
+        The measured harmonic shapes, when already computed from ``scan``.
+    basis : str
+        "polynomial" (orthonormal Legendre polynomials, the black box the paper prefers) or
+        "modes" (rigid motions plus the bending modes of the structure pinned at its gauges,
+        the physical alternative; beams and plates); either is orthonormalized on the scan
+        points.
+
+    Returns
+    -------
+    SpatialModel
     """
     if rig.frequency is None:
         raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing "
                          "(the nominal drive frequency)")
     hs = shapes if shapes is not None else harmonic_shapes(scan, rig.frequency, n_harmonics)
+    st = rig.structure
     if basis not in ("polynomial", "modes"):
         raise InputError(f"basis '{basis}' is unknown (choose 'polynomial' or 'modes')")
-    if basis == "modes" and rig.is_body:
-        raise InputError(f"rig '{rig.source}': the mode-shape basis serves beams and plates; "
-                         "a body's shapes use the polynomials (--basis polynomial)")
+    if basis not in st.bases:
+        raise InputError(f"rig '{rig.source}': the {basis} basis does not serve a "
+                         f"{st.kind}; its shapes use the "
+                         + " or ".join(f"{b} basis (--basis {b})" for b in st.bases))
     _check_points_on_structure(rig, scan)
-    extent = structure_extent(rig)
-    points = structure_coordinates(rig, hs.points, source=scan.source)
+    points = st.coordinates(hs.points, source=f"scan '{scan.source}'")
     snr = hs.snr()
     kept, fits, dropped = [], [], {}
     for k, n in enumerate(hs.harmonics):
         if snr[k] < MIN_SNR:
             dropped[int(n)] = f"scan signal-to-noise {snr[k]:.1f} < {MIN_SNR:g}"
             continue
-        weights = _inverse_variance(hs.std[k])
-        if rig.is_body:
-            try:
-                fits.append(fit_vector_shape(points, hs.values[k], extent, criterion, weights))
-            except DataError as exc:
-                raise InputError(f"scan '{scan.source}': {exc}") from None
-        else:
-            fits.append(fit_shape(points, hs.values[k], extent, criterion=criterion,
-                                  weights=weights,
-                                  family="modes" if basis == "modes" else "legendre"))
+        try:
+            fits.append(st.fit_shape(points, hs.values[k], criterion,
+                                     _inverse_variance(hs.std[k]), basis))
+        except DataError as exc:
+            raise InputError(f"scan '{scan.source}': {exc}") from None
         kept.append(int(n))
     if not kept:
         raise InputError(f"scan '{scan.source}': no harmonic rises above the noise "
@@ -225,63 +232,25 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
     couplings = np.stack([mass_coupling(rig, f.evaluate) for f in fits])
     vals = [f.evaluate(points) for f in fits]
     mac = np.array([[shape_similarity(a, b) for b in vals] for a in vals])
-    notes = ()
-    if rig.is_body:
-        missing = [AXES[a] for a in range(3) if a not in fits[0].axes]
-        if missing:
-            notes = (f"the scan measures no motion along {', '.join(missing)}; the body's "
-                     "inertia along it is taken as zero",)
     return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(fits),
                         couplings=couplings, similarity=mac, snr=snr,
                         gauge_names=tuple(rig.gauge_names), dropped=dropped,
-                        n_points=len(points), source=scan.source, notes=notes)
+                        n_points=len(points), source=scan.source, notes=st.model_notes(fits))
 
 
-def structure_extent(rig: Rig):
-    """The structure's extent mapped onto the basis domain: (0, L), the outline's box, or the
-    box around a body's blocks."""
-    st = rig.structure
-    if st.kind == "beam":
-        return (0.0, st.length)
-    if st.kind == "body":
-        lo = np.min([blk[0] for blk in st.blocks], axis=0)
-        hi = np.max([blk[1] for blk in st.blocks], axis=0)
-        return tuple((float(a), float(b)) for a, b in zip(lo, hi, strict=True))
-    v = np.asarray(st.outline)
-    return ((v[:, 0].min(), v[:, 0].max()), (v[:, 1].min(), v[:, 1].max()))
+def structure_extent(rig: Rig) -> tuple:
+    """The structure's extent mapped onto the basis domain (:meth:`Structure.extent`)."""
+    return rig.structure.extent()
 
 
 def structure_coordinates(rig: Rig, points: np.ndarray, source: str = "<points>") -> np.ndarray:
-    """Points in the structure's own coordinates: x (n,) on a beam, (x, y) (n, 2) on a plate,
-    locations (n, 6) on a body."""
-    pts = np.asarray(points, dtype=float)
-    if pts.ndim == 1:
-        pts = pts[:, None]
-    if rig.is_body:
-        if pts.shape[1] != 6:
-            raise InputError(f"'{source}': a body's points need coordinates and a measuring "
-                             f"direction (x, y, z, dx, dy, dz); found {pts.shape[1]} columns")
-        return pts
-    return pts[:, 0] if rig.structure.kind == "beam" else pts[:, :2]
+    """Points in the structure's own coordinates (:meth:`Structure.coordinates`)."""
+    return rig.structure.coordinates(points, source)
 
 
 def structure_grid(rig: Rig, n: int = 401) -> np.ndarray:
-    """Points covering the structure (for peaks of shapes): a line, a grid inside the outline,
-    or on a body a grid through its blocks, each point along x, y and z."""
-    st = rig.structure
-    if st.kind == "beam":
-        return np.linspace(0.0, st.length, n)
-    if st.kind == "body":
-        side = max(int(round((n / 3) ** (1 / 3))), 2)
-        pts = np.vstack([np.stack(np.meshgrid(*[np.linspace(lo[a], hi[a], side)
-                                                 for a in range(3)], indexing="ij"),
-                                  axis=-1).reshape(-1, 3) for lo, hi in st.blocks])
-        return np.vstack([np.column_stack([pts, np.tile(e, (len(pts), 1))]) for e in np.eye(3)])
-    (x0, x1), (y0, y1) = structure_extent(rig)
-    side = int(np.sqrt(n)) + 1
-    xx, yy = np.meshgrid(np.linspace(x0, x1, side), np.linspace(y0, y1, side))
-    pts = np.column_stack([xx.ravel(), yy.ravel()])
-    return pts[inside_polygon(np.asarray(st.outline), pts)]
+    """Structure coordinates covering the structure (:meth:`Structure.grid`)."""
+    return rig.structure.grid(n)
 
 
 def _inverse_variance(std: np.ndarray) -> np.ndarray:
@@ -294,15 +263,14 @@ def _inverse_variance(std: np.ndarray) -> np.ndarray:
 
 
 def _check_points_on_structure(rig: Rig, scan: Scan) -> None:
-    pts = structure_coordinates(rig, scan.points, source=f"scan '{scan.source}'")
-    if rig.is_body:
-        for k, p in enumerate(pts):
-            if not rig.structure.contains(*p[:3], tol=1e-6):
-                raise InputError(f"scan '{scan.source}': point {k + 1} at (x, y, z) = "
-                                 f"({p[0]:.4g}, {p[1]:.4g}, {p[2]:.4g}) m lies in none of the "
-                                 f"blocks of rig '{rig.source}'")
-        return
-    for k, p in enumerate(scan.points):
-        if not rig.structure.contains(p[0], p[1] if len(p) > 1 else 0.0, tol=1e-6):
-            raise InputError(f"scan '{scan.source}': point {k + 1} at x = {p[0]:.4g} m lies off "
-                             f"the structure of rig '{rig.source}'")
+    st = rig.structure
+    pts = np.asarray(scan.points, dtype=float).reshape(scan.n_points, -1)
+    st.coordinates(pts, source=f"scan '{scan.source}'")
+    for k, p in enumerate(pts):
+        xyz = [float(c) for c in p[:3]] + [0.0] * (3 - min(len(p), 3))
+        if not st.contains(*xyz, tol=1e-6):
+            where = ", ".join(f"{c:.4g}" for c in xyz[:st.dim])
+            axes = ", ".join(st.axes)
+            raise InputError(f"scan '{scan.source}': point {k + 1} at "
+                             + (f"x = {where}" if st.dim == 1 else f"({axes}) = ({where})")
+                             + f" m lies off the structure of rig '{rig.source}'")

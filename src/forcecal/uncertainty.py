@@ -1,13 +1,18 @@
 """Uncertainty of the reconstructed forces (METHOD.md section 6).
 
 Linear propagation, per harmonic and separately for Re and Im, to any linear combination of the
-forces (each force, the total, the resultant's first moments) from:
+forces (each force, the total, the resultant's moments) from:
 
 - the gauges' noise (each channel's residual noise, through Psi^+);
 - the generalized coordinate's noise (the sensors' noise, through m_{r,n} (n w0)^2);
 - the scan model's shape coefficients (their covariance, through a numerical Jacobian of the
-  whole inertia term: shape at the sensors, coordinate, mass coupling);
+  whole inertia term: shape at the sensors, coordinate, mass coupling, computed with the same
+  formulas as the estimate: :func:`forcecal.coordinates.coordinate_map`,
+  :func:`forcecal.inertia.inertia_term`);
 - for a harmonic the scan could not resolve, a bound on its uncompensated inertia.
+
+The force solve F = Psi^+ (J - R) is linear: its sensitivity to J and to R is the map
+``a_r`` = (combination rows) Psi^+ that every function here takes.
 
 Near a resonance, where F is a small difference of large numbers, every term grows with the
 inertia, and so does the stated uncertainty.
@@ -15,99 +20,167 @@ inertia, and so does the stated uncertainty.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
+from .coordinates import coordinate_map, sensor_weights
 from .harmonics import HarmonicFit
-from .inertia import mass_weights
+from .inertia import inertia_term, mass_weights
 from .rig import Rig
-from .spatial import SpatialModel, structure_coordinates
+from .spatial import SpatialModel
 
 __all__ = [
+    "ShapeOperators",
     "combinations",
     "gauge_variance",
     "inertia_variance",
     "shape_jacobian",
+    "shape_operators",
     "unresolved_inertia_bound",
 ]
 
 
 def combinations(rig: Rig) -> tuple[tuple[str, ...], np.ndarray]:
-    """Linear combinations of the forces that are reported: each force, the total (the
-    resultant) and its first moments sum(f x) [N m] (and sum(f y) on a plate).
+    """Linear combinations of the forces that are reported
+    (:meth:`forcecal.structures.Structure.combinations`).
 
-    On a body the total is the sum of the forces along their own directions (the actuator's
-    pull when its poles act along one direction); the resultant's components ``resultant_x``,
-    ``_y``, ``_z`` [N] and its moment about the origin ``moment_x``, ``_y``, ``_z`` [N m]
-    (sum of (x_n - 0) x d_n f_n) follow.
-
-    Returns names and the (n_combinations, n_forces) matrix.
-    """
-    n_f = len(rig.forces)
-    pts = rig.force_points
-    if rig.is_body:
-        d = pts[:, 3:]
-        arm = np.cross(pts[:, :3], d)
-        return ((*rig.force_names, "total", "resultant_x", "resultant_y", "resultant_z",
-                 "moment_x", "moment_y", "moment_z"),
-                np.vstack([np.eye(n_f), np.ones(n_f), d.T, arm.T]))
-    names = [*rig.force_names, "total", "moment_x"]
-    rows = [*np.eye(n_f), np.ones(n_f), pts[:, 0]]
-    if rig.structure.kind == "plate":
-        names.append("moment_y")
-        rows.append(pts[:, 1])
-    return tuple(names), np.array(rows)
-
-
-def gauge_variance(a_r: np.ndarray, gauges: HarmonicFit) -> np.ndarray:
-    """(n_c, H+1) variance of Re (and of Im) of each combination from the gauges' noise.
-
-    a_r : (n_c, n_gauges) combination rows times Psi^+ [1]
-    """
-    return (a_r**2) @ gauges.phasor_std**2
-
-
-def shape_jacobian(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit,
-                   pinv: np.ndarray, w0n: float) -> tuple[np.ndarray, np.ndarray]:
-    """d(Psi^+ J_n)/d(Re p, Im p) of the shape coefficients p, and their covariance.
+    Parameters
+    ----------
+    rig : Rig
 
     Returns
     -------
-    jac : (n_forces, 2 n_funcs) complex [N per coefficient unit]
-    cov_p : (2 n_funcs, 2 n_funcs) covariance of (Re p, Im p)
+    names : tuple of str
+    matrix : (n_combinations, n_forces) ndarray
+    """
+    return rig.structure.combinations(rig.force_points, rig.force_names)
+
+
+def gauge_variance(a_r: np.ndarray, gauges: HarmonicFit) -> np.ndarray:
+    """Variance of Re (and of Im) of each combination from the gauges' noise.
+
+    Parameters
+    ----------
+    a_r : (n_c, n_gauges) ndarray
+        [1] combination rows times Psi^+.
+    gauges : HarmonicFit
+        The gauges' harmonic fit.
+
+    Returns
+    -------
+    (n_c, H+1) ndarray [N^2]
+    """
+    var: np.ndarray = (a_r**2) @ gauges.phasor_std**2
+    return var
+
+
+@dataclass(frozen=True)
+class ShapeOperators:
+    """Every shape's basis functions where the inertia term needs them, for one rig and model.
+
+    Attributes
+    ----------
+    couplings : tuple of (n_gauges, n_funcs) ndarray
+        [kg] mass coupling of every basis function (the shape's coupling is ``c @ p``).
+    at_sensors : tuple of (n_sensors, n_funcs) ndarray
+        [1] the basis functions at the sensors (the shape there is ``b @ p``).
+    """
+
+    couplings: tuple[np.ndarray, ...]
+    at_sensors: tuple[np.ndarray, ...]
+
+
+def shape_operators(model: SpatialModel, rig: Rig) -> ShapeOperators:
+    """The mass quadrature and the sensors applied to every basis function, once per run.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    rig : Rig
+
+    Returns
+    -------
+    ShapeOperators
+    """
+    pts, weights = mass_weights(rig)
+    sensors = rig.structure.coordinates(rig.sensor_points)
+    return ShapeOperators(
+        couplings=tuple(weights @ fit.basis.evaluate(pts) for fit in model.shapes),
+        at_sensors=tuple(fit.basis.evaluate(sensors) for fit in model.shapes))
+
+
+def shape_jacobian(model: SpatialModel, ops: ShapeOperators, k: int, sensors: HarmonicFit,
+                   w0n: float) -> tuple[np.ndarray, np.ndarray]:
+    """d J_n / d(Re p, Im p): the inertia term's sensitivity to the shape coefficients p.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    ops : ShapeOperators
+        From :func:`shape_operators`.
+    k : int
+        Position of the harmonic in ``model.harmonics``.
+    sensors : HarmonicFit
+        The sensors' harmonic fit.
+    w0n : float
+        [rad/s] n w0.
+
+    Returns
+    -------
+    jac : (n_gauges, 2 n_funcs) complex ndarray
+        [N per coefficient unit]
+    cov_p : (2 n_funcs, 2 n_funcs) ndarray
+        Covariance of (Re p, Im p).
     """
     fit = model.shapes[k]
     n = int(model.harmonics[k])
-    pts, weights = mass_weights(rig)
-    c = weights @ fit.basis.evaluate(pts)                          # (n_g, nf)
-    bs = fit.basis.evaluate(structure_coordinates(rig, rig.sensor_points))   # (n_s, nf)
+    c, bs = ops.couplings[k], ops.at_sensors[k]
     s = sensors.phasors[:, n]
-    w = 1.0 / np.maximum(sensors.phasor_std[:, n], 1e-150) ** 2
+    w = sensor_weights(sensors.phasor_std[:, n])
 
-    def inertia_force(p: np.ndarray) -> np.ndarray:
-        phi = bs @ p
-        q = np.sum(w * np.conj(phi) * s) / np.sum(w * np.abs(phi) ** 2)
-        return pinv @ ((c @ p) * (-(w0n**2)) * q)
+    def inertia(p: np.ndarray) -> np.ndarray:
+        gain, _ = coordinate_map(bs @ p, w)
+        return inertia_term(c @ p, complex(gain @ s), w0n)
 
     p0 = fit.coefficients
     nf = len(p0)
     h = 1e-6 * np.linalg.norm(p0)
-    jac = np.empty((pinv.shape[0], 2 * nf), dtype=complex)
+    jac = np.empty((c.shape[0], 2 * nf), dtype=complex)
     for j in range(nf):
         for part, d in ((0, h), (1, 1j * h)):
             e = np.zeros(nf, dtype=complex)
             e[j] = d
-            jac[:, part * nf + j] = (inertia_force(p0 + e) - inertia_force(p0 - e)) / (2 * h)
+            jac[:, part * nf + j] = (inertia(p0 + e) - inertia(p0 - e)) / (2 * h)
     return jac, np.kron(np.eye(2), fit.coefficient_covariance)   # Re and Im independent
 
 
-def inertia_variance(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit,
-                     pinv: np.ndarray, combo: np.ndarray, w0n: float,
-                     q_std: float) -> np.ndarray:
-    """(n_c, 2) variance of (Re, Im) of each combination from harmonic k's inertia term: the
-    coordinate's noise and the shape coefficients' uncertainty."""
-    a_q = np.abs(combo @ pinv @ model.couplings[k]) * w0n**2 * q_std
-    jac, cov_p = shape_jacobian(model, rig, k, sensors, pinv, w0n)
-    cj = combo @ jac                                                 # (n_c, 2 nf)
+def inertia_variance(model: SpatialModel, ops: ShapeOperators, k: int, sensors: HarmonicFit,
+                     a_r: np.ndarray, w0n: float, q_std: float) -> np.ndarray:
+    """Variance of (Re, Im) of each combination from harmonic k's inertia term: the
+    coordinate's noise and the shape coefficients' uncertainty.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    ops : ShapeOperators
+    k : int
+        Position of the harmonic in ``model.harmonics``.
+    sensors : HarmonicFit
+    a_r : (n_c, n_gauges) ndarray
+        Combination rows times Psi^+.
+    w0n : float
+        [rad/s] n w0.
+    q_std : float
+        [1] standard uncertainty of Re Q_n and of Im Q_n.
+
+    Returns
+    -------
+    (n_c, 2) ndarray [N^2]
+    """
+    a_q = np.abs(a_r @ inertia_term(model.couplings[k], q_std, w0n))
+    jac, cov_p = shape_jacobian(model, ops, k, sensors, w0n)
+    cj = a_r @ jac                                                   # (n_c, 2 nf)
     return np.column_stack([
         a_q**2 + np.einsum("ca,ab,cb->c", cj.real, cov_p, cj.real),
         a_q**2 + np.einsum("ca,ab,cb->c", cj.imag, cov_p, cj.imag),
@@ -115,8 +188,22 @@ def inertia_variance(model: SpatialModel, rig: Rig, k: int, sensors: HarmonicFit
 
 
 def unresolved_inertia_bound(rig: Rig, sensors: HarmonicFit, n: int, w0: float) -> float:
-    """Bound [N] on the inertia of a harmonic without a shape: the whole mass moving with the
-    sensors' RMS amplitude at that harmonic (or their noise, whichever is larger)."""
+    """Bound on the inertia of a harmonic without a shape: the whole mass moving with the
+    sensors' RMS amplitude at that harmonic (or their noise, whichever is larger).
+
+    Parameters
+    ----------
+    rig : Rig
+    sensors : HarmonicFit
+    n : int
+        The harmonic.
+    w0 : float
+        [rad/s] the fundamental.
+
+    Returns
+    -------
+    float [N]
+    """
     noise = float(np.sqrt(np.mean(sensors.phasor_std[:, n] ** 2)))
     motion = max(float(np.sqrt(np.mean(np.abs(sensors.phasors[:, n]) ** 2))), noise)
     return rig.structure.total_mass * (n * w0) ** 2 * motion

@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..records import Run, Scan
-from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor, Structure
+from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor
+from ..structures import Beam, Body, Plate
 from .beam import BeamModel, assemble_beam, natural_frequencies
 from .integrate import Response, integrate
 from .magnet import Drive, Magnet
@@ -119,8 +120,8 @@ def public_rig(preset: Preset) -> Rig:
     if isinstance(b, BodySpec):
         return Rig(
             name=f"virtual {preset.name} rig",
-            structure=Structure(kind="body", density=b.density, blocks=b.blocks,
-                                masses=tuple(LumpedMass(x=x, y=y, z=z, mass=m)
+            structure=Body(density=b.density, blocks=b.blocks,
+                           masses=tuple(LumpedMass(x=x, y=y, z=z, mass=m)
                                              for x, y, z, m in b.masses)),
             gauges=tuple(Gauge(name=n, x=x, y=y, z=z, direction=_unit(d))
                          for n, x, y, z, *d in b.gauges),
@@ -136,8 +137,8 @@ def public_rig(preset: Preset) -> Rig:
     if isinstance(b, PlateSpec):
         return Rig(
             name=f"virtual {preset.name} rig",
-            structure=Structure(kind="plate", mass_per_area=b.mass_per_area, outline=b.outline,
-                                masses=tuple(LumpedMass(x=x, y=y, mass=m)
+            structure=Plate(mass_per_area=b.mass_per_area, outline=b.outline,
+                            masses=tuple(LumpedMass(x=x, y=y, mass=m)
                                              for x, y, m in b.masses)),
             gauges=tuple(Gauge(name=n, x=x, y=y) for n, x, y in b.gauges),
             forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, gap=p.gap)
@@ -149,8 +150,8 @@ def public_rig(preset: Preset) -> Rig:
         )
     return Rig(
         name=f"virtual {preset.name} rig",
-        structure=Structure(kind="beam", length=b.length, mass_per_length=b.mass_per_length,
-                            masses=tuple(LumpedMass(x=x, mass=m) for x, m in b.masses)),
+        structure=Beam(length=b.length, mass_per_length=b.mass_per_length,
+                       masses=tuple(LumpedMass(x=x, mass=m) for x, m in b.masses)),
         gauges=tuple(Gauge(name=n, x=x) for n, x in b.gauges),
         forces=tuple(ForcePoint(name=p.name, x=p.x, gap=p.gap)
                      for m in preset.magnets for p in m.poles),

@@ -1,0 +1,416 @@
+"""Forces in real time: the streaming estimator (METHOD.md section 3, step 7).
+
+The recursive least-squares kernel it runs is :mod:`forcecal.stream.rls`; its readout from
+the tracked phasors to the forces is built from the same formulas as the batch estimate
+(:func:`forcecal.coordinates.coordinate_map`, :func:`forcecal.inertia.inertia_term`,
+:func:`forcecal.forces.force_solve`, :func:`forcecal.forces.kept_harmonics`).
+
+Latency and noise
+-----------------
+The exponential window has memory 1 / (1 - lambda) samples and mean age (group delay)
+lambda / (1 - lambda) samples: :attr:`StreamEstimator.latency_periods` in drive periods. The
+default is a memory of ``DEFAULT_MEMORY_PERIODS`` = 2 periods, so a latency of 2 periods (100 ms
+at 20 Hz). A step settles to a fraction eps of its size within ln(eps) / ln(lambda) samples
+(:meth:`StreamEstimator.settling_periods`): 13.8 periods to 1e-3 by default. For
+white noise of std sigma each phasor has var(Re) = var(Im) ~ (1 - lambda) / (1 + lambda)
+2 sigma^2, the batch fit's 2 sigma^2 / N with N -> (1 + lambda) / (1 - lambda); the exact
+value for the forces is :meth:`StreamEstimator.noise_std`.
+
+Frequency tracking
+------------------
+The regressor's phase advances by w / fs per sample. Once per grid step (one period) the phase
+of the current's fundamental phasor X_1 (referred to theta) is read; a drive faster than w makes
+it rotate at (w_true - w). Since the window's phase lags by its mean age, the loop adds that lead
+(the last advance times lambda / (1 - lambda) / grid) and feeds a proportional-integral
+correction of w (a type-2 phase-locked loop: no steady frequency error even along a linear
+drift) of bandwidth min(1 / (``LOOP_MEMORIES`` memory), ``LOOP_MAX_STEP`` / period) and damping
+``LOOP_DAMPING``; by default about 5 periods. The loop starts after one memory and two periods,
+stays within ``FREQUENCY_RANGE`` of the guess, and holds while |X_1| is below ``LOCK_SNR``
+times its noise (no drive, a tare record). Changing w changes M_k and the readout with it: the
+estimate is then the RLS estimate with the window's regressors taken at the current frequency.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from collections.abc import Mapping, Sequence
+from dataclasses import replace
+
+import numpy as np
+
+from ..coordinates import check_sensor_gain, coordinate_map, sensor_rows
+from ..errors import DataError, DimensionError, InputError
+from ..forces import FREQUENCY_MISMATCH, force_solve, kept_harmonics
+from ..inertia import inertia_term
+from ..relaxation import force_matrix
+from ..rig import Rig
+from ..spatial import SpatialModel
+from .rls import (
+    PRIOR,
+    HarmonicState,
+    chunk_limit,
+    harmonic_start,
+    kernel,
+    last_coefficients,
+    mixing,
+    stationary,
+    to_complex,
+    to_real,
+    window_tables,
+)
+
+__all__ = ["DEFAULT_MEMORY_PERIODS", "StreamEstimator"]
+
+DEFAULT_MEMORY_PERIODS = 2.0
+"""Default memory 1 / (1 - lambda) of the forgetting, in drive periods."""
+LOOP_MEMORIES = 1.5
+"""The frequency loop's time constant, in memories 1 / ((1 - lambda) fs) of the forgetting."""
+LOOP_DAMPING = 0.7
+"""Damping ratio of the frequency loop."""
+LOOP_MAX_STEP = 1.0 / 3.0
+"""Largest loop bandwidth [rad/s] times the loop's update interval (stability of the
+discrete loop when the memory is short)."""
+ENGAGE_MEMORIES = 1.0
+ENGAGE_PERIODS = 2.0
+"""The frequency loop starts after this many memories and drive periods, whichever is later."""
+LOCK_SNR = 5.0
+"""The frequency loop acts only while |X_1| of the current exceeds this many noise stds."""
+FREQUENCY_RANGE = 0.05
+"""The tracked frequency stays within this relative distance of the initial guess."""
+
+
+# --------------------------------------------------------------------------------------------
+# the stateful estimator
+
+
+class StreamEstimator:
+    """Forces of a live acquisition, one block of samples after another.
+
+    Parameters
+    ----------
+    rig : the rig (channel names and scales, gauges, force points, probes)
+    model : the spatial model from the scan (shapes and mass couplings)
+    f0_guess : [Hz] the drive frequency to start from (tracked from then on)
+    fs : [Hz] sampling rate of the acquisition
+    n_harmonics : H, harmonics 0..H are tracked (default: as many as the scan was fitted with)
+    forgetting : lambda (default: a memory of ``DEFAULT_MEMORY_PERIODS`` periods,
+        lambda = 1 - f0 / (2 fs))
+    t0 : [s] absolute time of the first sample (phasors then follow the batch convention)
+    track_frequency : follow a drift of the drive frequency (phase-locked to the current)
+    sensor_std : (n_sensors,) [m] noise of each probe, weights of the Q_n fit (default: equal)
+    tare_dc : (n_gauges,) [N] gauge DC of a zero-current record, subtracted
+    ac_coupled : the gauges do not measure DC: no DC force; the static estimate is AC only
+    extra_harmonics : harmonics without a shape in the model that enter the force anyway
+        (reactions only, their inertia uncompensated); by default the force holds the DC and
+        the model's harmonics, as the batch estimate does when the others are not significant
+
+    Channel order of an array block: :attr:`channel_names` (gauges, probes, current), raw
+    values as recorded (the rig's scales are applied here).
+
+    The state is of fixed size (:class:`HarmonicState` plus the frequency loop's scalars), so
+    memory does not grow with the number of blocks; per-frequency tables and inverses are
+    kept in small bounded caches. The probes' weights are fixed (``sensor_std``), where the
+    batch estimate takes them from each probe's fit residual; with probes of equal noise the
+    two agree.
+    """
+
+    def __init__(self, rig: Rig, model: SpatialModel, f0_guess: float, fs: float, *,
+                 n_harmonics: int | None = None, forgetting: float | None = None,
+                 t0: float = 0.0, track_frequency: bool = True,
+                 sensor_std: Sequence[float] | np.ndarray | None = None,
+                 tare_dc: Sequence[float] | np.ndarray | None = None, ac_coupled: bool = False,
+                 extra_harmonics: Sequence[int] = ()) -> None:
+        if not (fs > 0 and f0_guess > 0):
+            raise InputError(f"stream: fs and f0_guess must be positive; got fs = {fs} Hz, "
+                             f"f0_guess = {f0_guess} Hz")
+        h = int(n_harmonics or len(model.snr))
+        if h < 1:
+            raise InputError(f"stream: n_harmonics must be >= 1; got {h}")
+        if h * f0_guess * (1 + FREQUENCY_RANGE) >= 0.5 * fs:
+            raise DataError(f"stream: harmonic {h} of {f0_guess:.6g} Hz is not below the "
+                            f"Nyquist frequency {0.5 * fs:.6g} Hz of fs = {fs:.6g} Hz; "
+                            "reduce n_harmonics")
+        lam = 1.0 - f0_guess / (fs * DEFAULT_MEMORY_PERIODS) if forgetting is None \
+            else float(forgetting)
+        if not 0.0 < lam < 1.0:
+            raise InputError(f"stream: the forgetting factor must lie in (0, 1); got {lam}")
+        if 1.0 / (1.0 - lam) < 2 * (2 * h + 1):
+            raise InputError(f"stream: forgetting {lam} keeps a memory of "
+                             f"{1 / (1 - lam):.3g} samples, less than twice the "
+                             f"{2 * h + 1} regressors of {h} harmonics")
+        if abs(f0_guess / model.f0 - 1.0) > FREQUENCY_MISMATCH:
+            warnings.warn(f"stream: drive at {f0_guess:.4g} Hz but the scan model was measured "
+                          f"at {model.f0:.4g} Hz; its shapes may not apply", stacklevel=2)
+        self.rig = rig
+        self.model = model
+        self.fs = float(fs)
+        self.lam = lam
+        self.prior = PRIOR
+        self.n_harmonics = h
+        self.f0_guess = float(f0_guess)
+        self.track_frequency = bool(track_frequency)
+        self.ac_coupled = bool(ac_coupled)
+        self.channel_names: tuple[str, ...] = (*rig.gauge_names, *rig.sensor_names,
+                                               rig.actuator.current)
+        self.force_names: tuple[str, ...] = tuple(rig.force_names)
+        self._scale = np.array([g.scale for g in rig.gauges] + [s.scale for s in rig.sensors]
+                               + [rig.actuator.current_scale])[:, None]
+        self._n_g, self._n_s = len(rig.gauges), len(rig.sensors)
+        self._pinv = np.linalg.pinv(force_matrix(rig))                   # (n_f, n_g)
+        n_f = self._pinv.shape[0]
+        self._n_f = n_f
+        tare = np.zeros(self._n_g) if tare_dc is None else np.asarray(tare_dc, dtype=float)
+        if tare.shape != (self._n_g,):
+            raise DimensionError(f"stream: tare_dc has shape {tare.shape}; expected "
+                                 f"({self._n_g},), one DC per gauge")
+        self._offset = (self._pinv @ tare)[:, None]
+        self._shaped = self._shape_terms(sensor_std)
+        extra = np.zeros(h + 1, dtype=bool)
+        extra[[int(n) for n in extra_harmonics if 1 <= int(n) <= h]] = True
+        kept = kept_harmonics(h, [n for n, _, _ in self._shaped], extra, dc=not ac_coupled)[1]
+        self._force_harmonics = [int(n) for n in np.flatnonzero(kept)]
+        # frequency loop
+        self.grid = max(1, round(fs / f0_guess))
+        self._piece = min(self.grid, chunk_limit(lam))
+        memory_s = 1.0 / ((1.0 - lam) * fs)
+        w_loop = min(1.0 / (LOOP_MEMORIES * memory_s), LOOP_MAX_STEP * fs / self.grid)
+        self._kp, self._ki = 2.0 * LOOP_DAMPING * w_loop, w_loop**2
+        # the window's phase lags by its mean age lam / (1 - lam) samples: the loop adds that
+        # lead (in grid steps) to act on the phase of the latest sample
+        self._lead = lam / (1.0 - lam) / self.grid
+        # the loop starts once the window is well conditioned (spans whole periods)
+        self._engage = math.ceil(max(ENGAGE_MEMORIES / (1.0 - lam),
+                                     ENGAGE_PERIODS * fs / f0_guess))
+        self._loop_phase: float | None = None
+        self._loop_x1 = 0j
+        self._loop_integral = 0.0
+        self._warned = False
+        self._state = harmonic_start(len(self.channel_names), h, f0_guess, fs, t0)
+        self._t0 = float(t0)
+        self._retune()
+
+    def _retune(self) -> None:
+        """Readout, mixing and per-sample tables for the state's frequency."""
+        step = self._state.step
+        self._readout = self._force_readout(2 * np.pi * step * self.fs)
+        self._kappa = mixing(self._readout, self.lam, step, self.n_harmonics)
+
+    # ------------------------------------------------------------------ set-up
+
+    def _shape_terms(self, sensor_std: Sequence[float] | np.ndarray | None
+                     ) -> list[tuple[int, np.ndarray, np.ndarray]]:
+        """[(n, m_n, G_n)]: every shaped harmonic's mass couplings (n_g,) and the map
+        G_n (n_s,) from the probes' phasors to its coordinate Q_n = G_n S_n."""
+        rig, model = self.rig, self.model
+        if sensor_std is None:
+            weight = np.ones(self._n_s)
+        else:
+            std = np.asarray(sensor_std, dtype=float)
+            if std.shape != (self._n_s,) or np.any(std <= 0):
+                raise InputError(f"stream: sensor_std must hold {self._n_s} positive values; "
+                                 f"got {std}")
+            weight = 1.0 / std**2
+        terms = []
+        for k, n in enumerate(model.harmonics):
+            n = int(n)
+            if n > self.n_harmonics:
+                continue
+            check_sensor_gain(model, rig, n, "stream")
+            gain, _ = coordinate_map(sensor_rows(model, rig, n), weight)
+            terms.append((n, model.couplings[k], gain))
+        return terms
+
+    def _force_readout(self, w: float) -> np.ndarray:
+        """(n_out, n_channels, p) readout of the forces (and, AC-coupled, of the static DC):
+        the force solve F_n = Psi^+ (J_n - R_n) as a linear map of the channels' phasors, with
+        J_n = m_n Qdd_n and Q_n = G_n S_n."""
+        n_f, n_g, n_s = self._n_f, self._n_g, self._n_s
+        n_out = 2 * n_f if self.ac_coupled else n_f
+        c = np.zeros((n_out, len(self.channel_names), 2 * self.n_harmonics + 1))
+        from_reactions = force_solve(self._pinv, np.zeros((n_g, n_g)), np.eye(n_g))
+        for n in self._force_harmonics:
+            c[:n_f, :n_g, 0 if n == 0 else 2 * n - 1] = from_reactions
+        for n, couplings, gain in self._shaped:
+            a = force_solve(self._pinv, inertia_term(couplings, gain, n * w),
+                            np.zeros((n_g, n_s)))
+            c[:n_f, n_g:n_g + n_s, 2 * n - 1] = a.real
+            c[:n_f, n_g:n_g + n_s, 2 * n] = -a.imag
+        if self.ac_coupled:
+            c[n_f:, :n_g, 0] = from_reactions
+        return c
+
+    # ------------------------------------------------------------------ properties
+
+    @property
+    def state(self) -> HarmonicState:
+        """The current :class:`HarmonicState` (read only; fixed size)."""
+        return self._state
+
+    @property
+    def frequency(self) -> float:
+        """[Hz] the tracked drive frequency."""
+        return self._state.step * self.fs
+
+    @property
+    def memory(self) -> float:
+        """[samples] memory 1 / (1 - lambda) of the forgetting."""
+        return 1.0 / (1.0 - self.lam)
+
+    @property
+    def latency_periods(self) -> float:
+        """Group delay lambda / (1 - lambda) samples of the estimate, in drive periods."""
+        return self.lam / (1.0 - self.lam) * self._state.step
+
+    def settling_periods(self, fraction: float = 1e-3) -> float:
+        """Drive periods after which a step has settled to ``fraction`` of its size."""
+        return math.log(fraction) / math.log(self.lam) * self._state.step
+
+    @property
+    def phasors(self) -> np.ndarray:
+        """(n_channels, H+1) complex [SI] phasors of the last sample, referred to the tracked
+        phase (the batch convention while the frequency has not moved)."""
+        u = last_coefficients(self._state, self.lam, self.prior)
+        rot = np.exp(-2j * np.pi * self._state.phase * np.arange(self.n_harmonics + 1))
+        return to_complex(u[..., None])[..., 0] * rot
+
+    @property
+    def channel_std(self) -> np.ndarray:
+        """(n_channels,) [SI] residual std of every channel over the window (NaN before the
+        window holds more samples than regressors)."""
+        st = self._state
+        u = last_coefficients(st, self.lam, self.prior)
+        h = self.n_harmonics
+        rot = np.exp(-2j * np.pi * st.phase * np.arange(h + 1))
+        beta = to_real((st.demod * rot.conj())[..., None])[..., 0]
+        rss = np.maximum(st.energy - np.sum(beta * u, axis=1), 0.0)
+        weight = (1.0 - self.lam**st.count) / (1.0 - self.lam)
+        dof = weight - (2 * h + 1)
+        return np.sqrt(rss / dof) if dof > 0 else np.full(len(self.channel_names), np.nan)
+
+    def noise_std(self, channel_std: Sequence[float] | np.ndarray) -> np.ndarray:
+        """(n_forces,) [N] steady-state std of each force estimate for white noise.
+
+        Parameters
+        ----------
+        channel_std : (n_channels,) [SI] noise std of each channel (:attr:`channel_std`)
+        """
+        sigma = np.asarray(channel_std, dtype=float)
+        cov = stationary(self.lam, self._state.step, self.n_harmonics)[2]
+        k = self._readout[:self._n_f]                                    # (n_f, n_ch, p)
+        var = np.einsum("fcp,pq,fcq->fc", k, cov, k)
+        return np.sqrt(var @ sigma**2)
+
+    # ------------------------------------------------------------------ streaming
+
+    def _samples(self, block: Mapping[str, np.ndarray] | np.ndarray) -> np.ndarray:
+        if isinstance(block, Mapping):
+            missing = [n for n in self.channel_names if n not in block]
+            if missing:
+                raise DataError(f"stream: channel '{missing[0]}' named in the rig is missing "
+                                f"from the block (found: {', '.join(sorted(block))})")
+            rows = [np.asarray(block[n], dtype=float).ravel() for n in self.channel_names]
+            lengths = {len(r) for r in rows}
+            if len(lengths) != 1:
+                raise DimensionError("stream: the channels of a block differ in length: "
+                                     + ", ".join(f"{n} {len(r)}" for n, r in
+                                                 zip(self.channel_names, rows, strict=True)))
+            y = np.stack(rows)
+        else:
+            y = np.asarray(block, dtype=float)
+            if y.shape == (len(self.channel_names),):                 # a single sample
+                y = y[:, None]
+            if y.ndim != 2 or y.shape[0] != len(self.channel_names):
+                raise DimensionError(f"stream: a block must be ({len(self.channel_names)}, n) "
+                                     f"for channels {', '.join(self.channel_names)}; got shape "
+                                     f"{y.shape}")
+        if not np.isfinite(y).all():
+            bad = ~np.isfinite(y)
+            row, col = np.argwhere(bad)[0]
+            t = self._t0 + (self._state.count + col) / self.fs
+            raise DataError(f"stream: channel '{self.channel_names[row]}' has "
+                            f"{int(bad[row].sum())} NaN or infinite samples in this block, "
+                            f"the first at t={t:.6g} s")
+        return y * self._scale
+
+    def process(self, block: Mapping[str, np.ndarray] | np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Forces of every sample of a block.
+
+        Parameters
+        ----------
+        block : {channel name: (n,) raw samples} or (n_channels, n) raw samples in the order
+            of :attr:`channel_names` ((n_channels,) for a single sample)
+
+        Returns
+        -------
+        force : (n_forces, n) [N] sum_n Re(F_n(k) exp(j n theta_k)) with the phasors of each
+            sample (inertia compensated)
+        static : (n_forces, n) [N] the reactions-only estimate -Psi^+ R(t_k), sample by sample
+        """
+        y = self._samples(block)
+        n = y.shape[1]
+        out = np.empty((self._readout.shape[0], n))
+        pos = 0
+        while pos < n:
+            stop = min(n, pos + self.grid - self._state.count % self.grid, pos + self._piece)
+            # tables as long as the piece (rounded up to a power of two), cached per frequency
+            length = min(self._piece, 1 << (stop - pos - 1).bit_length())
+            tables = window_tables(self.lam, self._state.step, self.n_harmonics, length)
+            self._state, out[:, pos:stop] = kernel(
+                self._state, y[:, pos:stop], self.lam, tables, self._readout, self._kappa,
+                self.prior)
+            pos = stop
+            if self._state.count % self.grid == 0:
+                self._on_grid()
+        force = out[:self._n_f]
+        static = -(self._pinv @ y[:self._n_g])
+        if self.ac_coupled:
+            static -= out[self._n_f:]
+        else:
+            force += self._offset
+            static += self._offset
+        return force, static
+
+    def _on_grid(self) -> None:
+        """The frequency loop, once per grid step."""
+        st = self._state
+        if not self.track_frequency or st.count < self._engage:
+            return
+        ic = len(self.channel_names) - 1
+        u = last_coefficients(replace(st, demod=st.demod[ic:], energy=st.energy[ic:]),
+                               self.lam, self.prior)[0]
+        x1 = complex(u[1], u[2]) * np.exp(-2j * np.pi * st.phase)
+        # lock: |X_1| against its noise, from the current's residual over the window
+        rot = np.exp(-2j * np.pi * st.phase * np.arange(self.n_harmonics + 1))
+        beta = to_real((st.demod[ic] * rot.conj())[:, None])[:, 0]
+        weight = (1.0 - self.lam**st.count) / (1.0 - self.lam)
+        dof = max(weight - u.size, 1.0)
+        var = max(st.energy[ic] - beta @ u, 0.0) / dof
+        cov = stationary(self.lam, st.step, self.n_harmonics)[2]
+        if abs(x1) <= LOCK_SNR * math.sqrt(var * 0.5 * (cov[1, 1] + cov[2, 2])):
+            self._loop_phase = None                                   # hold; re-engage later
+            return
+        w0 = 2 * np.pi * self.f0_guess
+        if self._loop_phase is None:                  # (re)start from the present frequency
+            self._loop_phase, self._loop_x1 = 0.0, x1
+            self._loop_integral = 2 * np.pi * st.step * self.fs - w0
+            return
+        advance = float(np.angle(x1 * np.conj(self._loop_x1)))
+        self._loop_phase += advance
+        self._loop_x1 = x1
+        error = self._loop_phase + self._lead * advance
+        dt = self.grid / self.fs
+        self._loop_integral += self._ki * error * dt
+        w = w0 + self._kp * error + self._loop_integral
+        bounded = min(max(w, w0 * (1 - FREQUENCY_RANGE)), w0 * (1 + FREQUENCY_RANGE))
+        if bounded != w:                                              # no wind-up
+            self._loop_integral += bounded - w
+            w = bounded
+        self._state = replace(st, step=w / (2 * np.pi * self.fs))
+        self._retune()
+        if not self._warned and abs(self.frequency / self.model.f0 - 1) > FREQUENCY_MISMATCH:
+            self._warned = True
+            warnings.warn(f"stream: the drive moved to {self.frequency:.4g} Hz but the scan "
+                          f"model was measured at {self.model.f0:.4g} Hz; its shapes may not "
+                          "apply", stacklevel=3)

@@ -1,0 +1,448 @@
+"""The streaming estimator's kernel: recursive least squares of harmonic regressors with
+forgetting (METHOD.md section 3, step 7).
+
+What is estimated
+-----------------
+Every channel (gauges, probes, coil current) is written as a Fourier series whose phasors
+drift slowly,
+
+    y_c(t_k) = X_{c,0}(k) + sum_{n=1..H} Re( X_{c,n}(k) exp(j n theta_k) ),
+
+with the regressor [1, cos(theta_k), -sin(theta_k), cos(2 theta_k), ...] of
+:func:`forcecal.harmonics.design_matrix` and theta_k the phase of the drive. The phasors of
+sample k minimize the exponentially weighted squared error
+
+    sum_{i <= k} lambda^(k-i) (y_i - phi_i^T x)^2  +  lambda^k r0 |x|^2,
+
+which is recursive least squares (RLS) with forgetting factor lambda started from the prior
+P_0 = I / r0 (``PRIOR``: one sample's worth of information, which keeps the first, poorly
+conditioned samples finite and fades as lambda^k). Every channel shares the regressor, hence
+one information matrix. The forces at sample k follow from the phasors exactly as in the batch
+:func:`forcecal.forces.reconstruct` (Q_n from the probes, J_n = m_n (-(n w0)^2) Q_n,
+F_n = Psi^+ (J_n - R_n)), evaluated at that sample: F(t_k) = sum_n Re(F_n(k) exp(j n theta_k)).
+
+The exact block form chosen
+---------------------------
+:func:`rls_update` is the textbook information form (R_k = lambda R_{k-1} + phi_k phi_k^T,
+b_k = lambda b_{k-1} + phi_k y_k, x_k = R_k^{-1} b_k) vectorized over a block: the reference
+implementation, O(p^3) per sample with p = 2H+1.
+
+:func:`harmonic_update` computes the same x_k for the harmonic regressor in O(p) per sample
+and channel. The regressor is a rotating phasor: phi_i = T(theta_i) phi(0), T a block rotation
+by n theta_i. In the frame that rotates with the drive, the information matrix
+
+    M_k = T_k^T R_k T_k = lambda^k r0 I + sum_{d=0}^{k-1} lambda^d phi(-d a) phi(-d a)^T,
+
+(a = w0 / fs) no longer depends on the data nor on the absolute phase; its entries are the
+geometric sums g_m = sum_d lambda^d exp(j m a d) = (1 - (lambda e^{jma})^k) / (1 - lambda e^{jma}),
+m = 0..2H, in closed form (:func:`harmonic_information`). The right-hand side in that frame is
+the demodulated and exponentially averaged signal, T_k^T b_k <-> exp(j n theta_k) d_n(k) with
+d_n(k) = lambda d_n(k-1) + y_k exp(-j n theta_k): a first-order IIR per harmonic (a complex
+resonator), which a block evaluates at once as a scaled cumulative sum. Hence
+
+    x_k = T_k M_k^{-1} [exp(j n theta_k) d_n(k)]          (exact RLS, no approximation).
+
+After lambda^k < ``STEADY_TOL`` (about 37 / (1 - lambda) samples) M_k equals its stationary
+value to rounding and one inverse serves every sample; the linear readout to the forces is then
+folded into the channel mixing, so that a sample costs O(p n_channels) for the demodulation and
+O(p n_forces) for the cumulative sums. Before that, each sample gets its own solve of M_k
+(start-up only). The demodulation is the "demodulate and low-pass" view of RLS; the exact M_k
+is what removes the ripple at 2 n w0 that a plain first-order low-pass of the demodulated
+signal leaves (about (1 - lambda) / (2 n a) of each phasor, 4 % for a memory of two periods).
+
+A block is processed in pieces that end on a fixed grid of sample counts (``grid``, one drive
+period); the frequency tracker acts only on that grid, so the result does not depend on how the
+samples were split into blocks (to rounding: 1e-15 relative once the window spans a period,
+1e-12 during the first period, where the conditioning of M_k amplifies rounding).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from ..errors import DimensionError
+
+__all__ = [
+    "PRIOR",
+    "STEADY_TOL",
+    "HarmonicState",
+    "RlsState",
+    "chunk_limit",
+    "harmonic_information",
+    "harmonic_start",
+    "harmonic_update",
+    "last_coefficients",
+    "mixing",
+    "rls_start",
+    "rls_update",
+    "stationary",
+    "steady_count",
+    "to_complex",
+    "to_real",
+    "window_tables",
+]
+
+PRIOR = 1.0
+"""r0: information of the prior at the start (P_0 = I / r0), in samples' worth of regressor."""
+STEADY_TOL = 1e-16
+"""lambda^k below which the information matrix is its stationary value (to rounding)."""
+_GROWTH = math.log(4.0)
+"""A cumulative sum spans at most ln(4) / (1 - lambda) samples (weights up to 4)."""
+
+
+# --------------------------------------------------------------------------------------------
+# the reference: information-form RLS for any regressor
+
+
+@dataclass(frozen=True)
+class RlsState:
+    """Recursive least squares in information form.
+
+    Attributes
+    ----------
+    information : (p, p) [1] R_k = sum lambda^(k-i) phi_i phi_i^T + lambda^k r0 I
+    moment : (p, n_outputs) [unit of y] b_k = sum lambda^(k-i) phi_i y_i^T
+    count : samples seen
+    """
+
+    information: np.ndarray
+    moment: np.ndarray
+    count: int = 0
+
+
+def rls_start(n_regressors: int, n_outputs: int, prior: float = PRIOR) -> RlsState:
+    """The state before any sample: prior information ``prior * I``, no data."""
+    return RlsState(information=prior * np.eye(n_regressors),
+                    moment=np.zeros((n_regressors, n_outputs)))
+
+
+def rls_update(state: RlsState, y: np.ndarray, regressors: np.ndarray,
+               lam: float) -> tuple[RlsState, np.ndarray]:
+    """Exact RLS with forgetting over a block of samples (the reference form).
+
+    Parameters
+    ----------
+    state : the state after the previous sample
+    y : (n_outputs, n) [any unit] samples of every output, sharing the regressor
+    regressors : (p, n) [1] phi_k of every sample
+    lam : forgetting factor lambda, 0 < lambda <= 1
+
+    Returns
+    -------
+    state : after the last sample
+    estimates : (n_outputs, p, n) x_k = R_k^{-1} b_k of every sample
+    """
+    y = np.atleast_2d(np.asarray(y, dtype=float))
+    phi = np.atleast_2d(np.asarray(regressors, dtype=float))
+    p, n = phi.shape
+    if y.shape[-1] != n or state.information.shape != (p, p) or y.shape[0] != \
+            state.moment.shape[1]:
+        raise DimensionError(f"rls_update: y {y.shape}, regressors {phi.shape}, state for "
+                             f"{state.information.shape[0]} regressors and "
+                             f"{state.moment.shape[1]} outputs")
+    if n == 0:
+        return state, np.zeros((y.shape[0], p, 0))
+    a = [1.0, -lam]
+    outer = (phi[:, None, :] * phi[None, :, :]).reshape(p * p, n)
+    from scipy.signal import lfilter  # the reference form only; keeps start-up light
+
+    info = lfilter([1.0], a, outer, axis=-1, zi=lam * state.information.reshape(-1, 1))[0]
+    cross = (phi[:, None, :] * y[None, :, :]).reshape(p * y.shape[0], n)
+    mom = lfilter([1.0], a, cross, axis=-1, zi=lam * state.moment.reshape(-1, 1))[0]
+    info = info.reshape(p, p, n)
+    mom = mom.reshape(p, y.shape[0], n)
+    x = np.linalg.solve(info.transpose(2, 0, 1), mom.transpose(2, 0, 1))     # (n, p, n_out)
+    new = RlsState(information=info[:, :, -1].copy(), moment=mom[:, :, -1].copy(),
+                   count=state.count + n)
+    return new, x.transpose(2, 1, 0)
+
+
+# --------------------------------------------------------------------------------------------
+# the fast exact form for the harmonic regressor
+
+
+@dataclass(frozen=True)
+class HarmonicState:
+    """RLS state of harmonic regressors in demodulated form.
+
+    Attributes
+    ----------
+    demod : (n_channels, H+1) complex [unit of y] d_n = sum lambda^(k-i) y_i exp(-j n theta_i)
+    energy : (n_channels,) [unit of y ^2] sum lambda^(k-i) y_i^2 (for the residual)
+    phase : [cycles] theta of the last sample / 2 pi, reduced modulo 1
+    step : [cycles per sample] phase advance per sample, f0 / fs
+    count : samples seen
+    """
+
+    demod: np.ndarray
+    energy: np.ndarray
+    phase: float
+    step: float
+    count: int = 0
+
+    @property
+    def n_harmonics(self) -> int:
+        return self.demod.shape[1] - 1
+
+
+def harmonic_start(n_channels: int, n_harmonics: int, f0: float, fs: float,
+                   t0: float = 0.0) -> HarmonicState:
+    """The state before the first sample, taken at absolute time t0 [s].
+
+    With the phase started at f0 * t0 the phasors follow the absolute-time convention of
+    :mod:`forcecal.harmonics` for as long as the frequency is not changed.
+    """
+    step = f0 / fs
+    return HarmonicState(demod=np.zeros((n_channels, n_harmonics + 1), dtype=complex),
+                         energy=np.zeros(n_channels),
+                         phase=float((f0 * t0 - step) % 1.0), step=float(step))
+
+
+def _window_sums(lam: float, step: float, n_harmonics: int,
+                 count: np.ndarray | None) -> np.ndarray:
+    """g_m = sum_{d < count} lambda^d exp(j 2 pi m step d), m = 0..2H -> (..., 2H+1)."""
+    m = np.arange(2 * n_harmonics + 1)
+    g = 1.0 / (1.0 - lam * np.exp(2j * np.pi * step * m))
+    if count is None:
+        return g
+    k = np.asarray(count, dtype=float)[..., None]
+    power = lam**k * np.exp(2j * np.pi * np.mod(step * m * k, 1.0))   # (lam e^{j m a})^count
+    return g * (1.0 - power)
+
+
+@lru_cache(maxsize=8)
+def _assembly(n_harmonics: int) -> np.ndarray:
+    """(2 (2H+1), p^2) real map from [Re g, Im g] to the flattened information matrix."""
+    h = n_harmonics
+    p, ng = 2 * h + 1, 2 * h + 1
+    a = np.zeros((2 * ng, p, p))
+    re, im = 0, ng
+
+    def put(row, col, part, m, weight):
+        a[part + m, row, col] += weight
+
+    put(0, 0, re, 0, 1.0)
+    for n in range(1, h + 1):
+        for r, c in ((0, 2 * n - 1), (2 * n - 1, 0)):
+            put(r, c, re, n, 1.0)
+        for r, c in ((0, 2 * n), (2 * n, 0)):
+            put(r, c, im, n, 1.0)
+        for m in range(1, h + 1):
+            d, t = abs(n - m), n + m
+            put(2 * n - 1, 2 * m - 1, re, d, 0.5)              # sum cos(n.) cos(m.)
+            put(2 * n - 1, 2 * m - 1, re, t, 0.5)
+            put(2 * n, 2 * m, re, d, 0.5)                      # sum sin(n.) sin(m.)
+            put(2 * n, 2 * m, re, t, -0.5)
+            sign = float(np.sign(m - n))                       # sum cos(n.) sin(m.)
+            for r, c in ((2 * n - 1, 2 * m), (2 * m, 2 * n - 1)):
+                put(r, c, im, t, 0.5)
+                put(r, c, im, d, 0.5 * sign)
+    a = a.reshape(2 * ng, p * p)
+    a.setflags(write=False)
+    return a
+
+
+def _assemble(g: np.ndarray) -> np.ndarray:
+    """Information matrix (..., p, p) from the window sums g (..., 2H+1)."""
+    h = (g.shape[-1] - 1) // 2
+    flat = np.concatenate([g.real, g.imag], axis=-1) @ _assembly(h)
+    return flat.reshape(*g.shape[:-1], 2 * h + 1, 2 * h + 1)
+
+
+def harmonic_information(lam: float, step: float, n_harmonics: int,
+                         count: int | np.ndarray | None = None,
+                         prior: float = PRIOR) -> np.ndarray:
+    """Information matrix M_k of the harmonic regressor in the rotating frame.
+
+    Parameters
+    ----------
+    lam : forgetting factor
+    step : [cycles per sample] f0 / fs
+    n_harmonics : H
+    count : samples seen, scalar or (n,); None for the stationary value (count -> infinity)
+    prior : r0
+
+    Returns
+    -------
+    (p, p) or (n, p, p) [1], p = 2H+1, ordered [DC, Re 1, Im 1, Re 2, ...]
+    """
+    m = _assemble(_window_sums(lam, step, n_harmonics, count))
+    if count is not None:
+        w = prior * lam ** np.asarray(count, dtype=float)
+        m = m + w[..., None, None] * np.eye(m.shape[-1])
+    return m
+
+
+@lru_cache(maxsize=16)
+def stationary(lam: float, step: float, n_harmonics: int) -> tuple[np.ndarray, np.ndarray,
+                                                                   np.ndarray]:
+    """(M, M^-1, M^-1 M(lambda^2) M^-1): stationary information, its inverse, and the
+    covariance of the rotated coefficients per unit white-noise variance."""
+    m = harmonic_information(lam, step, n_harmonics)
+    inv = np.linalg.inv(m)
+    noise = inv @ _assemble(_window_sums(lam * lam, step, n_harmonics, None)) @ inv
+    for a in (m, inv, noise):
+        a.setflags(write=False)
+    return m, inv, noise
+
+
+@dataclass(frozen=True)
+class _Tables:
+    """Per-sample factors of a piece of up to ``length`` samples at one frequency.
+
+    sample i of a piece (i = 0..length-1), phase theta_i = theta_start + step (i + 1):
+    rotor : (H+1, L) exp(-j 2 pi n step (i+1))
+    weight : (H+1, L) lambda^-i rotor
+    back : (H+1, L) lambda^i conj(rotor)
+    power : (L,) lambda^i
+    """
+
+    rotor: np.ndarray
+    weight: np.ndarray
+    back: np.ndarray
+    power: np.ndarray
+
+
+@lru_cache(maxsize=8)
+def window_tables(lam: float, step: float, n_harmonics: int, length: int) -> _Tables:
+    i = np.arange(length)
+    first = np.exp(-2j * np.pi * np.mod(step * (i + 1), 1.0))
+    rotor = np.empty((n_harmonics + 1, length), dtype=complex)
+    rotor[0] = 1.0
+    for n in range(1, n_harmonics + 1):
+        np.multiply(rotor[n - 1], first, out=rotor[n])
+    power = lam ** i.astype(float)
+    t = _Tables(rotor=rotor, weight=rotor / power, back=rotor.conj() * power, power=power)
+    for a in (t.rotor, t.weight, t.back, t.power):
+        a.setflags(write=False)
+    return t
+
+
+def steady_count(lam: float) -> int:
+    """Samples after which M_k is stationary to rounding (lambda^k < STEADY_TOL)."""
+    return int(math.ceil(math.log(STEADY_TOL) / math.log(lam)))
+
+
+def chunk_limit(lam: float) -> int:
+    """Longest stretch summed at once: lambda^-n stays below 4."""
+    return max(1, int(_GROWTH / -math.log(lam)))
+
+
+def to_real(z: np.ndarray) -> np.ndarray:
+    """Complex (..., H+1, n) -> real (..., 2H+1, n): [Re z0, Re z1, Im z1, ...]."""
+    h = z.shape[-2] - 1
+    out = np.empty((*z.shape[:-2], 2 * h + 1, z.shape[-1]))
+    out[..., 0, :] = z[..., 0, :].real
+    out[..., 1::2, :] = z[..., 1:, :].real
+    out[..., 2::2, :] = z[..., 1:, :].imag
+    return out
+
+
+def to_complex(u: np.ndarray) -> np.ndarray:
+    """Real (..., 2H+1, n) -> complex (..., H+1, n); inverse of :func:`_to_real`."""
+    z = np.empty((*u.shape[:-2], (u.shape[-2] + 1) // 2, u.shape[-1]), dtype=complex)
+    z[..., 0, :] = u[..., 0, :]
+    z[..., 1:, :] = u[..., 1::2, :] + 1j * u[..., 2::2, :]
+    return z
+
+
+def mixing(readout: np.ndarray, lam: float, step: float, n_harmonics: int) -> np.ndarray:
+    """Readout (n_out, n_ch, p) of u -> complex kappa (n_out, H+1, n_ch) acting on the rotated
+    right-hand side: readout . u = Re(sum kappa . beta_complex) with u = M^-1 beta."""
+    k = readout @ stationary(lam, step, n_harmonics)[1]
+    kap = np.empty((k.shape[0], n_harmonics + 1, k.shape[1]), dtype=complex)
+    kap[:, 0] = k[..., 0]
+    kap[:, 1:] = (k[..., 1::2] - 1j * k[..., 2::2]).transpose(0, 2, 1)
+    return kap
+
+
+def harmonic_update(state: HarmonicState, y: np.ndarray, lam: float,
+                    readout: np.ndarray | None = None,
+                    prior: float = PRIOR) -> tuple[HarmonicState, np.ndarray]:
+    """Exact RLS of harmonic regressors over a block, at the state's constant frequency.
+
+    Parameters
+    ----------
+    state : after the previous sample (:func:`harmonic_start` at first)
+    y : (n_channels, n) [unit of each channel]
+    lam : forgetting factor, 0 < lambda < 1
+    readout : optional (n_out, n_channels, 2H+1) [1/unit]: a linear functional of the
+        instantaneous harmonic components u_{c,k} = T_k^T x_{c,k} ([U_0, Re U_1, Im U_1, ...]
+        with U_n = X_n exp(j n theta_k), so that Re U_n is harmonic n's value at sample k)
+    prior : r0 of :func:`rls_start`
+
+    Returns
+    -------
+    state : after the last sample
+    out : without ``readout``, (n_channels, H+1, n) complex phasors X_n(k), referred to the
+        phase theta_k (the RLS estimate x_k, as :func:`rls_update` with the regressor of
+        :func:`forcecal.harmonics.design_matrix`); with it, (n_out, n) sum_c readout_c . u_c
+    """
+    y = np.atleast_2d(np.asarray(y, dtype=float))
+    if y.shape[0] != state.demod.shape[0]:
+        raise DimensionError(f"harmonic_update: {y.shape[0]} channels given, the state holds "
+                             f"{state.demod.shape[0]}")
+    h = state.n_harmonics
+    limit = chunk_limit(lam)
+    n = y.shape[-1]
+    tabs = window_tables(lam, state.step, h, max(1, min(limit, n)))
+    kap = None if readout is None else mixing(readout, lam, state.step, h)
+    pieces = []
+    for start in range(0, max(n, 1), limit):
+        state, out = kernel(state, y[:, start:start + limit], lam, tabs, readout, kap, prior)
+        pieces.append(out)
+    return state, pieces[0] if len(pieces) == 1 else np.concatenate(pieces, axis=-1)
+
+
+def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
+            readout: np.ndarray | None, kap: np.ndarray | None,
+            prior: float) -> tuple[HarmonicState, np.ndarray]:
+    """One piece of at most ``chunk_limit(lam)`` samples (the tables' length or less)."""
+    n_ch, c = y.shape
+    h = state.n_harmonics
+    if c == 0:
+        if readout is None:
+            return state, np.zeros((n_ch, h + 1, 0), dtype=complex)
+        return state, np.zeros((readout.shape[0], 0))
+    start = np.exp(-2j * np.pi * state.phase * np.arange(h + 1))[:, None]
+    weight = tables.weight[:, :c] * start                         # lambda^-i exp(-j n theta_i)
+    power = tables.power[:c]
+    last = power[c - 1]
+    new = HarmonicState(demod=lam * last * state.demod + last * (y @ weight.T),
+                        energy=lam * last * state.energy + (y * y) @ power[::-1],
+                        phase=float((state.phase + state.step * c) % 1.0),
+                        step=state.step, count=state.count + c)
+    steady = state.count >= steady_count(lam)
+    if kap is not None and steady:
+        # forces straight from the mixed, demodulated channels: Re sum_n kappa . beta_n
+        acc = np.cumsum((kap @ y) * weight, axis=-1)                # (n_out, H+1, c)
+        acc += lam * np.sum(kap * state.demod.T, axis=-1)[..., None]
+        return new, np.einsum("onj,nj->oj", acc, tables.back[:, :c] * start.conj()).real
+    acc = np.cumsum(y[:, None, :] * weight, axis=-1)                # (n_ch, H+1, c)
+    acc += lam * state.demod[..., None]
+    beta = to_real(acc * (tables.back[:, :c] * start.conj()))     # (n_ch, p, c)
+    if steady:
+        u = np.einsum("pq,cqj->cpj", stationary(lam, state.step, h)[1], beta)
+    else:
+        info = harmonic_information(lam, state.step, h, state.count + np.arange(1, c + 1),
+                                    prior)
+        u = np.linalg.solve(info, beta.transpose(2, 1, 0)).transpose(2, 1, 0)
+    if readout is None:
+        return new, to_complex(u) * (tables.rotor[:, :c] * start)
+    return new, np.einsum("ocp,cpj->oj", readout, u)
+
+
+def last_coefficients(state: HarmonicState, lam: float, prior: float) -> np.ndarray:
+    """(n_channels, p) rotated coefficients u of the last sample."""
+    h = state.n_harmonics
+    rot = np.exp(-2j * np.pi * state.phase * np.arange(h + 1))
+    beta = to_real((state.demod * rot.conj())[..., None])[..., 0]     # (n_ch, p)
+    if state.count >= steady_count(lam):
+        info = stationary(lam, state.step, h)[0]
+    else:
+        info = harmonic_information(lam, state.step, h, max(state.count, 1), prior)
+    return np.linalg.solve(info, beta.T).T

@@ -1,0 +1,31 @@
+"""The structure kinds, one class each behind the :class:`Structure` protocol.
+
+The rig parser picks the class from ``structure.kind`` (:data:`KINDS`); every other module
+asks the structure, never its kind. A new kind (a ring, a shaft) is one new module here and
+one entry in :data:`KINDS`.
+"""
+
+from .base import UP, Frame, LumpedMass, OutOfPlane, Structure, locations
+from .beam import Beam
+from .body import Body, block_quadrature
+from .plate import Plate, inside_polygon, polygon_quadrature, triangulate
+
+KINDS: dict[str, type[Structure]] = {cls.kind: cls for cls in (Beam, Plate, Body)}
+"""The rig file's ``structure.kind`` -> the class that reads and answers for it."""
+
+__all__ = [
+    "KINDS",
+    "UP",
+    "Beam",
+    "Body",
+    "Frame",
+    "LumpedMass",
+    "OutOfPlane",
+    "Plate",
+    "Structure",
+    "block_quadrature",
+    "inside_polygon",
+    "locations",
+    "polygon_quadrature",
+    "triangulate",
+]

@@ -1,0 +1,69 @@
+"""A beam in plane bending along x in [0, length], on two statically determinate gauges."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+
+from .base import LumpedMass, OutOfPlane
+
+if TYPE_CHECKING:
+    from .._toml import TableReader
+
+__all__ = ["Beam"]
+
+_N_QUAD = 64
+"""Gauss-Legendre points along the beam (exact for polynomial shapes up to degree 126)."""
+
+
+@dataclass(frozen=True)
+class Beam(OutOfPlane):
+    """A beam of ``length`` [m] and ``mass_per_length`` [kg/m] along x in [0, length].
+
+    Its structure coordinates are x (n,) [m]; its rigid motions w = 1, x.
+    """
+
+    length: float
+    mass_per_length: float
+    masses: tuple[LumpedMass, ...] = ()
+
+    kind: ClassVar[str] = "beam"
+    axes: ClassVar[tuple[str, ...]] = ("x",)
+    n_rigid: ClassVar[int] = 2
+
+    @property
+    def distributed_mass(self) -> float:
+        return self.mass_per_length * self.length
+
+    def contains(self, x: float, y: float = 0.0, z: float = 0.0, tol: float = 1e-9) -> bool:
+        return -tol <= x <= self.length + tol
+
+    def outside(self, x: float, y: float = 0.0, z: float = 0.0) -> str:
+        return f"x = {x} lies off the structure (0 <= x <= {self.length})"
+
+    def extent(self) -> tuple[float, float]:
+        return (0.0, self.length)
+
+    def mass_quadrature(self) -> tuple[np.ndarray, np.ndarray]:
+        xi, wi = np.polynomial.legendre.leggauss(_N_QUAD)
+        x = 0.5 * self.length * (xi + 1.0)
+        w = 0.5 * self.length * wi * self.mass_per_length
+        return (np.concatenate([x, [m.x for m in self.masses]]),
+                np.concatenate([w, [m.mass for m in self.masses]]))
+
+    def grid(self, n: int = 401) -> np.ndarray:
+        return np.linspace(0.0, self.length, n)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "length": self.length,
+                "mass_per_length": self.mass_per_length}
+
+    @classmethod
+    def from_table(cls, reader: TableReader, table: dict[str, Any],
+                   masses: tuple[LumpedMass, ...]) -> Beam:
+        return cls(length=reader.required(table, "length", "structure", positive=True),
+                   mass_per_length=reader.required(table, "mass_per_length", "structure",
+                                                   positive=True),
+                   masses=masses)
