@@ -9,8 +9,9 @@ import numpy as np
 import pytest
 
 from forcecal.errors import DataError, DimensionError, InputError
-from forcecal.forces import channels_si, implied_phasors, reconstruct
+from forcecal.forces import channels_si, force_solve, implied_phasors, reconstruct
 from forcecal.harmonics import design_matrix, fit_harmonics
+from forcecal.inertia import inertia_term
 from forcecal.io.run_files import read_table_csv
 from forcecal.records import Run
 from forcecal.relaxation import force_matrix
@@ -70,8 +71,8 @@ def synthetic_run(rig, model, batch, phasors, duration, f_start, f_end, seed, ga
     force = np.repeat(-(pinv @ r[:, :1]).real, t.size, axis=1)
     for k, n in enumerate(model.harmonics):
         n = int(n)
-        inertia = model.couplings[k][:, None] * (-((n * w) ** 2)) * batch.coordinates.q[k]
-        force += ((pinv @ (inertia - r[:, n:n + 1])) * rot[n]).real
+        inertia = inertia_term(model.couplings[k], batch.coordinates.q[k], n * w)
+        force += (force_solve(pinv, inertia, r[:, n:n + 1]) * rot[n]).real
     return Run(channels=channels, fs=fs, name="synthetic"), g * force
 
 
@@ -182,6 +183,23 @@ def test_stationary_run_agrees_with_batch_reconstruct(paper, batch):
     assert np.all(error < 0.05 * static_error)
     np.testing.assert_allclose(stacked(static), batch.static_series, rtol=0, atol=1e-12)
     np.testing.assert_array_equal(time, batch.time)
+
+
+def test_stream_readout_is_the_batch_force_solve(paper, batch):
+    """The stream's readout (the map it applies at every sample) gives, from the channel
+    phasors the batch estimate implies, exactly the batch's force phasors: both estimators
+    use one coordinate map, one inertia term, one force solve and one harmonic policy."""
+    rig, _, model, run = paper
+    unshaped = [int(n) for n in np.flatnonzero(batch.kept & ~batch.with_inertia) if n > 0]
+    est = StreamEstimator(rig, model, batch.f0, run.fs, extra_harmonics=unshaped,
+                          n_harmonics=len(batch.harmonics) - 1)
+    implied = implied_phasors(rig, model, run, batch)
+    x = np.stack([implied[c] for c in est.channel_names])
+    x[:, ~batch.kept] = 0.0
+    got = est.force_phasors(x)
+    np.testing.assert_allclose(got, batch.force, rtol=0, atol=1e-12 * np.abs(batch.force).max())
+    # a broken copy shows: without the inertia the readout is the reactions-only estimate
+    assert np.abs(got - batch.static)[:, 1:].max() > 1e3 * 1e-12 * np.abs(batch.force).max()
 
 
 def test_phasor_noise_matches_the_forgetting_prediction():

@@ -376,21 +376,10 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     with_inertia, kept = kept_harmonics(
         h, shaped, significant_reactions(reactions, g_fit.phasor_std), dc=True)
     notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0, var)
-    reactions[:, ~kept] = 0.0
-    inertia[:, ~kept] = 0.0
-    var[:, ~kept, :] = 0.0
-    force = force_solve(pinv, inertia, reactions)
-    static = force_solve(pinv, np.zeros_like(reactions), reactions)
-    if ac_coupled:
-        force[:, 0] = 0.0
-        static[:, 0] = 0.0
-        var[:, 0, :] = 0.0
-    std = np.sqrt(var.mean(axis=2))
-    std[:, 0] = np.sqrt(var[:, 0, 0])                                # DC is real
-    if cond > SPLIT_CONDITION:
-        notes.append(f"cond(Psi) = {cond:.3g}: the force points are close together, so the split "
-                     f"between {', '.join(rig.force_names)} is poorly determined (see their "
-                     "uncertainties); the resultant (total and moments) is well determined")
+    for a in (reactions, inertia, var):
+        a[:, ~kept] = 0.0
+    force, static, std = _solve(pinv, inertia, reactions, var, ac_coupled)
+    notes += _split_note(rig, cond)
     static_series = force_solve(pinv, tare_dc[:, None], rec.gauges)
     if ac_coupled:
         static_series = static_series - static_series.mean(axis=1, keepdims=True)
@@ -406,6 +395,30 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
         dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std,
     )
+
+
+def _solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray, var: np.ndarray,
+           ac_coupled: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step 6: the forces, the reactions-only forces and the combinations' standard
+    uncertainties (Re and Im averaged; the DC is real); no DC when the gauges are AC-coupled."""
+    force = force_solve(pinv, inertia, reactions)
+    static = force_solve(pinv, np.zeros_like(reactions), reactions)
+    if ac_coupled:
+        force[:, 0] = 0.0
+        static[:, 0] = 0.0
+        var[:, 0, :] = 0.0
+    std = np.sqrt(var.mean(axis=2))
+    std[:, 0] = np.sqrt(var[:, 0, 0])
+    return force, static, std
+
+
+def _split_note(rig: Rig, cond: float) -> list[str]:
+    """A note when close force points make the split between the forces poorly determined."""
+    if cond <= SPLIT_CONDITION:
+        return []
+    return [f"cond(Psi) = {cond:.3g}: the force points are close together, so the split "
+            f"between {', '.join(rig.force_names)} is poorly determined (see their "
+            "uncertainties); the resultant (total and moments) is well determined"]
 
 
 def implied_phasors(rig: Rig, model: SpatialModel, run: Run,

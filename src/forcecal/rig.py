@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import tomllib
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -305,13 +306,17 @@ def _actuator(r: TableReader, act: dict[str, Any]) -> Actuator:
     )
 
 
+def _groups(gauges: tuple[Gauge, ...], forces: tuple[ForcePoint, ...],
+            sensors: tuple[Sensor, ...]) -> list[tuple[str, Sequence[Gauge | ForcePoint | Sensor]]]:
+    """The rig's points by the key of their tables."""
+    return [("gauges", gauges), ("forces", forces), ("sensors", sensors)]
+
+
 def _check_names(r: TableReader, gauges: tuple[Gauge, ...], forces: tuple[ForcePoint, ...],
                  sensors: tuple[Sensor, ...], actuator: Actuator) -> None:
     """Names unique across every channel kind, and none reserved for an output column."""
     seen: dict[str, str] = {}
-    groups: tuple[tuple[str, tuple[Gauge, ...] | tuple[ForcePoint, ...] | tuple[Sensor, ...]],
-                  ...] = (("gauges", gauges), ("forces", forces), ("sensors", sensors))
-    for key, items in groups:
+    for key, items in _groups(gauges, forces, sensors):
         for k, item in enumerate(items):
             if item.name in seen or item.name in ("time", "total"):
                 other = seen.get(item.name, "a reserved column name")
@@ -337,9 +342,7 @@ def _check_statics(r: TableReader, structure: Structure, gauges: tuple[Gauge, ..
         raise r.fail("forces", f"has {len(forces)} entries; at most {len(gauges)} forces "
                      "(one per gauge) can be determined")
     directed = structure.directed
-    groups: tuple[tuple[str, tuple[Gauge, ...] | tuple[ForcePoint, ...] | tuple[Sensor, ...]],
-                  ...] = (("gauges", gauges), ("forces", forces), ("sensors", sensors))
-    for key, items in groups:
+    for key, items in _groups(gauges, forces, sensors):
         pts = locations(items)          # on a body, one point may carry two directions
         for a in range(len(items)):
             for b in range(a):

@@ -56,7 +56,7 @@ class SpatialModel:
 
     f0: float
     harmonics: np.ndarray
-    shapes: tuple[ShapeFit, ...]
+    shapes: tuple[ShapeFit | VectorShapeFit, ...]
     couplings: np.ndarray
     similarity: np.ndarray
     snr: np.ndarray
@@ -268,7 +268,7 @@ def _check_points_on_structure(rig: Rig, scan: Scan) -> None:
     st.coordinates(pts, source=f"scan '{scan.source}'")
     for k, p in enumerate(pts):
         xyz = [float(c) for c in p[:3]] + [0.0] * (3 - min(len(p), 3))
-        if not st.contains(*xyz, tol=1e-6):
+        if not st.contains(xyz[0], xyz[1], xyz[2], tol=1e-6):
             where = ", ".join(f"{c:.4g}" for c in xyz[:st.dim])
             axes = ", ".join(st.axes)
             raise InputError(f"scan '{scan.source}': point {k + 1} at "

@@ -84,6 +84,30 @@ FREQUENCY_RANGE = 0.05
 # the stateful estimator
 
 
+def _settings(model: SpatialModel, f0_guess: float, fs: float, n_harmonics: int | None,
+              forgetting: float | None) -> tuple[int, float]:
+    """The number of harmonics H and the forgetting factor lambda, checked."""
+    if not (fs > 0 and f0_guess > 0):
+        raise InputError(f"stream: fs and f0_guess must be positive; got fs = {fs} Hz, "
+                         f"f0_guess = {f0_guess} Hz")
+    h = int(n_harmonics or len(model.snr))
+    if h < 1:
+        raise InputError(f"stream: n_harmonics must be >= 1; got {h}")
+    if h * f0_guess * (1 + FREQUENCY_RANGE) >= 0.5 * fs:
+        raise DataError(f"stream: harmonic {h} of {f0_guess:.6g} Hz is not below the "
+                        f"Nyquist frequency {0.5 * fs:.6g} Hz of fs = {fs:.6g} Hz; "
+                        "reduce n_harmonics")
+    lam = 1.0 - f0_guess / (fs * DEFAULT_MEMORY_PERIODS) if forgetting is None \
+        else float(forgetting)
+    if not 0.0 < lam < 1.0:
+        raise InputError(f"stream: the forgetting factor must lie in (0, 1); got {lam}")
+    if 1.0 / (1.0 - lam) < 2 * (2 * h + 1):
+        raise InputError(f"stream: forgetting {lam} keeps a memory of "
+                         f"{1 / (1 - lam):.3g} samples, less than twice the "
+                         f"{2 * h + 1} regressors of {h} harmonics")
+    return h, lam
+
+
 class StreamEstimator:
     """Forces of a live acquisition, one block of samples after another.
 
@@ -121,24 +145,7 @@ class StreamEstimator:
                  sensor_std: Sequence[float] | np.ndarray | None = None,
                  tare_dc: Sequence[float] | np.ndarray | None = None, ac_coupled: bool = False,
                  extra_harmonics: Sequence[int] = ()) -> None:
-        if not (fs > 0 and f0_guess > 0):
-            raise InputError(f"stream: fs and f0_guess must be positive; got fs = {fs} Hz, "
-                             f"f0_guess = {f0_guess} Hz")
-        h = int(n_harmonics or len(model.snr))
-        if h < 1:
-            raise InputError(f"stream: n_harmonics must be >= 1; got {h}")
-        if h * f0_guess * (1 + FREQUENCY_RANGE) >= 0.5 * fs:
-            raise DataError(f"stream: harmonic {h} of {f0_guess:.6g} Hz is not below the "
-                            f"Nyquist frequency {0.5 * fs:.6g} Hz of fs = {fs:.6g} Hz; "
-                            "reduce n_harmonics")
-        lam = 1.0 - f0_guess / (fs * DEFAULT_MEMORY_PERIODS) if forgetting is None \
-            else float(forgetting)
-        if not 0.0 < lam < 1.0:
-            raise InputError(f"stream: the forgetting factor must lie in (0, 1); got {lam}")
-        if 1.0 / (1.0 - lam) < 2 * (2 * h + 1):
-            raise InputError(f"stream: forgetting {lam} keeps a memory of "
-                             f"{1 / (1 - lam):.3g} samples, less than twice the "
-                             f"{2 * h + 1} regressors of {h} harmonics")
+        h, lam = _settings(model, f0_guess, fs, n_harmonics, forgetting)
         if abs(f0_guess / model.f0 - 1.0) > FREQUENCY_MISMATCH:
             warnings.warn(f"stream: drive at {f0_guess:.4g} Hz but the scan model was measured "
                           f"at {model.f0:.4g} Hz; its shapes may not apply", stacklevel=2)
@@ -170,8 +177,15 @@ class StreamEstimator:
         extra[[int(n) for n in extra_harmonics if 1 <= int(n) <= h]] = True
         kept = kept_harmonics(h, [n for n, _, _ in self._shaped], extra, dc=not ac_coupled)[1]
         self._force_harmonics = [int(n) for n in np.flatnonzero(kept)]
-        # frequency loop
-        self.grid = max(1, round(fs / f0_guess))
+        self._loop_settings()
+        self._state = harmonic_start(len(self.channel_names), h, f0_guess, fs, t0)
+        self._t0 = float(t0)
+        self._retune()
+
+    def _loop_settings(self) -> None:
+        """The frequency loop's grid, gains and start (see the module docstring)."""
+        lam, fs = self.lam, self.fs
+        self.grid = max(1, round(fs / self.f0_guess))
         self._piece = min(self.grid, chunk_limit(lam))
         memory_s = 1.0 / ((1.0 - lam) * fs)
         w_loop = min(1.0 / (LOOP_MEMORIES * memory_s), LOOP_MAX_STEP * fs / self.grid)
@@ -181,14 +195,11 @@ class StreamEstimator:
         self._lead = lam / (1.0 - lam) / self.grid
         # the loop starts once the window is well conditioned (spans whole periods)
         self._engage = math.ceil(max(ENGAGE_MEMORIES / (1.0 - lam),
-                                     ENGAGE_PERIODS * fs / f0_guess))
+                                     ENGAGE_PERIODS * fs / self.f0_guess))
         self._loop_phase: float | None = None
         self._loop_x1 = 0j
         self._loop_integral = 0.0
         self._warned = False
-        self._state = harmonic_start(len(self.channel_names), h, f0_guess, fs, t0)
-        self._t0 = float(t0)
-        self._retune()
 
     def _retune(self) -> None:
         """Readout, mixing and per-sample tables for the state's frequency."""
@@ -287,6 +298,28 @@ class StreamEstimator:
         weight = (1.0 - self.lam**st.count) / (1.0 - self.lam)
         dof = weight - (2 * h + 1)
         return np.sqrt(rss / dof) if dof > 0 else np.full(len(self.channel_names), np.nan)
+
+    def force_phasors(self, phasors: np.ndarray) -> np.ndarray:
+        """The force phasors that the readout assigns to given channel phasors: the linear map
+        the estimator applies at every sample, F_n = Psi^+ (J_n - R_n) with J_n from the probes.
+
+        Parameters
+        ----------
+        phasors : (n_channels, H+1) complex ndarray
+            [SI] phasors of every channel in the order of :attr:`channel_names`, after the
+            rig's scales.
+
+        Returns
+        -------
+        (n_forces, H+1) complex ndarray
+            [N]
+        """
+        c = self._readout[:self._n_f]                              # (n_f, n_ch, p)
+        gain = np.empty((*c.shape[:2], self.n_harmonics + 1), dtype=complex)
+        gain[..., 0] = c[..., 0]
+        gain[..., 1:] = c[..., 1::2] - 1j * c[..., 2::2]
+        forces: np.ndarray = np.einsum("fcn,cn->fn", gain, phasors)
+        return forces
 
     def noise_std(self, channel_std: Sequence[float] | np.ndarray) -> np.ndarray:
         """(n_forces,) [N] steady-state std of each force estimate for white noise.

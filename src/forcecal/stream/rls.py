@@ -203,7 +203,7 @@ def harmonic_start(n_channels: int, n_harmonics: int, f0: float, fs: float,
 
 
 def _window_sums(lam: float, step: float, n_harmonics: int,
-                 count: np.ndarray | None) -> np.ndarray:
+                 count: int | np.ndarray | None) -> np.ndarray:
     """g_m = sum_{d < count} lambda^d exp(j 2 pi m step d), m = 0..2H -> (..., 2H+1)."""
     m = np.arange(2 * n_harmonics + 1)
     g = 1.0 / (1.0 - lam * np.exp(2j * np.pi * step * m))
@@ -241,9 +241,9 @@ def _assembly(n_harmonics: int) -> np.ndarray:
             for r, c in ((2 * n - 1, 2 * m), (2 * m, 2 * n - 1)):
                 put(r, c, im, t, 0.5)
                 put(r, c, im, d, 0.5 * sign)
-    a = a.reshape(2 * ng, p * p)
-    a.setflags(write=False)
-    return a
+    flat: np.ndarray = a.reshape(2 * ng, p * p)
+    flat.setflags(write=False)
+    return flat
 
 
 def _assemble(g: np.ndarray) -> np.ndarray:
