@@ -132,6 +132,6 @@ def test_relaxation_shapes_are_rigid_and_unit_at_their_gauge(beam_rig_doc):
         psi = relaxation_shapes(rig, rig.gauge_points)
         np.testing.assert_allclose(psi, np.eye(len(rig.gauges)), atol=1e-12)
         # couplings of the rigid translation along +w (beam, plate) sum to the total mass
-        pts, weights = mass_weights(rig)
+        _, weights = mass_weights(rig)
         if not rig.structure.directed:
             np.testing.assert_allclose(weights.sum(), rig.structure.total_mass, rtol=1e-12)

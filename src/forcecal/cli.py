@@ -57,7 +57,8 @@ def _cmd_simulate(args) -> int:
 def _read_scan(args, rig):
     from .io.scan_files import read_scan
 
-    return read_scan(args.scan, reference_label=args.reference_label, locations=rig.is_body)
+    return read_scan(args.scan, reference_label=args.reference_label,
+                     locations=rig.structure.directed)
 
 
 def _build_model(rig, scan, args):

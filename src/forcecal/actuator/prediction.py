@@ -1,0 +1,411 @@
+"""The product of a calibration: the :class:`Calibration` file and the force it predicts.
+
+A :class:`Calibration` predicts the total actuator force, with its standard uncertainty, from
+(current, gap) (:func:`predict`) or from the flux (:func:`predict_flux`); it is written to and
+read from JSON exactly.
+
+Shapes: ``n`` predictions, ``n_poles`` poles, ``n_params`` parameters of a law. SI units
+throughout.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..errors import DimensionError, InputError
+from ..io.atomic import write_text_atomic
+from .laws import Law, get_law
+
+if TYPE_CHECKING:
+    from .fitting import LawFit
+
+__all__ = ["Calibration", "ExtrapolationWarning", "Prediction", "predict", "predict_flux"]
+
+_CALIBRATION_FORMAT = "forcecal-calibration"
+_CALIBRATION_VERSION = 1
+_REQUIRED_KEYS = ("law", "params", "covariance", "n_poles", "current_range", "gap_range")
+
+
+class ExtrapolationWarning(UserWarning):
+    """A prediction was asked for outside the currents, gaps or fluxes of the calibration."""
+
+
+def _pair(value: Any, what: str) -> tuple[float, float]:
+    """``value`` as two finite floats ``(lo, hi)``; InputError naming ``what`` otherwise."""
+    arr = np.asarray(value, dtype=float)
+    if arr.shape != (2,) or not np.all(np.isfinite(arr)):
+        raise InputError(f"{what} must be two finite numbers [lo, hi]; found {value!r}")
+    return float(arr[0]), float(arr[1])
+
+
+def _params_from_json(params: Any, law: Law) -> np.ndarray:
+    """The parameter vector of ``law`` from the JSON map of names to values."""
+    if not isinstance(params, dict):
+        raise InputError("key 'params' must map parameter names to values")
+    missing = [n for n in law.param_names if n not in params]
+    if missing:
+        raise InputError(f"key 'params' lacks {', '.join(missing)} for law '{law.name}'")
+    return np.array([float(params[n]) for n in law.param_names])
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """A calibrated actuator law: what predicts force from (current, gap) or from flux.
+
+    Attributes
+    ----------
+    law : str
+        Name of the law (see :data:`forcecal.actuator.LAWS`).
+    params : (n_params,) array
+        Parameters, units as the law's ``param_units``.
+    covariance : (n_params, n_params) array
+        Parameter covariance.
+    n_poles : int
+        Number of poles the total force sums over.
+    current_range : (float, float) [A]
+        Currents the law was fitted on; predictions outside warn.
+    gap_range : (float, float) [m]
+        Pole gaps the law was fitted on; predictions outside warn.
+    flux_range : (float, float) [Wb] or None
+        Fluxes the law was fitted on, when measured.
+    candidates : tuple of dict
+        The selection table (one JSON-ready row per law, skipped laws with their reason).
+    """
+
+    law: str
+    params: np.ndarray
+    covariance: np.ndarray
+    n_poles: int
+    current_range: tuple[float, float]
+    gap_range: tuple[float, float]
+    flux_range: tuple[float, float] | None = None
+    candidates: tuple[dict[str, Any], ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        law = get_law(self.law)
+        params = np.asarray(self.params, dtype=float)
+        cov = np.asarray(self.covariance, dtype=float)
+        p = law.n_params
+        if params.shape != (p,) or cov.shape != (p, p):
+            raise DimensionError(
+                f"calibration '{self.law}': params {params.shape} and covariance {cov.shape}; "
+                f"expected ({p},) and ({p}, {p})"
+            )
+        if not (np.all(np.isfinite(params)) and np.all(np.isfinite(cov))):
+            raise InputError(f"calibration '{self.law}': parameters or covariance not finite")
+        if int(self.n_poles) < 1:
+            raise InputError(f"calibration '{self.law}': n_poles = {self.n_poles} < 1")
+        object.__setattr__(self, "params", params)
+        object.__setattr__(self, "covariance", cov)
+        object.__setattr__(self, "n_poles", int(self.n_poles))
+        object.__setattr__(self, "candidates", tuple(self.candidates))
+
+    @classmethod
+    def from_fit(cls, fit: LawFit, candidates: tuple[dict[str, Any], ...] = ()) -> Calibration:
+        """The calibration of a fitted law.
+
+        Parameters
+        ----------
+        fit : LawFit
+            The fitted law.
+        candidates : tuple of dict
+            The selection table to carry.
+
+        Returns
+        -------
+        Calibration
+            The fitted law's parameters, covariance and ranges.
+        """
+        return cls(
+            law=fit.law.name,
+            params=fit.params.copy(),
+            covariance=fit.covariance.copy(),
+            n_poles=fit.n_poles,
+            current_range=fit.current_range,
+            gap_range=fit.gap_range,
+            flux_range=fit.flux_range,
+            candidates=candidates,
+        )
+
+    @property
+    def law_object(self) -> Law:
+        """The :class:`Law` called :attr:`law`."""
+        return get_law(self.law)
+
+    @property
+    def stderr(self) -> np.ndarray:
+        """Standard uncertainties of the parameters (n_params,)."""
+        return np.sqrt(np.diag(self.covariance))
+
+    def to_json(self) -> dict[str, Any]:
+        """The calibration as a JSON-ready dict.
+
+        Returns
+        -------
+        dict
+            What :meth:`from_json` reads back exactly.
+        """
+        law = self.law_object
+        return {
+            "format": _CALIBRATION_FORMAT,
+            "version": _CALIBRATION_VERSION,
+            "law": law.name,
+            "formula": law.formula,
+            "param_names": list(law.param_names),
+            "param_units": list(law.param_units),
+            "params": {n: float(v) for n, v in zip(law.param_names, self.params, strict=True)},
+            "stderr": {n: float(v) for n, v in zip(law.param_names, self.stderr, strict=True)},
+            "covariance": self.covariance.tolist(),
+            "n_poles": self.n_poles,
+            "current_range": list(self.current_range),
+            "gap_range": list(self.gap_range),
+            "flux_range": None if self.flux_range is None else list(self.flux_range),
+            "candidates": [dict(row) for row in self.candidates],
+        }
+
+    @classmethod
+    def from_json(cls, obj: dict[str, Any], source: str = "<dict>") -> Calibration:
+        """Read a calibration from :meth:`to_json`'s dict.
+
+        Parameters
+        ----------
+        obj : dict
+            The decoded JSON object.
+        source : str
+            Where it comes from, for the messages.
+
+        Returns
+        -------
+        Calibration
+            The calibration the dict describes.
+
+        Raises
+        ------
+        InputError
+            Naming ``source`` and the key at fault.
+        """
+        if not isinstance(obj, dict):
+            raise InputError(f"calibration '{source}': expected a JSON object")
+        for key in _REQUIRED_KEYS:
+            if key not in obj:
+                raise InputError(f"calibration '{source}': missing key '{key}'")
+        try:
+            law = get_law(obj["law"])
+            params = _params_from_json(obj["params"], law)
+            flux_range = obj.get("flux_range")
+            return cls(
+                law=law.name,
+                params=params,
+                covariance=np.array(obj["covariance"], dtype=float),
+                n_poles=int(obj["n_poles"]),
+                current_range=_pair(obj["current_range"], "key 'current_range'"),
+                gap_range=_pair(obj["gap_range"], "key 'gap_range'"),
+                flux_range=None if flux_range is None else _pair(flux_range, "key 'flux_range'"),
+                candidates=tuple(dict(row) for row in obj.get("candidates", [])),
+            )
+        except (InputError, DimensionError, TypeError, ValueError) as exc:
+            raise InputError(f"calibration '{source}': {exc}") from exc
+
+    def save(self, path: str | Path) -> Path:
+        """Write the calibration as JSON, atomically.
+
+        Parameters
+        ----------
+        path : str or Path
+            The file to write.
+
+        Returns
+        -------
+        Path
+            The path written.
+        """
+        text = json.dumps(self.to_json(), indent=2, allow_nan=False)
+        return write_text_atomic(path, text + "\n")
+
+    @classmethod
+    def load(cls, path: str | Path) -> Calibration:
+        """Read a calibration written by :meth:`save`.
+
+        Parameters
+        ----------
+        path : str or Path
+            The JSON file.
+
+        Returns
+        -------
+        Calibration
+            The calibration the file holds.
+
+        Raises
+        ------
+        InputError
+            Naming the file, when it is missing, not JSON, or lacks a key.
+        """
+        path = Path(path)
+        try:
+            text = path.read_text(encoding="utf-8")
+        except FileNotFoundError:
+            raise InputError(f"calibration file '{path}' not found") from None
+        except (OSError, UnicodeDecodeError) as exc:
+            raise InputError(f"calibration file '{path}' cannot be read: {exc}") from None
+        try:
+            obj = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise InputError(
+                f"calibration file '{path}' is not valid JSON: {exc.msg} at line {exc.lineno}"
+            ) from None
+        return cls.from_json(obj, source=str(path))
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """Predicted actuator force.
+
+    Attributes
+    ----------
+    total : (n,) array [N]
+        Total force, summed over the poles.
+    per_pole : (n, n_poles) array [N]
+        Force of each pole.
+    std : (n,) array [N]
+        Standard uncertainty of ``total`` from the parameter covariance (delta method).
+    """
+
+    total: np.ndarray
+    per_pole: np.ndarray
+    std: np.ndarray
+
+
+def _warn_outside(
+    values: np.ndarray, bounds: tuple[float, float], what: str, unit: str, factor: float
+) -> None:
+    """Warn (ExtrapolationWarning, at the caller of the public function) when ``values`` leave
+    ``bounds``; ``factor`` converts both to ``unit`` for the message."""
+    lo, hi = bounds
+    slack = 1e-9 * max(abs(lo), abs(hi))
+    vmin, vmax = float(values.min()), float(values.max())
+    if vmin < lo - slack or vmax > hi + slack:
+        warnings.warn(
+            f"{what} from {factor * vmin:.4g} to {factor * vmax:.4g} {unit} lies outside the "
+            f"calibrated range {factor * lo:.4g} to {factor * hi:.4g} {unit}; extrapolating",
+            ExtrapolationWarning,
+            stacklevel=3,
+        )
+
+
+def _propagate(
+    law: Law, cal: Calibration, i: np.ndarray, s: np.ndarray, phi: np.ndarray | None
+) -> Prediction:
+    """The prediction of the law with its standard uncertainty by the delta method."""
+    per_pole, jac = law._value_and_jacobian(cal.params, i, s, phi)
+    grad = jac.sum(axis=1)
+    var = np.einsum("np,pq,nq->n", grad, cal.covariance, grad)
+    return Prediction(
+        total=per_pole.sum(axis=1), per_pole=per_pole, std=np.sqrt(np.maximum(var, 0.0))
+    )
+
+
+def _current_and_gaps(
+    calibration: Calibration, current: Any, gaps: Any
+) -> tuple[np.ndarray, np.ndarray]:
+    """Current (n,) [A] and gaps (n, n_poles) [m] broadcast to one another, and finite."""
+    i = np.atleast_1d(np.asarray(current, dtype=float))
+    g = np.asarray(gaps, dtype=float)
+    if i.ndim != 1:
+        raise DimensionError(f"current has shape {i.shape}; expected a scalar or (n,)")
+    n = max(i.size, g.shape[0] if g.ndim == 2 else 1)
+    try:
+        i = np.broadcast_to(i, (n,))
+        s = np.broadcast_to(g, (n, calibration.n_poles))
+    except ValueError:
+        raise DimensionError(
+            f"current {i.shape} and gaps {g.shape} do not fit {calibration.n_poles} poles; "
+            "expected gaps as a scalar, (n_poles,), (n, 1) or (n, n_poles)"
+        ) from None
+    if not (np.all(np.isfinite(i)) and np.all(np.isfinite(s))):
+        raise InputError("current and gaps must be finite")
+    return i, s
+
+
+def predict(calibration: Calibration, current: Any, gaps: Any) -> Prediction:
+    """Total and per-pole force from coil current and air gaps, with its uncertainty.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        A calibration of a (current, gap) law.
+    current : float or (n,) array [A]
+        Coil current.
+    gaps : float, (n_poles,), (n, 1) or (n, n_poles) array [m]
+        Air gap at each pole; a scalar means every pole at that gap.
+
+    Returns
+    -------
+    Prediction
+        Arrays over the n predictions; ``std`` propagates the parameter covariance through the
+        gradient of the total (delta method).
+
+    Raises
+    ------
+    InputError
+        When the law predicts from flux, the inputs are not finite, or a gap plus ``s_fe`` is
+        not positive.
+    DimensionError
+        When the shapes of current and gaps do not fit.
+
+    Warns
+    -----
+    ExtrapolationWarning
+        When a current or gap lies outside the calibrated range.
+    """
+    law = calibration.law_object
+    if law.needs_flux:
+        raise InputError(f"calibration law '{law.name}' predicts from flux; use predict_flux")
+    i, s = _current_and_gaps(calibration, current, gaps)
+    law.check_gap_offset(calibration.params, s)
+    _warn_outside(i, calibration.current_range, "current", "A", 1.0)
+    _warn_outside(s, calibration.gap_range, "gap", "mm", 1e3)
+    return _propagate(law, calibration, i, s, None)
+
+
+def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
+    """Total and per-pole force from the flux through one pole, for the flux law.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        A calibration of the flux law.
+    flux : float or (n,) array [Wb]
+        Flux through one pole.
+
+    Returns
+    -------
+    Prediction
+        ``total = n_poles * per-pole``; ``std`` by the delta method.
+
+    Raises
+    ------
+    InputError
+        When the law predicts from current and gap, or the flux is not finite.
+
+    Warns
+    -----
+    ExtrapolationWarning
+        When a flux lies outside the calibrated range.
+    """
+    law = calibration.law_object
+    if not law.needs_flux:
+        raise InputError(f"calibration law '{law.name}' predicts from current and gap; use predict")
+    phi = np.atleast_1d(np.asarray(flux, dtype=float))
+    if phi.ndim != 1 or not np.all(np.isfinite(phi)):
+        raise InputError(f"flux must be finite, a scalar or (n,); got shape {phi.shape}")
+    if calibration.flux_range is not None:
+        _warn_outside(phi, calibration.flux_range, "flux", "Wb", 1.0)
+    s = np.ones((phi.size, calibration.n_poles))
+    return _propagate(law, calibration, np.zeros(phi.size), s, phi)

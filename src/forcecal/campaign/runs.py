@@ -1,0 +1,278 @@
+"""Reconstructing the runs of a campaign, in parallel when there are many.
+
+A campaign is a manifest (INTERFACES.md section 4) listing runs at several static gaps and
+currents, and zero-current tare records. :func:`reconstruct_campaign` reconstructs every run
+(:func:`forcecal.forces.reconstruct`) with its calibration samples
+(:func:`forcecal.campaign.run_samples`), in a ``spawn`` process pool when there are many.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import multiprocessing
+import os
+import warnings
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+from ..errors import InputError
+from ..forces import ForceEstimate, reconstruct
+from ..gaps import static_gaps
+from ..io.manifest import ManifestEntry, read_manifest
+from ..io.run_files import read_run
+from ..rig import Rig
+from ..spatial import SpatialModel
+from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, run_samples
+
+__all__ = ["PARALLEL_MIN_RUNS", "RunResult", "reconstruct_campaign", "rig_for_entry"]
+
+PARALLEL_MIN_RUNS = 3
+"""Campaigns with fewer runs than this are reconstructed serially whatever ``workers`` says."""
+
+_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+_Caught = list[tuple[str, type[Warning]]]
+"""Warnings recorded in a worker: ``(message, category)``."""
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """One reconstructed run of a campaign.
+
+    Attributes
+    ----------
+    entry : ManifestEntry
+        Its manifest row.
+    estimate : ForceEstimate
+        The forces of the run.
+    samples : CalibrationSamples
+        Its calibration samples.
+    tare : str or None
+        Name of the tare record used.
+    """
+
+    entry: ManifestEntry
+    estimate: ForceEstimate
+    samples: CalibrationSamples
+    tare: str | None = None
+
+    @property
+    def name(self) -> str:
+        """The run's name (file stem)."""
+        return self.estimate.run_name
+
+
+def rig_for_entry(rig: Rig, entry: ManifestEntry, manifest: str | Path = "<manifest>") -> Rig:
+    """The rig with the static gaps of a manifest row (``gap``, then ``gap_<force name>``).
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig file's rig.
+    entry : ManifestEntry
+        The manifest row.
+    manifest : str or Path
+        The manifest's name, for the messages.
+
+    Returns
+    -------
+    Rig
+        A copy of ``rig`` whose force points carry the row's static gaps.
+
+    Raises
+    ------
+    InputError
+        When a ``gap_<name>`` column names no force point of the rig.
+    """
+    names = {f.name for f in rig.forces}
+    unknown = sorted(set(entry.gaps) - names)
+    if unknown:
+        raise InputError(
+            f"manifest '{manifest}': column 'gap_{unknown[0]}' names no force point of rig "
+            f"'{rig.source}' (force points: {', '.join(sorted(names))})"
+        )
+    forces = []
+    for f in rig.forces:
+        gap = entry.gaps.get(f.name, entry.gap if entry.gap is not None else f.gap)
+        forces.append(replace(f, gap=gap))
+    return replace(rig, forces=tuple(forces))
+
+
+@dataclass(frozen=True)
+class _Task:
+    """One run to reconstruct, as sent to a worker process (picklable)."""
+
+    index: int
+    rig: Rig
+    model: SpatialModel
+    entry: ManifestEntry
+    tare: Path | None
+    ac_coupled: bool
+    samples_per_period: int
+
+
+def _reconstruct_entry(task: _Task) -> tuple[int, RunResult, _Caught]:
+    """Reconstruct one run; warnings are recorded and returned, to be re-issued by the parent
+    (serial and parallel runs then warn alike)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        run = read_run(task.entry.run)
+        tare = read_run(task.tare) if task.tare is not None else None
+        estimate = reconstruct(task.rig, task.model, run, tare=tare, ac_coupled=task.ac_coupled)
+        samples = run_samples(task.rig, task.model, run, estimate, tare, task.samples_per_period)
+    result = RunResult(
+        entry=task.entry,
+        estimate=estimate,
+        samples=samples,
+        tare=None if task.tare is None else task.tare.stem,
+    )
+    return task.index, result, [(str(w.message), w.category) for w in caught]
+
+
+def _tare_for(index: int, tares: list[int]) -> int | None:
+    """The tare used by row ``index``: the closest preceding tare row, else the first one."""
+    if not tares:
+        return None
+    before = [k for k in tares if k < index]
+    return before[-1] if before else tares[0]
+
+
+def _campaign_tasks(
+    rig: Rig,
+    model: SpatialModel,
+    manifest_path: str | Path,
+    ac_coupled: bool,
+    samples_per_period: int,
+) -> list[_Task]:
+    """The non-tare rows of the manifest as tasks, each with its rig and tare.
+
+    Raises
+    ------
+    InputError
+        A bad manifest, a run without a static gap, a manifest with no run to reconstruct.
+    """
+    entries = read_manifest(manifest_path)
+    tare_rows = [k for k, e in enumerate(entries) if e.tare]
+    tasks = [
+        _Task(
+            index=k,
+            rig=rig_for_entry(rig, e, manifest_path),
+            model=model,
+            entry=e,
+            tare=None if (j := _tare_for(k, tare_rows)) is None else entries[j].run,
+            ac_coupled=ac_coupled,
+            samples_per_period=samples_per_period,
+        )
+        for k, e in enumerate(entries)
+        if not e.tare
+    ]
+    if not tasks:
+        raise InputError(f"manifest '{manifest_path}': every run is a tare; nothing to calibrate")
+    for task in tasks:
+        static_gaps(task.rig)
+    return tasks
+
+
+@contextlib.contextmanager
+def _single_threaded_workers() -> Iterator[None]:
+    """Worker processes started inside run their linear algebra on one thread each.
+
+    The workers are the parallelism: BLAS threads in every worker would oversubscribe the
+    cores (on a busy machine by a factor of ten in time). The variables are set only where the
+    user has not set them, only while the pool starts its processes, and restored after.
+    """
+    added = [name for name in _THREAD_VARIABLES if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        yield
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
+
+
+def _run_tasks(
+    tasks: list[_Task], workers: int, finish: Callable[[int, RunResult, _Caught], None]
+) -> None:
+    """Reconstruct the tasks, serially or in a ``spawn`` pool, calling ``finish`` on each
+    result as it comes (in the parent process)."""
+    total = len(tasks)
+    if workers <= 1 or total < PARALLEL_MIN_RUNS:
+        for task in tasks:
+            finish(*_reconstruct_entry(task))
+        return
+    context = multiprocessing.get_context("spawn")
+    with (
+        _single_threaded_workers(),
+        ProcessPoolExecutor(max_workers=min(workers, total), mp_context=context) as pool,
+    ):
+        futures = [pool.submit(_reconstruct_entry, task) for task in tasks]
+        try:
+            for future in as_completed(futures):
+                finish(*future.result())
+        except BaseException:
+            for future in futures:
+                future.cancel()
+            raise
+
+
+def reconstruct_campaign(
+    rig: Rig,
+    model: SpatialModel,
+    manifest_path: str | Path,
+    progress: Callable[[int, int, str], None] | None = None,
+    workers: int | None = None,
+    ac_coupled: bool = False,
+    samples_per_period: int = DEFAULT_SAMPLES_PER_PERIOD,
+) -> list[RunResult]:
+    """Reconstruct every run of a campaign manifest, with its calibration samples.
+
+    Each row's static gaps override the rig's (``gap``, ``gap_<force name>``). Rows marked
+    ``tare`` are not reconstructed: every other run takes the closest tare row above it (else
+    the first tare row) as its tare, which zeroes the gauges' DC and the probes.
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig; each row's gaps replace its static gaps.
+    model : SpatialModel
+        The harmonic shapes.
+    manifest_path : str or Path
+        The campaign manifest CSV.
+    progress : callable or None
+        Called as ``progress(done, total, run name)`` after each run.
+    workers : int or None
+        Worker processes; default ``min(2, os.cpu_count())``. Campaigns of fewer than
+        ``PARALLEL_MIN_RUNS`` runs, or ``workers <= 1``, run serially.
+    ac_coupled : bool
+        The gauges do not measure DC (piezoelectric): see :func:`forcecal.forces.reconstruct`.
+    samples_per_period : int
+        Calibration samples per run.
+
+    Returns
+    -------
+    list of RunResult
+        The non-tare runs, in manifest order.
+
+    Raises
+    ------
+    InputError
+        A bad manifest, a run without a static gap, a manifest with no run to reconstruct.
+    """
+    tasks = _campaign_tasks(rig, model, manifest_path, ac_coupled, samples_per_period)
+    if workers is None:
+        workers = min(2, os.cpu_count() or 1)
+    done: dict[int, RunResult] = {}
+
+    def finish(index: int, result: RunResult, caught: _Caught) -> None:
+        for message, category in caught:
+            # finish <- _run_tasks <- reconstruct_campaign <- its caller
+            warnings.warn(message, category, stacklevel=4)
+        done[index] = result
+        if progress is not None:
+            progress(len(done), len(tasks), result.name)
+
+    _run_tasks(tasks, workers, finish)
+    return [done[task.index] for task in tasks]
