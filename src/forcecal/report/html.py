@@ -70,9 +70,12 @@ class Table:
 
     Attributes
     ----------
-    rows : rows of cells (any value; formatted with ``str``), the body of the table
-    header : the column names, or None for a table without a header row
-    caption : a title above the table
+    rows : Sequence of Sequence
+        Rows of cells (any value; formatted with ``str``), the body of the table.
+    header : Sequence, optional
+        The column names, or None for a table without a header row.
+    caption : str
+        A title above the table.
     """
 
     rows: Sequence[Sequence[Any]]
@@ -82,7 +85,19 @@ class Table:
 
 @dataclass(frozen=True)
 class Image:
-    """A figure with a caption: a matplotlib Figure (rendered at ``dpi``) or PNG bytes."""
+    """A figure with a caption: a matplotlib Figure (rendered at ``dpi``) or PNG bytes.
+
+    Attributes
+    ----------
+    figure : matplotlib.figure.Figure or bytes
+        The figure, or its PNG file's content.
+    caption : str
+        The caption below the figure.
+    alt : str
+        The alternative text; the caption (or "figure") when empty.
+    dpi : float
+        Resolution [dots per inch] a Figure is rendered at.
+    """
 
     figure: Figure | bytes
     caption: str = ""
@@ -92,14 +107,28 @@ class Image:
 
 @dataclass(frozen=True)
 class Preformatted:
-    """Text shown as written, in a monospace font (tables of plain text, logs)."""
+    """Text shown as written, in a monospace font (tables of plain text, logs).
+
+    Attributes
+    ----------
+    text : str
+        The text.
+    """
 
     text: str
 
 
 @dataclass(frozen=True)
 class Section:
-    """A heading and its content (see the module docstring for the kinds of block)."""
+    """A heading and its content.
+
+    Attributes
+    ----------
+    title : str
+        The heading.
+    content : Sequence
+        The blocks, in order (see the module docstring for the kinds of block).
+    """
 
     title: str
     content: Sequence[Any] = ()
@@ -137,7 +166,23 @@ def _table(table: Table) -> str:
 
 
 def data_uri(png: bytes) -> str:
-    """A ``data:image/png;base64,...`` URI of PNG bytes."""
+    """A ``data:image/png;base64,...`` URI of PNG bytes.
+
+    Parameters
+    ----------
+    png : bytes
+        A PNG file's content.
+
+    Returns
+    -------
+    str
+        The data URI.
+
+    Raises
+    ------
+    InputError
+        When the bytes do not start with the PNG signature.
+    """
     if not png.startswith(_PNG_SIGNATURE):
         raise InputError("an embedded image must be PNG data (the PNG signature is missing)")
     return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
@@ -192,12 +237,15 @@ def build_report(title: str, sections: Sequence[Section]) -> str:
 
     Parameters
     ----------
-    title : the page title
-    sections : the sections, in order (a bare block is accepted as a section's content too)
+    title : str
+        The page title.
+    sections : Sequence of Section
+        The sections, in order (a bare block is accepted as a section's content too).
 
     Returns
     -------
-    str: a complete, self-contained HTML5 document (UTF-8)
+    str
+        A complete, self-contained HTML5 document (UTF-8).
     """
     body = [_section(s, 2) if isinstance(s, Section) else _block(s, 1) for s in sections]
     return "\n".join([
@@ -220,7 +268,22 @@ def build_report(title: str, sections: Sequence[Section]) -> str:
 
 
 def write_report(path: str | Path, title: str, sections: Sequence[Section]) -> Path:
-    """Write :func:`build_report`'s page to ``path`` atomically; returns the path."""
+    """Write :func:`build_report`'s page to ``path`` atomically.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The HTML file to write.
+    title : str
+        The page title.
+    sections : Sequence of Section
+        The sections, in order.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     return write_text_atomic(path, build_report(title, sections))
 
 
@@ -248,9 +311,15 @@ def estimate_table(estimate: ForceEstimate) -> list[list[str]]:
     gauges (``dc_observed`` false) the DC row says "not observed". Amplitudes carry 5
     significant digits, uncertainties 2.
 
+    Parameters
+    ----------
+    estimate : ForceEstimate
+        The forces of one run.
+
     Returns
     -------
-    list of rows of str, the first row being :data:`ESTIMATE_HEADER`
+    list of list of str
+        The rows, the first being :data:`ESTIMATE_HEADER`.
     """
     rows = [list(ESTIMATE_HEADER)]
     names = [*estimate.force_names, "total"]

@@ -7,18 +7,21 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+from matplotlib.figure import Figure
 
+from ..errors import InputError
 from ..forces import ForceEstimate, reconstruct
 from ..harmonics import fit_harmonics
 from ..io.results import write_estimate
 from ..io.run_files import read_table_csv
 from ..records import Run, Scan
 from ..rig import Rig
-from ..scan import harmonic_shapes
+from ..scan import HarmonicShapes, harmonic_shapes
 from ..spatial import SpatialModel, build_spatial_model
 from .figures import (
     CalibrationPoints,
@@ -35,16 +38,33 @@ from .figures import (
 )
 from .html import Image, Preformatted, Section, Table, estimate_table, write_report
 
+if TYPE_CHECKING:
+    from ..campaign import CampaignResult
+
 __all__ = ["calibration_report", "run_report"]
+
+_SHAPE_FIGURES: dict[int, Callable[[HarmonicShapes, SpatialModel], Figure]] = {
+    1: fig_shapes, 2: fig_shapes_2d, 3: fig_shapes_body,
+}
+"""The shape figure (fig. 3) of a structure by its dimension: beam, plate, body."""
 
 
 def _pct(x: float) -> str:
     return f"{100 * x:.3g} %"
 
 
-def _model_section(model: SpatialModel, shapes_png: Path, fig) -> Section:
-    rows = [[int(n), s.order, f"{model.snr[int(n) - 1]:.1f}"]
-            for n, s in zip(model.harmonics, model.shapes, strict=True)]
+def _scan_shapes(rig: Rig, scan: Scan, n_harmonics: int) -> HarmonicShapes:
+    """The scan's harmonic shapes at the rig's nominal drive frequency."""
+    if rig.frequency is None:
+        raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing "
+                         "(the nominal drive frequency)")
+    return harmonic_shapes(scan, rig.frequency, n_harmonics)
+
+
+def _model_section(model: SpatialModel, shapes_png: Path, fig: Figure) -> Section:
+    """The spatial model's section: fundamental, harmonic shapes table and fig. 3."""
+    rows: list[list[Any]] = [[int(n), s.order, f"{model.snr[int(n) - 1]:.1f}"]
+                             for n, s in zip(model.harmonics, model.shapes, strict=True)]
     rows += [[n, "-", f"dropped: {why}"] for n, why in sorted(model.dropped.items())]
     text = (f"Fundamental refined from the scan: {model.f0:.6g} Hz; {model.n_points} scan points. "
             f"Lowest MAC between the harmonics' shapes: {model.similarity.min():.5f}, so "
@@ -60,89 +80,127 @@ def _model_section(model: SpatialModel, shapes_png: Path, fig) -> Section:
     ])
 
 
+def _ac_error(x: np.ndarray, true: np.ndarray) -> float:
+    """RMS of the error's AC part relative to the AC RMS of the truth [1]."""
+    e = x - true
+    ac = np.sqrt(np.mean((true - true.mean()) ** 2))
+    return float(np.sqrt(np.mean((e - e.mean()) ** 2)) / ac)
+
+
 def _truth_errors(est: ForceEstimate, truth: dict[str, np.ndarray]) -> list[list[str]]:
+    """Rows (force, error of the full method, error of the reactions only) against the truth."""
     rows = []
     for k, name in enumerate((*est.force_names, "total")):
         true = truth[name]
         est_s = est.total_series if name == "total" else est.series[k]
         stat = (est.static_series.sum(axis=0) if name == "total" else est.static_series[k])
-        ac = np.sqrt(np.mean((true - true.mean()) ** 2))
-
-        def err(x, true=true, ac=ac):
-            e = x - true
-            return np.sqrt(np.mean((e - e.mean()) ** 2)) / ac
-
-        rows.append([name, _pct(err(est_s)), _pct(err(stat))])
+        rows.append([name, _pct(_ac_error(est_s, true)), _pct(_ac_error(stat, true))])
     return rows
+
+
+def _read_truth(truth_dir: str | Path | None, run: Run) -> dict[str, np.ndarray] | None:
+    """The run's ground truth ``NAME.forces.csv`` in ``truth_dir``, or None without one."""
+    if truth_dir is None or not (Path(truth_dir) / f"{run.name}.forces.csv").is_file():
+        return None
+    _, truth = read_table_csv(Path(truth_dir) / f"{run.name}.forces.csv")
+    return truth
+
+
+def _run_figures(rig: Rig, run: Run, est: ForceEstimate, truth: dict[str, np.ndarray] | None,
+                 figs: Path) -> list[Image]:
+    """Figs. 6 to 8 and the diagnostics of one run, written as PNG into ``figs``."""
+    images = []
+    for name, f, caption in (
+        ("signals", fig_signals(run, rig, est),
+         "Fig. 6: measured current and displacements with the fitted Fourier series."),
+        ("coordinates", fig_coordinates(run, rig, est),
+         "Fig. 7: probe signals, generalized coordinates and accelerations."),
+        ("forces", fig_forces(est, truth),
+         "Fig. 8: inertia contribution and measured reactions; reconstructed forces with "
+         "the reactions-only estimate (dashed)" + (" and the truth (dotted)." if truth
+                                                   else ".")),
+        ("residuals", fig_residuals(est, run, rig),
+         "Fit residuals, sensor consistency and per-harmonic amplitudes with uncertainties."),
+    ):
+        png = save_png(f, figs / f"{run.name}.{name}.png")
+        images.append(Image(f, caption=f"{caption} ({png.name})"))
+    return images
+
+
+def _run_section(rig: Rig, est: ForceEstimate, run: Run, truth: dict[str, np.ndarray] | None,
+                 figs: Path) -> Section:
+    """One run's section: its forces with uncertainties, errors against the truth, figures."""
+    blocks: list[Any] = [
+        f"Refined fundamental {est.f0:.6g} Hz. The inertia accounts for "
+        f"{_pct(est.inertia_share)} of the AC force: that is how far a reactions-only "
+        f"estimate is off. Standard uncertainty of the total force waveform: "
+        f"{est.waveform_std:.3g} N (RMS over time).",
+        Table(estimate_table(est)[1:], header=estimate_table(est)[0],
+              caption="Force phasors with standard uncertainties"),
+    ]
+    if truth is not None:
+        blocks.append(Table(_truth_errors(est, truth),
+                            header=["force", "error (full method)", "error (reactions only)"],
+                            caption="Against the ground truth, % of its AC RMS"))
+    if est.notes:
+        blocks.append(Preformatted("\n".join(est.notes)))
+    blocks += _run_figures(rig, run, est, truth, figs)
+    return Section(f"Run {run.name}", blocks)
 
 
 def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
                truth_dir: str | Path | None = None, n_harmonics: int = 6,
                criterion: str = "gcv", basis: str = "polynomial") -> Path:
-    """Model, forces, figures and ``OUT/report.html`` for runs; returns the report's path.
+    """Model, forces, figures and ``OUT/report.html`` for runs.
 
-    ``n_harmonics``, ``criterion`` and ``basis`` are those of
-    :func:`forcecal.spatial.build_spatial_model`.
+    Parameters
+    ----------
+    rig : Rig
+        The rig the scan and the runs were measured on.
+    scan : Scan
+        The SLDV scan the spatial model is built from.
+    runs : Sequence of Run
+        The runs whose forces are reconstructed.
+    out_dir : str or pathlib.Path
+        The output folder: ``model.json``, the estimates, ``figures/*.png``, ``report.html``.
+    truth_dir : str or pathlib.Path, optional
+        A folder of ground truth ``NAME.forces.csv`` per run, overlaid where present.
+    n_harmonics : int
+        As for :func:`forcecal.spatial.build_spatial_model`.
+    criterion : str
+        As for :func:`forcecal.spatial.build_spatial_model`.
+    basis : str
+        As for :func:`forcecal.spatial.build_spatial_model`.
+
+    Returns
+    -------
+    pathlib.Path
+        The path of ``report.html``.
     """
     out = Path(out_dir)
     figs = out / "figures"
-    hs = harmonic_shapes(scan, rig.frequency, n_harmonics) if rig.frequency else None
+    hs = _scan_shapes(rig, scan, n_harmonics)
     model = build_spatial_model(rig, scan, n_harmonics=n_harmonics, criterion=criterion,
                                 shapes=hs, basis=basis)
     model.save(out / "model.json")
-    fig = {"beam": fig_shapes, "plate": fig_shapes_2d,
-           "body": fig_shapes_body}[rig.structure.kind](hs, model)
+    fig = _SHAPE_FIGURES[rig.structure.dim](hs, model)
     shapes_png = save_png(fig, figs / "shapes.png")
     sections = [_model_section(model, shapes_png, fig)]
     summary = []
     for run in runs:
         est = reconstruct(rig, model, run)
         write_estimate(est, out)
-        truth = None
-        if truth_dir is not None and (Path(truth_dir) / f"{run.name}.forces.csv").is_file():
-            _, truth = read_table_csv(Path(truth_dir) / f"{run.name}.forces.csv")
         summary.append([run.name, f"{est.f0:.6g}", _pct(est.inertia_share),
                         f"{est.waveform_std:.3g}", f"{est.psi_condition:.3g}"])
-        blocks: list = [
-            f"Refined fundamental {est.f0:.6g} Hz. The inertia accounts for "
-            f"{_pct(est.inertia_share)} of the AC force: that is how far a reactions-only "
-            f"estimate is off. Standard uncertainty of the total force waveform: "
-            f"{est.waveform_std:.3g} N (RMS over time).",
-            Table(estimate_table(est)[1:], header=estimate_table(est)[0],
-                  caption="Force phasors with standard uncertainties"),
-        ]
-        if truth is not None:
-            blocks.append(Table(_truth_errors(est, truth),
-                                header=["force", "error (full method)", "error (reactions only)"],
-                                caption="Against the ground truth, % of its AC RMS"))
-        if est.notes:
-            blocks.append(Preformatted("\n".join(est.notes)))
-        for name, f, caption in (
-            ("signals", fig_signals(run, rig, est),
-             "Fig. 6: measured current and displacements with the fitted Fourier series."),
-            ("coordinates", fig_coordinates(run, rig, est),
-             "Fig. 7: probe signals, generalized coordinates and accelerations."),
-            ("forces", fig_forces(est, truth),
-             "Fig. 8: inertia contribution and measured reactions; reconstructed forces with "
-             "the reactions-only estimate (dashed)" + (" and the truth (dotted)." if truth
-                                                       else ".")),
-            ("residuals", fig_residuals(est, run, rig),
-             "Fit residuals, sensor consistency and per-harmonic amplitudes with uncertainties."),
-        ):
-            png = save_png(f, figs / f"{run.name}.{name}.png")
-            blocks.append(Image(f, caption=f"{caption} ({png.name})"))
-        sections.append(Section(f"Run {run.name}", blocks))
+        sections.append(_run_section(rig, est, run, _read_truth(truth_dir, run), figs))
     sections.insert(0, Section("Summary", [Table(
         summary, header=["run", "f0 (Hz)", "inertia share", "total-force std (N)",
                          "cond(Psi)"])]))
     return write_report(out / "report.html", f"forcecal: forces of {rig.name}", sections)
 
 
-def calibration_report(rig: Rig, model: SpatialModel, result, out_dir: str | Path) -> Path:
-    """Fig. 9 and the calibration tables of a campaign result as ``OUT/report.html``."""
-    from ..campaign import report_text
-
-    out = Path(out_dir)
+def _calibration_points(result: CampaignResult) -> CalibrationPoints:
+    """One point per run of a campaign, with the law at each run's own current and gaps."""
     dc, ac, law_dc, law_ac = [], [], [], []
     for r in result.runs:
         smp, f0 = r.samples, r.estimate.f0
@@ -155,14 +213,39 @@ def calibration_report(rig: Rig, model: SpatialModel, result, out_dir: str | Pat
         law_dc.append(a)
         law_ac.append(b)
     est = [r.estimate for r in result.runs]
-    points = CalibrationPoints(
+    return CalibrationPoints(
         gap=np.array([r.samples.static_gap for r in result.runs]), dc=np.array(dc),
         ac=np.array(ac), force_dc=np.array([e.total[0].real for e in est]),
         force_ac=np.array([abs(e.total[1]) for e in est]),
         force_dc_std=np.array([e.total_std[0] for e in est]),
         force_ac_std=np.array([e.total_std[1] for e in est]),
         law_dc=np.array(law_dc), law_ac=np.array(law_ac), names=tuple(r.name for r in result.runs))
-    fig = fig_calibration(points, result.calibration)
+
+
+def calibration_report(rig: Rig, model: SpatialModel, result: CampaignResult,
+                       out_dir: str | Path) -> Path:
+    """Fig. 9 and the calibration tables of a campaign result as ``OUT/report.html``.
+
+    Parameters
+    ----------
+    rig : Rig
+        The campaign's rig (its name titles the page).
+    model : SpatialModel
+        The spatial model the campaign's forces were reconstructed with.
+    result : CampaignResult
+        The campaign's calibration.
+    out_dir : str or pathlib.Path
+        The output folder: ``figures/calibration.png`` and ``report.html``.
+
+    Returns
+    -------
+    pathlib.Path
+        The path of ``report.html``.
+    """
+    from ..campaign import report_text
+
+    out = Path(out_dir)
+    fig = fig_calibration(_calibration_points(result), result.calibration)
     png = save_png(fig, out / "figures" / "calibration.png")
     sections = [
         Section("Calibration", [

@@ -1,0 +1,228 @@
+"""Helpers shared by the figures: readable units, Fourier series over a window, line styles.
+
+Nothing here draws a whole figure. Axes show readable units: positions in mm, time in ms,
+forces in N, currents in A and displacements in the engineering prefix that suits their size
+(mm, µm, nm); every label names its unit.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from matplotlib.axes import Axes
+
+from ...errors import DimensionError, InputError
+from ...forces import ForceEstimate, channels_si
+from ...harmonics import HarmonicFit, fit_harmonics
+from ...records import Run
+from ...rig import Rig
+
+__all__ = [
+    "DEFAULT_PERIODS",
+    "check_run",
+    "fourier_series",
+    "legend_right",
+    "measured_width",
+    "panel_title",
+    "prefixed_unit",
+    "quantity",
+    "sensor_fit",
+    "time_window",
+]
+
+DEFAULT_PERIODS = 3.0
+"""Periods of the fundamental drawn by the time-history figures."""
+
+_PREFIXES = ((1.0, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n"))
+
+
+def prefixed_unit(peak: float, base: str) -> tuple[float, str]:
+    """Factor and unit that show values up to ``peak`` as numbers of 1 to 999.
+
+    Parameters
+    ----------
+    peak : float
+        The largest magnitude to show [base unit].
+    base : str
+        The SI unit, e.g. ``"m"``.
+
+    Returns
+    -------
+    tuple of (float, str)
+        The factor from the base unit and the prefixed unit.
+
+    Examples
+    --------
+    >>> prefixed_unit(3e-5, "m")
+    (1000000.0, 'µm')
+    """
+    peak = float(abs(peak))
+    for size, prefix in _PREFIXES:
+        if peak >= size:
+            return 1.0 / size, prefix + base
+    if peak == 0.0 or not np.isfinite(peak):
+        return 1.0, base
+    return 1e9, "n" + base
+
+
+def quantity(value: float, base: str, digits: int = 3) -> str:
+    """``value`` with ``digits`` significant digits in the prefix that suits it: ``0.2 µm``.
+
+    Parameters
+    ----------
+    value : float
+        The value [base unit].
+    base : str
+        The SI unit, e.g. ``"m"``.
+    digits : int
+        Significant digits shown.
+
+    Returns
+    -------
+    str
+        The number and its prefixed unit.
+    """
+    factor, unit = prefixed_unit(value, base)
+    v = value * factor
+    if v == 0 or not np.isfinite(v):
+        return f"{v:g} {unit}"
+    places = digits - 1 - int(np.floor(np.log10(abs(v))))
+    return f"{round(v, places):.{max(places, 0)}f} {unit}"
+
+
+def fourier_series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
+    """A Fourier series at absolute times, x(t) = sum_n Re(X_n exp(j n w0 t)).
+
+    Parameters
+    ----------
+    phasors : numpy.ndarray
+        ``(..., H+1)`` complex phasors X_0..X_H (convention of :mod:`forcecal.harmonics`).
+    f0 : float
+        The fundamental [Hz].
+    t : numpy.ndarray
+        ``(n_t,)`` absolute times [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``(..., n_t)`` the series' values, in the phasors' unit.
+    """
+    n = np.arange(phasors.shape[-1])
+    cycles = np.mod(np.multiply.outer(n * f0, np.asarray(t, dtype=float)), 1.0)
+    return (phasors @ np.exp(2j * np.pi * cycles)).real
+
+
+def time_window(t: np.ndarray, f0: float, periods: float) -> slice:
+    """The leading samples of ``t`` that span ``periods`` periods of ``f0`` (at least 2).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        ``(n_samples,)`` increasing sample times [s].
+    f0 : float
+        The fundamental [Hz].
+    periods : float
+        Periods to span; must be positive.
+
+    Returns
+    -------
+    slice
+        The leading samples.
+    """
+    if periods <= 0:
+        raise InputError(f"periods must be positive; got {periods}")
+    end = t[0] + periods / f0
+    m = int(np.searchsorted(t, end, side="right"))
+    return slice(0, max(m, min(2, len(t))))
+
+
+def measured_width(k: int) -> float:
+    """Line width of measured trace k: wide (drawn translucent), wider for the first ones.
+
+    So traces that coincide (a symmetric rig) and the dashed fit on top all stay visible.
+
+    Parameters
+    ----------
+    k : int
+        Index of the trace.
+
+    Returns
+    -------
+    float
+        The line width [pt].
+    """
+    return max(3.2 - 1.2 * k, 1.2)
+
+
+def legend_right(ax: Axes, **kwargs: Any) -> None:
+    """A legend beside the axes, so that it never hides a curve.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        The axes.
+    **kwargs
+        Further arguments of :meth:`matplotlib.axes.Axes.legend` (e.g. ``handles``).
+    """
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small",
+              borderaxespad=0.0, **kwargs)
+
+
+def panel_title(ax: Axes, text: str) -> None:
+    """The title of one panel, left-aligned in the medium font size.
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        The panel.
+    text : str
+        Its title.
+    """
+    ax.set_title(text, loc="left", fontsize="medium")
+
+
+def sensor_fit(rig: Rig, run: Run, estimate: ForceEstimate
+               ) -> tuple[dict[str, np.ndarray], np.ndarray, HarmonicFit]:
+    """The run's channels in SI and the Fourier series of its sensors.
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig the run was measured on (channel scales).
+    run : Run
+        The run.
+    estimate : ForceEstimate
+        The run's forces: its fundamental and harmonic count are used.
+
+    Returns
+    -------
+    tuple of (dict, numpy.ndarray, HarmonicFit)
+        Every channel in SI by name, the sensors ``(n_sensors, n_samples)`` [m] and their fit.
+    """
+    sig = channels_si(rig, run)
+    h = len(estimate.harmonics) - 1
+    sensors = np.stack([sig[s] for s in rig.sensor_names])
+    return sig, sensors, fit_harmonics(sensors, run.fs, estimate.f0, h, t0=run.t0)
+
+
+def check_run(run: Run, estimate: ForceEstimate) -> None:
+    """Refuse a run that is not the one the estimate was computed from.
+
+    Parameters
+    ----------
+    run : Run
+        The run.
+    estimate : ForceEstimate
+        The estimate drawn with it.
+
+    Raises
+    ------
+    DimensionError
+        When their sample counts differ.
+    """
+    if run.n_samples != len(estimate.time):
+        raise DimensionError(
+            f"run '{run.source}' has {run.n_samples} samples but the estimate of run "
+            f"'{estimate.run_name}' has {len(estimate.time)}; pass the run it was computed from"
+        )
