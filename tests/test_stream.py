@@ -202,6 +202,30 @@ def test_stream_readout_is_the_batch_force_solve(paper, batch):
     assert np.abs(got - batch.static)[:, 1:].max() > 1e3 * 1e-12 * np.abs(batch.force).max()
 
 
+def test_stream_keeps_the_harmonics_the_batch_keeps(paper):
+    """A harmonic the reactions show but the model has no shape for enters the batch forces
+    (uncompensated); the stream, started without it, takes it in once its window shows it:
+    the same policy (forces.kept_harmonics) decides both."""
+    import dataclasses
+
+    rig, _, model, run = paper
+    last = len(model.harmonics) - 1
+    fewer = dataclasses.replace(model, harmonics=model.harmonics[:last],
+                                shapes=model.shapes[:last], couplings=model.couplings[:last],
+                                similarity=model.similarity[:last, :last])
+    batch = reconstruct(rig, fewer, run)
+    dropped = int(model.harmonics[last])
+    assert batch.kept[dropped] and not batch.with_inertia[dropped]
+    est = StreamEstimator(rig, fewer, batch.f0, run.fs, n_harmonics=len(batch.harmonics) - 1)
+    assert not est.kept[dropped]
+    est.process(np.stack([run.channel(c) for c in est.channel_names]))
+    np.testing.assert_array_equal(est.kept, batch.kept)
+    # the significance rests on each channel's noise, followed from its second differences
+    # (achieved: within 3 % of the simulated noise)
+    expected = np.array([NOISE_STD[c] for c in est.channel_names])
+    np.testing.assert_allclose(est.noise_level, expected, rtol=0.1)
+
+
 def test_phasor_noise_matches_the_forgetting_prediction():
     """White noise: var(Re X_n) = var(Im X_n) = (1-lam)/(1+lam) 2 sigma^2 (n >= 1) and
     (1-lam)/(1+lam) sigma^2 for the mean."""

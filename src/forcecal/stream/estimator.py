@@ -41,7 +41,7 @@ import numpy as np
 
 from ..coordinates import check_sensor_gain, coordinate_map, sensor_rows
 from ..errors import DataError, DimensionError, InputError
-from ..forces import FREQUENCY_MISMATCH, force_solve, kept_harmonics
+from ..forces import FREQUENCY_MISMATCH, force_solve, kept_harmonics, significant_reactions
 from ..inertia import inertia_term
 from ..relaxation import force_matrix
 from ..rig import Rig
@@ -125,9 +125,10 @@ class StreamEstimator:
     sensor_std : (n_sensors,) [m] noise of each probe, weights of the Q_n fit (default: equal)
     tare_dc : (n_gauges,) [N] gauge DC of a zero-current record, subtracted
     ac_coupled : the gauges do not measure DC: no DC force; the static estimate is AC only
-    extra_harmonics : harmonics without a shape in the model that enter the force anyway
-        (reactions only, their inertia uncompensated); by default the force holds the DC and
-        the model's harmonics, as the batch estimate does when the others are not significant
+    extra_harmonics : harmonics without a shape in the model that enter the force from the
+        start (reactions only, their inertia uncompensated); the others join once the
+        reactions show them above their noise over the window (the batch estimate's policy,
+        :func:`forcecal.forces.kept_harmonics`, checked once per drive period)
 
     Channel order of an array block: :attr:`channel_names` (gauges, probes, current), raw
     values as recorded (the rig's scales are applied here).
@@ -175,11 +176,56 @@ class StreamEstimator:
         self._shaped = self._shape_terms(sensor_std)
         extra = np.zeros(h + 1, dtype=bool)
         extra[[int(n) for n in extra_harmonics if 1 <= int(n) <= h]] = True
-        kept = kept_harmonics(h, [n for n, _, _ in self._shaped], extra, dc=not ac_coupled)[1]
-        self._force_harmonics = [int(n) for n in np.flatnonzero(kept)]
+        self._kept = kept_harmonics(h, [n for n, _, _ in self._shaped], extra,
+                                    dc=not ac_coupled)[1]
+        self._force_harmonics = [int(n) for n in np.flatnonzero(self._kept)]
         self._loop_settings()
+        self._tail: np.ndarray | None = None
+        self._d2_energy = np.zeros(len(self.channel_names))
+        self._d2_weight = 0.0
         self._state = harmonic_start(len(self.channel_names), h, f0_guess, fs, t0)
         self._t0 = float(t0)
+        self._retune()
+
+    def _track_noise(self, y: np.ndarray) -> None:
+        """Follow every channel's white-noise variance over the window from its second
+        differences (which remove the slow harmonics: var(d2) = 6 sigma^2 for white noise),
+        exponentially weighted like the phasors, independent of the frequency loop."""
+        z = y if self._tail is None else np.concatenate([self._tail, y], axis=1)
+        self._tail = z[:, -2:]
+        d2 = z[:, 2:] - 2.0 * z[:, 1:-1] + z[:, :-2]
+        m = d2.shape[1]
+        if m == 0:
+            return
+        decay = np.exp(np.arange(m - 1, -1, -1) * math.log(self.lam))
+        self._d2_energy = self.lam**m * self._d2_energy + (d2 * d2) @ decay
+        self._d2_weight = self.lam**m * self._d2_weight + float(decay.sum())
+
+    @property
+    def noise_level(self) -> np.ndarray:
+        """(n_channels,) [SI] white-noise std of every channel over the window, from its
+        second differences (NaN before two samples)."""
+        if self._d2_weight <= 0:
+            return np.full(len(self.channel_names), np.nan)
+        level: np.ndarray = np.sqrt(self._d2_energy / self._d2_weight / 6.0)
+        return level
+
+    def _update_kept(self) -> None:
+        """Add the harmonics without a shape that the reactions now show above their noise:
+        the batch estimate's policy (:func:`forcecal.forces.kept_harmonics`) applied to the
+        window. A harmonic once kept stays kept (no flicker at the threshold)."""
+        h, n_g = self.n_harmonics, self._n_g
+        cov = np.diag(stationary(self.lam, self._state.step, h)[2])
+        per_phasor = np.sqrt(np.concatenate([[cov[0]], 0.5 * (cov[1::2] + cov[2::2])]))
+        std = self.noise_level[:n_g, None] * per_phasor[None, :]
+        significant = significant_reactions(self.phasors[:n_g], std)
+        significant[self._kept] = True
+        kept = kept_harmonics(h, [n for n, _, _ in self._shaped], significant,
+                              dc=not self.ac_coupled)[1]
+        if np.array_equal(kept, self._kept):
+            return
+        self._kept = kept
+        self._force_harmonics = [int(n) for n in np.flatnonzero(kept)]
         self._retune()
 
     def _loop_settings(self) -> None:
@@ -257,6 +303,11 @@ class StreamEstimator:
     def state(self) -> HarmonicState:
         """The current :class:`HarmonicState` (read only; fixed size)."""
         return self._state
+
+    @property
+    def kept(self) -> np.ndarray:
+        """(H+1,) bool: the harmonics that enter the forces now."""
+        return self._kept.copy()
 
     @property
     def frequency(self) -> float:
@@ -390,6 +441,7 @@ class StreamEstimator:
             # tables as long as the piece (rounded up to a power of two), cached per frequency
             length = min(self._piece, 1 << (stop - pos - 1).bit_length())
             tables = window_tables(self.lam, self._state.step, self.n_harmonics, length)
+            self._track_noise(y[:, pos:stop])
             self._state, out[:, pos:stop] = kernel(
                 self._state, y[:, pos:stop], self.lam, tables, self._readout, self._kappa,
                 self.prior)
@@ -406,9 +458,12 @@ class StreamEstimator:
         return force, static
 
     def _on_grid(self) -> None:
-        """The frequency loop, once per grid step."""
+        """Once per grid step: the harmonics kept, then the frequency loop."""
         st = self._state
-        if not self.track_frequency or st.count < self._engage:
+        if st.count < self._engage:
+            return
+        self._update_kept()
+        if not self.track_frequency:
             return
         ic = len(self.channel_names) - 1
         u = last_coefficients(replace(st, demod=st.demod[ic:], energy=st.energy[ic:]),
