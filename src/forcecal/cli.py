@@ -14,6 +14,7 @@ import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 from .errors import ForcecalError, InputError
 
@@ -220,29 +221,22 @@ def _model_options(p: argparse.ArgumentParser) -> None:
                    help="text in id line 2 of the scan's reference records (default 'Ref')")
 
 
-def build_parser() -> argparse.ArgumentParser:
-    fmt = argparse.RawDescriptionHelpFormatter
-    parser = _Parser(prog=PROG, description="External forces on a vibrating structure from "
-                     "force gauges, inertia and an SLDV scan; electromagnet calibration.",
-                     formatter_class=fmt)
-    from . import __version__
-
-    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-
+def _demo_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("demo", help="simulate the built-in rig and run every stage",
                        formatter_class=fmt, epilog="example:\n  forcecal demo demo-output")
     p.add_argument("out", nargs="?", default="forcecal-demo", help="output folder")
     p.set_defaults(func=_cmd_demo)
 
+def _simulate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("simulate", help="write a virtual rig's files", formatter_class=fmt,
                        epilog="example:\n  forcecal simulate lab --preset campaign --seed 1")
     p.add_argument("out", help="output folder")
-    p.add_argument("--preset", default="paper", help="paper, resonance, campaign or plate")
+    p.add_argument("--preset", default="paper", help="paper, resonance, campaign, plate or body")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--binary-uff", action="store_true", help="write the scan as dataset 58b")
     p.set_defaults(func=_cmd_simulate)
 
+def _scan_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("scan", help="build the spatial model from an SLDV scan",
                        formatter_class=fmt,
                        epilog="example:\n  forcecal scan lab/rig.toml lab/scan.uff -o model.json")
@@ -252,6 +246,7 @@ def build_parser() -> argparse.ArgumentParser:
     _model_options(p)
     p.set_defaults(func=_cmd_scan)
 
+def _reconstruct_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("reconstruct", help="forces of each run", formatter_class=fmt,
                        epilog="example:\n  forcecal reconstruct lab/rig.toml lab/scan.uff "
                               "lab/runs/paper.csv -o forces")
@@ -265,6 +260,7 @@ def build_parser() -> argparse.ArgumentParser:
     _model_options(p)
     p.set_defaults(func=_cmd_reconstruct)
 
+def _calibrate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("calibrate", help="fit the actuator law over a campaign",
                        formatter_class=fmt,
                        epilog="example:\n  forcecal calibrate lab/rig.toml lab/scan.uff "
@@ -279,6 +275,7 @@ def build_parser() -> argparse.ArgumentParser:
     _model_options(p)
     p.set_defaults(func=_cmd_calibrate)
 
+def _predict_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("predict", help="actuator force from a calibration",
                        formatter_class=fmt,
                        epilog="example:\n  forcecal predict calibration/calibration.json "
@@ -289,6 +286,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="uncertainty and per-pole split")
     p.set_defaults(func=_cmd_predict)
 
+def _stream_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("stream", help="replay a run through the real-time estimator",
                        formatter_class=fmt,
                        epilog="example:\n  forcecal stream lab/rig.toml model.json "
@@ -301,6 +299,7 @@ def build_parser() -> argparse.ArgumentParser:
     _model_options(p)
     p.set_defaults(func=_cmd_stream)
 
+def _report_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p = sub.add_parser("report", help="figures and an HTML report for runs",
                        formatter_class=fmt,
                        epilog="example:\n  forcecal report lab/rig.toml lab/scan.uff "
@@ -312,6 +311,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--truth", help="folder of NAME.forces.csv ground truth to overlay")
     _model_options(p)
     p.set_defaults(func=_cmd_report)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    fmt = argparse.RawDescriptionHelpFormatter
+    parser = _Parser(prog=PROG, description="External forces on a vibrating structure from "
+                     "force gauges, inertia and an SLDV scan; electromagnet calibration.",
+                     formatter_class=fmt)
+    from . import __version__
+
+    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    _demo_parser(sub, fmt)
+    _simulate_parser(sub, fmt)
+    _scan_parser(sub, fmt)
+    _reconstruct_parser(sub, fmt)
+    _calibrate_parser(sub, fmt)
+    _predict_parser(sub, fmt)
+    _stream_parser(sub, fmt)
+    _report_parser(sub, fmt)
     return parser
 
 
