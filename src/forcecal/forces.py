@@ -21,13 +21,14 @@ import numpy as np
 
 from .checks import check_clipping, check_record_length
 from .coordinates import Coordinates, generalized_coordinates, sensor_rows
+from .diagnostics import dc_vs_ac_notes, drift_notes, probe_misfit_notes, pull_only_notes
 from .errors import DataError, InputError
 from .harmonics import HarmonicFit, fit_harmonics, fundamental_uncertainty, refine_fundamental
 from .inertia import inertia_term
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
-from .spatial import SpatialModel
+from .spatial import SpatialModel, check_model_rig
 from .uncertainty import (
     combinations,
     gauge_variance,
@@ -357,6 +358,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     """
     if rig.frequency is None:
         raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing")
+    check_model_rig(model, rig)
     h = n_harmonics or len(model.snr)
     rec = _records(rig, run)
     f0, f0_std, notes = _fundamental(rig, model, run, rec, h)
@@ -384,17 +386,34 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     if ac_coupled:
         static_series = static_series - static_series.mean(axis=1, keepdims=True)
     n_f = len(rig.forces)
+    series = _series(force, f0, run.time)
+    notes += _self_checks(rig, run, rec, coords, force, std[:n_f], series, f0, ac_coupled)
     return ForceEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
         gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
         force=force, force_std=std[:n_f], total=force.sum(axis=0), total_std=std[n_f],
         combination_names=combo_names, combination=combo @ force, combination_std=std,
         static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
-        kept=kept, coordinates=coords, time=run.time, series=_series(force, f0, run.time),
+        kept=kept, coordinates=coords, time=run.time, series=series,
         static_series=static_series, psi_condition=cond,
         consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
         dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std,
     )
+
+
+def _self_checks(rig: Rig, run: Run, rec: _Records, coords: Coordinates, force: np.ndarray,
+                 force_std: np.ndarray, series: np.ndarray, f0: float,
+                 ac_coupled: bool) -> list[str]:
+    """Step 7: the estimate's self-checks (:mod:`forcecal.diagnostics`)."""
+    what = f"run '{run.source}'"
+    notes = probe_misfit_notes(coords, rig.sensor_names, what)
+    notes += drift_notes(rec.current, run.fs, f0, what, t0=run.t0)
+    if not ac_coupled:
+        instant = np.sqrt(np.sum(force_std**2, axis=1))
+        notes += pull_only_notes(rig.force_names, series, force[:, 0].real, instant, what)
+        current = fit_harmonics(rec.current, run.fs, f0, force.shape[1] - 1, t0=run.t0)
+        notes += dc_vs_ac_notes(rig.force_names, force, force_std, current.phasors, what)
+    return notes
 
 
 def _solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray, var: np.ndarray,

@@ -9,7 +9,9 @@ small compliance is real rigid motion and belongs in the inertia.
 
 from __future__ import annotations
 
+import hashlib
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -19,14 +21,16 @@ from .basis import PolynomialBasis, ShapeFit, shape_similarity
 from .errors import DataError, InputError
 from .inertia import mass_coupling
 from .records import Scan
-from .rig import Rig
+from .rig import Rig, rig_to_dict
 from .scan import HarmonicShapes, harmonic_shapes
 from .vector_basis import AXES, VectorShapeFit
 
 __all__ = [
     "SpatialModel",
     "build_spatial_model",
+    "check_model_rig",
     "load_model",
+    "rig_keys",
     "structure_coordinates",
     "structure_extent",
     "structure_grid",
@@ -52,6 +56,8 @@ class SpatialModel:
     similarity : (n_harm, n_harm) MAC of the fitted shapes over the scan points [1]
     snr : (n_harm_scanned,) the scan's signal-to-noise ratio of every harmonic 1..H
     dropped : {harmonic: reason} harmonics left out
+    rig : the keys of the rig the model was built for (:func:`rig_keys`); a model is refused
+        for a rig whose geometry, masses or sensor layout differ (:func:`check_model_rig`)
     """
 
     f0: float
@@ -65,6 +71,7 @@ class SpatialModel:
     n_points: int = 0
     source: str = "<scan>"
     notes: tuple[str, ...] = ()
+    rig: dict[str, float | str] = field(default_factory=dict)
 
     @property
     def one_shape(self) -> bool:
@@ -119,6 +126,7 @@ class SpatialModel:
             "couplings_im": self.couplings.imag.tolist(),
             "shapes": [shape(s) for s in self.shapes],
             "notes": list(self.notes),
+            "rig": {"sha256": _digest(self.rig), "keys": self.rig},
         }
 
     @classmethod
@@ -152,6 +160,7 @@ class SpatialModel:
                 n_points=int(doc.get("n_points", 0)),
                 source=doc.get("source", source),
                 notes=tuple(doc.get("notes", ())),
+                rig=dict(doc.get("rig", {}).get("keys", {})),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"model '{source}': not a forcecal spatial model ({exc})") from None
@@ -235,7 +244,8 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
     return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(fits),
                         couplings=couplings, similarity=mac, snr=snr,
                         gauge_names=tuple(rig.gauge_names), dropped=dropped,
-                        n_points=len(points), source=scan.source, notes=st.model_notes(fits))
+                        n_points=len(points), source=scan.source, notes=st.model_notes(fits),
+                        rig=rig_keys(rig))
 
 
 def structure_extent(rig: Rig) -> tuple:
@@ -274,3 +284,73 @@ def _check_points_on_structure(rig: Rig, scan: Scan) -> None:
             raise InputError(f"scan '{scan.source}': point {k + 1} at "
                              + (f"x = {where}" if st.dim == 1 else f"({axes}) = ({where})")
                              + f" m lies off the structure of rig '{rig.source}'")
+
+
+def rig_keys(rig: Rig) -> dict[str, float | str]:
+    """What a spatial model depends on in its rig, as flat keys (``structure.length``,
+    ``structure.masses[0].mass``, ``gauges[1].x``, ``sensors[0].direction[2]``...): the
+    structure, its masses, and every gauge's, force point's and sensor's name, position and
+    direction; not the channels' scales, the gaps, the actuator or the acquisition.
+
+    Parameters
+    ----------
+    rig : Rig
+
+    Returns
+    -------
+    dict
+        Key -> number or name.
+    """
+    doc = rig_to_dict(rig)
+    keep = {k: doc[k] for k in ("structure", "gauges", "forces", "sensors")}
+    for key in ("gauges", "forces", "sensors"):
+        keep[key] = [{a: v for a, v in p.items() if a not in ("scale", "gap")} for p in doc[key]]
+    flat: dict[str, float | str] = {}
+    _flatten(keep, "", flat)
+    return flat
+
+
+def _flatten(value: object, path: str, out: dict[str, float | str]) -> None:
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _flatten(v, f"{path}.{k}" if path else str(k), out)
+    elif isinstance(value, list | tuple):
+        for k, v in enumerate(value):
+            _flatten(v, f"{path}[{k}]", out)
+    elif isinstance(value, int | float) and not isinstance(value, bool):
+        out[path] = float(value)
+    else:
+        out[path] = str(value)
+
+
+def _digest(keys: dict[str, float | str]) -> str:
+    return hashlib.sha256(json.dumps(keys, sort_keys=True).encode()).hexdigest()
+
+
+def check_model_rig(model: SpatialModel, rig: Rig) -> None:
+    """Refuse a model built for another rig, naming the first key that differs.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    rig : Rig
+
+    Raises
+    ------
+    InputError
+        When the rig's geometry, masses or sensor layout differ from the model's rig (a model
+        written before models recorded their rig is accepted).
+    """
+    if not model.rig:
+        return
+    now = rig_keys(rig)
+    for key in sorted(set(model.rig) | set(now)):
+        was, is_ = model.rig.get(key), now.get(key)
+        same = (isinstance(was, float) and isinstance(is_, float)
+                and math.isclose(was, is_, rel_tol=1e-9, abs_tol=1e-12)) or was == is_
+        if not same:
+            raise InputError(
+                f"model '{model.source}' was built for a rig whose key '{key}' is "
+                f"{'absent' if was is None else repr(was)}, but rig '{rig.source}' has "
+                f"{'none' if is_ is None else repr(is_)}: its shapes and mass couplings belong "
+                "to the other rig; build the model again with 'forcecal scan'")

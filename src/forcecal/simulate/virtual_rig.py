@@ -12,7 +12,9 @@ the inertia term of each gauge) is returned beside them.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -122,14 +124,14 @@ def public_rig(preset: Preset) -> Rig:
             name=f"virtual {preset.name} rig",
             structure=Body(density=b.density, blocks=b.blocks,
                            masses=tuple(LumpedMass(x=x, y=y, z=z, mass=m)
-                                             for x, y, z, m in b.masses)),
+                                        for x, y, z, m in _rows(b.masses))),
             gauges=tuple(Gauge(name=n, x=x, y=y, z=z, direction=_unit(d))
-                         for n, x, y, z, *d in b.gauges),
+                         for n, x, y, z, *d in _rows(b.gauges)),
             forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, z=p.z, gap=p.gap,
                                     direction=_unit(p.direction))
                          for m in preset.magnets for p in m.poles),
             sensors=tuple(Sensor(name=n, x=x, y=y, z=z, direction=_unit(d))
-                          for n, x, y, z, *d in preset.sensors),
+                          for n, x, y, z, *d in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
             frequency=preset.nominal_frequency,
@@ -139,11 +141,11 @@ def public_rig(preset: Preset) -> Rig:
             name=f"virtual {preset.name} rig",
             structure=Plate(mass_per_area=b.mass_per_area, outline=b.outline,
                             masses=tuple(LumpedMass(x=x, y=y, mass=m)
-                                             for x, y, m in b.masses)),
-            gauges=tuple(Gauge(name=n, x=x, y=y) for n, x, y in b.gauges),
+                                         for x, y, m in _rows(b.masses))),
+            gauges=tuple(Gauge(name=n, x=x, y=y) for n, x, y in _rows(b.gauges)),
             forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, gap=p.gap)
                          for m in preset.magnets for p in m.poles),
-            sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in preset.sensors),
+            sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
             frequency=preset.nominal_frequency,
@@ -151,20 +153,26 @@ def public_rig(preset: Preset) -> Rig:
     return Rig(
         name=f"virtual {preset.name} rig",
         structure=Beam(length=b.length, mass_per_length=b.mass_per_length,
-                       masses=tuple(LumpedMass(x=x, mass=m) for x, m in b.masses)),
-        gauges=tuple(Gauge(name=n, x=x) for n, x in b.gauges),
+                       masses=tuple(LumpedMass(x=x, mass=m) for x, m in _rows(b.masses))),
+        gauges=tuple(Gauge(name=n, x=x) for n, x in _rows(b.gauges)),
         forces=tuple(ForcePoint(name=p.name, x=p.x, gap=p.gap)
                      for m in preset.magnets for p in m.poles),
-        sensors=tuple(Sensor(name=n, x=x) for n, x in preset.sensors),
+        sensors=tuple(Sensor(name=n, x=x) for n, x in _rows(preset.sensors)),
         actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                           turns=mag.turns, pole_area=mag.pole_area),
         frequency=preset.nominal_frequency,
     )
 
 
-def _unit(d) -> tuple[float, float, float]:
+def _rows(items: Sequence[Sequence[Any]]) -> list[tuple[Any, ...]]:
+    """A preset's rows (name and coordinates, or coordinates and mass) as plain tuples."""
+    return [tuple(item) for item in items]
+
+
+def _unit(d: Sequence[float]) -> tuple[float, float, float]:
     v = np.asarray(d, dtype=float)
-    return tuple(float(c) for c in v / np.linalg.norm(v))
+    v = v / np.linalg.norm(v)
+    return (float(v[0]), float(v[1]), float(v[2]))
 
 
 def _points(preset: Preset, items) -> np.ndarray:
@@ -200,6 +208,7 @@ def relaxation_modes(model: Model, preset: Preset) -> np.ndarray:
         # column m of a: d_s . u_m(g_s) for the translations e_m and the rotations e_m x x
         a = np.hstack([g[:, 3:], np.cross(g[:, :3], g[:, 3:])])
         coef = np.linalg.inv(a)                      # column r: psi_r's (t, theta)
+        assert isinstance(model, SolidModel)
         return np.stack([model.rigid_mode(coef[:3, r], coef[3:, r]) for r in range(len(g))])
     if isinstance(spec, BeamSpec):
         (_, xa), (_, xb) = spec.gauges
@@ -238,10 +247,10 @@ def measure_run(preset: Preset, spec: RunSpec, model: Model, r: Response,
     gauges = _gauge_forces(model, preset, r.u, r.v)
     probes = model.row(_points(preset, preset.sensors)) @ r.u
     channels: dict[str, np.ndarray] = {}
-    for k, (name, *_) in enumerate(preset.beam.gauges):
-        channels[name] = gauges[k] + noise.gauge * rng.standard_normal(n)
-    for k, (name, *_) in enumerate(preset.sensors):
-        channels[name] = probes[k] + noise.probe * rng.standard_normal(n)
+    for k, (name, *_) in enumerate(_rows(preset.beam.gauges)):
+        channels[str(name)] = gauges[k] + noise.gauge * rng.standard_normal(n)
+    for k, (name, *_) in enumerate(_rows(preset.sensors)):
+        channels[str(name)] = probes[k] + noise.probe * rng.standard_normal(n)
     for k, mag in enumerate(preset.magnets):
         channels[mag.current_channel] = r.current[k] + noise.current * rng.standard_normal(n)
         channels[mag.flux_channel] = r.flux[k] + noise.flux * rng.standard_normal(n)
@@ -283,6 +292,7 @@ def scan_points(preset: Preset) -> np.ndarray:
     spec = preset.scan
     b = preset.beam
     if isinstance(b, BodySpec):
+        assert spec.grid is not None, "a body's scan needs its top-face grid"
         nx, ny = spec.grid
         xs, ys = np.linspace(0.0, b.a, nx), np.linspace(0.0, b.b, ny)
         zs = b.c * np.arange(1, spec.heights + 1) / (spec.heights + 1)

@@ -45,7 +45,7 @@ from ..forces import FREQUENCY_MISMATCH, force_solve, kept_harmonics, significan
 from ..inertia import inertia_term
 from ..relaxation import force_matrix
 from ..rig import Rig
-from ..spatial import SpatialModel
+from ..spatial import SpatialModel, check_model_rig
 from .rls import (
     PRIOR,
     HarmonicState,
@@ -147,6 +147,7 @@ class StreamEstimator:
                  tare_dc: Sequence[float] | np.ndarray | None = None, ac_coupled: bool = False,
                  extra_harmonics: Sequence[int] = ()) -> None:
         h, lam = _settings(model, f0_guess, fs, n_harmonics, forgetting)
+        check_model_rig(model, rig)
         if abs(f0_guess / model.f0 - 1.0) > FREQUENCY_MISMATCH:
             warnings.warn(f"stream: drive at {f0_guess:.4g} Hz but the scan model was measured "
                           f"at {model.f0:.4g} Hz; its shapes may not apply", stacklevel=2)
