@@ -20,9 +20,9 @@ import pytest
 import tomli_w
 
 import forcecal
+from forcecal._atomic import atomic_path
 from forcecal.cli import main
 from forcecal.io import run_files
-from forcecal.io.atomic import atomic_path
 from forcecal.io.run_files import (
     read_run,
     read_table_csv,

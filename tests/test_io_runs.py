@@ -11,10 +11,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from nptdms import ChannelObject, TdmsWriter
 
+from forcecal.checks import MIN_SAMPLES, check_clipping
 from forcecal.errors import DataError, InputError
 from forcecal.io.run_files import (
-    MIN_SAMPLES,
-    check_clipping,
     read_run,
     read_table_csv,
     write_run_csv,

@@ -13,7 +13,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from forcecal.errors import DataError, InputError
-from forcecal.io import uff
+from forcecal.io import _uff_write as uff
 from forcecal.io.scan_files import read_scan, write_scan_hdf5, write_scan_npz
 from forcecal.io.uff import read_scan_uff, read_uff_geometry, write_scan_uff
 from forcecal.records import Scan

@@ -3,6 +3,7 @@
 The public names are re-exported here; internals live in the stage modules.
 """
 
+from ._version import __version__
 from .errors import (
     ConditioningError,
     DataError,
@@ -14,8 +15,6 @@ from .errors import (
 )
 from .records import Run, Scan
 from .rig import Rig, load_rig
-
-__version__ = "0.1.0"
 
 __all__ = [
     "ConditioningError",

@@ -1,3 +1,5 @@
+"""``python -m forcecal``: the command-line interface of :mod:`forcecal.cli`."""
+
 import sys
 
 from .cli import main

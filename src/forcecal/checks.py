@@ -2,7 +2,8 @@
 
 A record must hold enough samples (:data:`MIN_SAMPLES`), channels of one run must agree in
 length, every sample must be finite, a channel must not be clipped (flat-topped) and a record
-must span at least five periods of the drive. Each check raises
+must span at least five periods of the drive. :func:`as_records` readies records for a
+harmonic fit (real, finite, one-dimensional). Each check raises
 :class:`~forcecal.errors.DataError` with one line that names the run (or scan), the channel and
 where the problem starts.
 
@@ -12,19 +13,21 @@ a TDMS or HDF5 sampling attribute) stay in :mod:`forcecal.io`.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 
 import numpy as np
 
-from .errors import DataError
+from .errors import DataError, DimensionError
 from .records import Run, Scan
 
 __all__ = [
     "MIN_SAMPLES",
+    "as_records",
     "check_clipping",
     "check_equal_lengths",
     "check_finite",
+    "check_periods",
     "check_record_length",
     "check_sample_count",
     "check_scan_length",
@@ -212,6 +215,33 @@ def check_record_length(run: Run, f0: float) -> None:
                         f"{f0:.4g} Hz; at least 5 are needed")
 
 
+def check_periods(lengths: np.ndarray, fs: float, f0: float) -> None:
+    """Raise DataError when the shortest record holds fewer than five periods.
+
+    Parameters
+    ----------
+    lengths : (n_records,) int array
+        Samples of every record.
+    fs : float
+        Sampling rate [Hz].
+    f0 : float
+        Nominal fundamental frequency [Hz].
+
+    Raises
+    ------
+    DataError
+        Naming the shortest record (by index), its periods and samples.
+    """
+    i_short = int(np.argmin(lengths))
+    periods = lengths[i_short] / fs * f0
+    if periods < 5.0:
+        raise DataError(
+            f"record {i_short} holds {periods:.1f} periods of {f0:.6g} Hz "
+            f"({lengths[i_short]} samples at {fs:.6g} Hz); at least 5 periods are needed to "
+            "refine the fundamental"
+        )
+
+
 def check_scan_length(scan: Scan, f0: float) -> None:
     """Raise DataError when the records of a scan hold fewer than five periods of the drive.
 
@@ -231,3 +261,49 @@ def check_scan_length(scan: Scan, f0: float) -> None:
     if periods < 5:
         raise DataError(f"scan '{scan.source}': each record holds {periods:.1f} periods of "
                         f"{f0:.4g} Hz; at least 5 are needed")
+
+
+def as_records(records: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
+    """Records as a list of real, finite, one-dimensional float arrays.
+
+    Parameters
+    ----------
+    records : (n_records, n_samples) or (n_samples,) array, or sequence of 1-D arrays
+        Records of any unit; records in a sequence may differ in length.
+
+    Returns
+    -------
+    list of (n_samples,) float arrays
+        One per record, in order.
+
+    Raises
+    ------
+    DataError
+        Complex values, no record at all, or non-finite samples (the record is named by its
+        index).
+    DimensionError
+        An array of more than two dimensions, or a record that is not one-dimensional.
+    """
+    if any(np.iscomplexobj(rec) for rec in records):
+        raise DataError("records must be real-valued samples; got complex values")
+    if isinstance(records, np.ndarray):
+        arr = np.asarray(records, dtype=float)
+        if arr.ndim == 1:
+            arr = arr[None, :]
+        if arr.ndim != 2:
+            raise DimensionError(
+                f"records must be (n_records, n_samples) or a list of 1-D arrays; "
+                f"got shape {arr.shape}"
+            )
+        out = list(arr)
+    else:
+        out = [np.asarray(rec, dtype=float) for rec in records]
+    if not out:
+        raise DataError("no records given")
+    for i, rec in enumerate(out):
+        if rec.ndim != 1:
+            raise DimensionError(f"record {i} must be one-dimensional; got shape {rec.shape}")
+        bad = ~np.isfinite(rec)
+        if bad.any():
+            raise DataError(f"record {i} contains {int(bad.sum())} non-finite samples")
+    return out

@@ -13,7 +13,21 @@ __all__ = ["run_demo"]
 
 
 def run_demo(out: Path, progress: Callable[[str], None] = lambda _m: None) -> Path:
-    """Run every stage into ``out`` and return the path of the HTML report."""
+    """Run every stage of the method on the virtual rig.
+
+    Parameters
+    ----------
+    out : Path
+        The output folder: the simulated files, the paper run's report and the campaign's
+        calibration and report.
+    progress : callable
+        Called with a short message before each stage.
+
+    Returns
+    -------
+    Path
+        The HTML report of the paper run.
+    """
     from .campaign import calibrate_campaign, write_calibration
     from .io.run_files import read_run
     from .io.scan_files import read_scan

@@ -27,11 +27,13 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg import solve_triangular
 from scipy.optimize import minimize_scalar
 
+from .checks import as_records, check_periods
 from .errors import ConditioningError, DataError, DimensionError
 
 __all__ = [
@@ -158,6 +160,11 @@ def design_matrix(t: np.ndarray, f0: float, n_harmonics: int) -> np.ndarray:
     (n_samples, 2H+1) array [1]
         Columns [1, cos(w0 t), -sin(w0 t), cos(2 w0 t), -sin(2 w0 t), ...], so that the
         least-squares coefficients c give X_0 = c_0 and X_n = c_{2n-1} + j c_{2n}.
+
+    Raises
+    ------
+    DimensionError
+        ``t`` not one-dimensional, or ``n_harmonics`` negative.
     """
     t = np.asarray(t, dtype=float)
     if t.ndim != 1:
@@ -203,18 +210,19 @@ def fit_harmonics(
     ----------
     x : (..., n_samples) array [any unit]
         Records, time on the last axis; every channel shares the time base.
-    fs : float [Hz]
-        Sampling rate.
-    f0 : float [Hz]
-        Fundamental frequency (refine it first with :func:`refine_fundamental`).
+    fs : float
+        Sampling rate [Hz].
+    f0 : float
+        Fundamental frequency [Hz] (refine it first with :func:`refine_fundamental`).
     n_harmonics : int
         Number H of harmonics above DC; H f0 must be below fs / 2.
-    t0 : float [s]
-        Absolute time of the first sample.
+    t0 : float
+        Absolute time of the first sample [s].
 
     Returns
     -------
     HarmonicFit
+        Phasors X_0 .. X_H of every record, their standard uncertainties and the residuals.
 
     Raises
     ------
@@ -222,6 +230,46 @@ def fit_harmonics(
         Non-finite samples, too few samples, or harmonics above the Nyquist frequency.
     ConditioningError
         The design matrix is numerically rank deficient.
+    """
+    x = _checked_samples(x, fs, f0, n_harmonics)
+    n_cols = 2 * n_harmonics + 1
+    n_samples = x.shape[-1]
+    t = t0 + np.arange(n_samples) / fs
+    a = design_matrix(t, f0, n_harmonics)
+    q, r = _qr(a)
+    lead = x.shape[:-1]
+    xt = x.reshape(-1, n_samples).T  # (N, M)
+    qtx = q.T @ xt  # (2H+1, M)
+    coef = solve_triangular(r, qtx)  # (2H+1, M)
+    resid = xt - q @ qtx
+    dof = n_samples - n_cols
+    sigma = np.sqrt(np.sum(resid**2, axis=0) / dof)
+
+    r_inv = solve_triangular(r, np.eye(n_cols))
+    cov = r_inv @ r_inv.T
+    unit_std = _unit_phasor_std(cov, n_harmonics)
+
+    phasors = np.empty((n_harmonics + 1, xt.shape[1]), dtype=complex)
+    phasors[0] = coef[0]
+    phasors[1:] = coef[1::2] + 1j * coef[2::2]
+
+    return HarmonicFit(
+        f0=float(f0),
+        phasors=phasors.T.reshape(*lead, n_harmonics + 1),
+        residual_std=sigma.reshape(lead),
+        phasor_std=(sigma[:, None] * unit_std).reshape(*lead, n_harmonics + 1),
+        residuals=resid.T.reshape(x.shape),
+        unscaled_covariance=cov,
+        fs=float(fs),
+        t0=float(t0),
+    )
+
+
+def _checked_samples(x: np.ndarray, fs: float, f0: float, n_harmonics: int) -> np.ndarray:
+    """``x`` as a float array, once it is known to support a fit of ``n_harmonics``.
+
+    Raises DataError (complex, non-finite or too few samples, non-positive rates, harmonics
+    above the Nyquist frequency) or DimensionError (no time axis).
     """
     if np.iscomplexobj(x):
         raise DataError("x must be real-valued samples; got a complex array")
@@ -241,39 +289,20 @@ def fit_harmonics(
     if bad.any():
         raise DataError(f"x contains {int(bad.sum())} non-finite samples")
     _check_nyquist(f0, n_harmonics, fs)
+    return x
 
-    t = t0 + np.arange(n_samples) / fs
-    a = design_matrix(t, f0, n_harmonics)
-    q, r = _qr(a)
-    lead = x.shape[:-1]
-    xt = x.reshape(-1, n_samples).T  # (N, M)
-    qtx = q.T @ xt  # (2H+1, M)
-    coef = solve_triangular(r, qtx)  # (2H+1, M)
-    resid = xt - q @ qtx
-    dof = n_samples - n_cols
-    sigma = np.sqrt(np.sum(resid**2, axis=0) / dof)
 
-    r_inv = solve_triangular(r, np.eye(n_cols))
-    cov = r_inv @ r_inv.T
+def _unit_phasor_std(cov: np.ndarray, n_harmonics: int) -> np.ndarray:
+    """(H+1,) standard uncertainty of X_0 and of Re, Im X_n for unit noise [1].
+
+    From the diagonal of the unscaled covariance ``cov`` (2H+1, 2H+1): the mean's own entry,
+    then the root mean square of the Re and Im entries of every harmonic.
+    """
     diag = np.diag(cov)
     unit_std = np.empty(n_harmonics + 1)
     unit_std[0] = math.sqrt(diag[0])
     unit_std[1:] = np.sqrt(0.5 * (diag[1::2] + diag[2::2]))
-
-    phasors = np.empty((n_harmonics + 1, xt.shape[1]), dtype=complex)
-    phasors[0] = coef[0]
-    phasors[1:] = coef[1::2] + 1j * coef[2::2]
-
-    return HarmonicFit(
-        f0=float(f0),
-        phasors=phasors.T.reshape(*lead, n_harmonics + 1),
-        residual_std=sigma.reshape(lead),
-        phasor_std=(sigma[:, None] * unit_std).reshape(*lead, n_harmonics + 1),
-        residuals=resid.T.reshape(x.shape),
-        unscaled_covariance=cov,
-        fs=float(fs),
-        t0=float(t0),
-    )
+    return unit_std
 
 
 def noise_bound(sigma: float | np.ndarray, n_samples: int) -> float | np.ndarray:
@@ -293,6 +322,11 @@ def noise_bound(sigma: float | np.ndarray, n_samples: int) -> float | np.ndarray
     -------
     float or array [unit of x]
         sqrt(2 sigma^2 / N).
+
+    Raises
+    ------
+    DataError
+        ``n_samples`` not positive.
     """
     if n_samples <= 0:
         raise DataError(f"n_samples must be positive; got {n_samples}")
@@ -305,6 +339,7 @@ def significant_harmonics(fit: HarmonicFit, k: float = 5.0) -> np.ndarray:
     Parameters
     ----------
     fit : HarmonicFit
+        The fit whose phasors are tested.
     k : float
         Coverage factor: harmonic n is significant when |X_n| > k * phasor_std[n].
 
@@ -314,32 +349,6 @@ def significant_harmonics(fit: HarmonicFit, k: float = 5.0) -> np.ndarray:
         Index n is harmonic n (index 0 is the mean). Combine channels with ``.any(axis=0)``.
     """
     return np.abs(fit.phasors) > k * fit.phasor_std
-
-
-def _as_records(records: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
-    if any(np.iscomplexobj(rec) for rec in records):
-        raise DataError("records must be real-valued samples; got complex values")
-    if isinstance(records, np.ndarray):
-        arr = np.asarray(records, dtype=float)
-        if arr.ndim == 1:
-            arr = arr[None, :]
-        if arr.ndim != 2:
-            raise DimensionError(
-                f"records must be (n_records, n_samples) or a list of 1-D arrays; "
-                f"got shape {arr.shape}"
-            )
-        out = list(arr)
-    else:
-        out = [np.asarray(rec, dtype=float) for rec in records]
-    if not out:
-        raise DataError("no records given")
-    for i, rec in enumerate(out):
-        if rec.ndim != 1:
-            raise DimensionError(f"record {i} must be one-dimensional; got shape {rec.shape}")
-        bad = ~np.isfinite(rec)
-        if bad.any():
-            raise DataError(f"record {i} contains {int(bad.sum())} non-finite samples")
-    return out
 
 
 def _group_by_length(records: list[np.ndarray]) -> list[np.ndarray]:
@@ -375,35 +384,34 @@ def refine_fundamental(
     """Estimate the fundamental frequency shared by several records.
 
     The fundamental minimizes the total residual sum of squares of the harmonic fits of all
-    records, each record scaled by its own RMS (about its mean) so that no record dominates.
-    A grid within +-``search`` (relative) of the nominal value, spaced a quarter of the
-    narrowest valley of the objective (1 / (2 H T), T the longest record duration), locates the
-    minimum; a bounded scalar minimization between the neighbouring grid points refines it to
-    about 1e-10 relative.
+    records, each scaled by its own RMS (about its mean) so that no record dominates: a grid
+    search (:func:`_grid_search`) brackets the minimum, a bounded scalar minimization refines
+    it to about 1e-10 relative, and several records are finally weighted by their own noise.
 
     Parameters
     ----------
     records : (n_records, n_samples) array or sequence of 1-D arrays [any unit]
         Records that share one fundamental (all scan reference records, all channels of a
         run); records in a sequence may differ in length.
-    fs : float [Hz]
-        Sampling rate.
-    f0_nominal : float [Hz]
-        Nominal drive frequency.
+    fs : float
+        Sampling rate [Hz].
+    f0_nominal : float
+        Nominal drive frequency [Hz].
     n_harmonics : int
         Number H of harmonics in the model (at least 1).
-    t0 : float [s]
-        Absolute time of the first sample; the residual, hence the result, does not depend on
-        it.
-    search : float [1]
-        Half-width of the search interval relative to ``f0_nominal``.
-    min_explained : float [1]
-        Smallest acceptable fraction of the (mean-removed) variance explained by the best fit.
+    t0 : float
+        Absolute time of the first sample [s]; the residual, hence the result, does not depend
+        on it.
+    search : float
+        Half-width of the search interval relative to ``f0_nominal`` [1].
+    min_explained : float
+        Smallest acceptable fraction of the (mean-removed) variance explained by the best
+        fit [1].
 
     Returns
     -------
-    float [Hz]
-        The refined fundamental.
+    float
+        The refined fundamental [Hz].
 
     Raises
     ------
@@ -412,41 +420,79 @@ def refine_fundamental(
         frequency, or a best fit that explains less than ``min_explained`` of the variance
         (the data contradict the nominal frequency).
     """
+    _check_refine_arguments(fs, f0_nominal, n_harmonics, search)
+    recs = as_records(records)
+    f_lo = f0_nominal * (1.0 - search)
+    f_hi = f0_nominal * (1.0 + search)
+    _check_nyquist(f_hi, n_harmonics, fs)
+    lengths = np.array([rec.size for rec in recs])
+    check_periods(lengths, fs, f0_nominal)
+    groups = _group_by_length(_unit_rms(recs))
+    total_var = float(lengths.sum())  # each scaled record has unit mean square
+    best = _grid_search(groups, fs, f0_nominal, n_harmonics, t0, f_lo, f_hi)
+    xatol = 1e-10 * f0_nominal
+    f_best, rss_best = _bounded_minimum(groups, fs, n_harmonics, t0, (best.lo, best.hi), xatol)
+    if best.rss < rss_best:  # the grid point itself was better than any trial of the search
+        f_best, rss_best = best.f, best.rss
+    _check_explained(1.0 - rss_best / total_var, f_best, f0_nominal, search, min_explained)
+    return _noise_weighted(groups, len(recs), fs, f_best, n_harmonics, t0, best.spacing, xatol)
+
+
+def _check_refine_arguments(fs: float, f0_nominal: float, n_harmonics: int,
+                            search: float) -> None:
+    """DataError for arguments :func:`refine_fundamental` cannot work with."""
     if n_harmonics < 1:
         raise DataError(f"refine_fundamental needs n_harmonics >= 1; got {n_harmonics}")
     if not (0.0 < search < 1.0):
         raise DataError(f"search must be in (0, 1); got {search}")
     if not (fs > 0 and f0_nominal > 0):
         raise DataError(f"fs and f0 must be positive; got fs = {fs} Hz, f0 = {f0_nominal} Hz")
-    recs = _as_records(records)
-    f_lo = f0_nominal * (1.0 - search)
-    f_hi = f0_nominal * (1.0 + search)
-    _check_nyquist(f_hi, n_harmonics, fs)
 
-    lengths = np.array([rec.size for rec in recs])
-    i_short = int(np.argmin(lengths))
-    periods = lengths[i_short] / fs * f0_nominal
-    if periods < 5.0:
-        raise DataError(
-            f"record {i_short} holds {periods:.1f} periods of {f0_nominal:.6g} Hz "
-            f"({lengths[i_short]} samples at {fs:.6g} Hz); at least 5 periods are needed to "
-            "refine the fundamental"
-        )
 
+def _unit_rms(records: list[np.ndarray]) -> list[np.ndarray]:
+    """Every record less its mean, divided by its RMS; DataError for a constant record."""
     scaled = []
-    for i, rec in enumerate(recs):
+    for i, rec in enumerate(records):
         centred = rec - rec.mean()
         rms = math.sqrt(float(np.mean(centred**2)))
         if rms == 0.0 or rms <= 1e-12 * float(np.max(np.abs(rec))):
             raise DataError(f"record {i} is constant; it carries no information on f0")
         scaled.append(centred / rms)
-    groups = _group_by_length(scaled)
-    total_var = float(lengths.sum())  # each scaled record has unit mean square
+    return scaled
 
-    # coarse to fine: the full grid on a leading segment of the records, then the segment
-    # doubled with the bracket narrowed each time, so the work grows like the record length,
-    # not like its square (the valley of the objective narrows as 1 / duration)
-    n_full = int(lengths.max())
+
+def _check_explained(explained: float, f_best: float, f0_nominal: float, search: float,
+                     min_explained: float) -> None:
+    """DataError when the best fit explains less than ``min_explained`` of the variance."""
+    if explained < min_explained:
+        raise DataError(
+            f"the data contradict the nominal drive frequency of {f0_nominal:.6g} Hz: best fit "
+            f"at {f_best:.6g} Hz within +-{100 * search:.3g} % explains only "
+            f"{100 * max(explained, 0.0):.1f} % of the variance of the records "
+            f"(at least {100 * min_explained:.0f} % expected)"
+        )
+
+
+class _GridMinimum(NamedTuple):
+    """The best point of the last (full-length) grid of :func:`_grid_search`."""
+
+    f: float  # [Hz] the grid point of least residual
+    rss: float  # its total residual sum of squares
+    lo: float  # [Hz] the neighbouring grid points, bracketing the minimum
+    hi: float
+    spacing: float  # [Hz] the grid spacing
+
+
+def _grid_search(groups: list[np.ndarray], fs: float, f0_nominal: float, n_harmonics: int,
+                 t0: float, f_lo: float, f_hi: float) -> _GridMinimum:
+    """Bracket the minimum of the total RSS over [f_lo, f_hi] [Hz], coarse to fine.
+
+    The grid is spaced a quarter of the narrowest valley of the objective, 1 / (2 H T) for
+    records of duration T. The full grid runs on a leading segment of the records, then the
+    segment is doubled with the bracket narrowed each time, so the work grows like the record
+    length, not like its square (the valley of the objective narrows as 1 / duration).
+    """
+    n_full = max(g.shape[1] for g in groups)
     n_seg = min(n_full, int(_SEGMENT_PERIODS * fs / f0_nominal))
     lo_f, hi_f = f_lo, f_hi
     while True:
@@ -456,42 +502,38 @@ def refine_fundamental(
         grid = np.linspace(lo_f, hi_f, n_grid)
         rss = np.array([_total_rss(part, fs, f, n_harmonics, t0) for f in grid])
         i_best = int(np.argmin(rss))
-        lo = grid[max(i_best - 1, 0)]
-        hi = grid[min(i_best + 1, n_grid - 1)]
+        lo = float(grid[max(i_best - 1, 0)])
+        hi = float(grid[min(i_best + 1, n_grid - 1)])
         if n_seg >= n_full:
-            break
+            return _GridMinimum(float(grid[i_best]), float(rss[i_best]), lo, hi, spacing)
         n_seg = min(2 * n_seg, n_full)
         lo_f, hi_f = max(lo - spacing, f_lo), min(hi + spacing, f_hi)
+
+
+def _bounded_minimum(groups: list[np.ndarray], fs: float, n_harmonics: int, t0: float,
+                     bounds: tuple[float, float], xatol: float) -> tuple[float, float]:
+    """(f [Hz], total RSS) at the minimum of the total RSS of ``groups`` within ``bounds``."""
     res = minimize_scalar(
         lambda f: _total_rss(groups, fs, f, n_harmonics, t0),
-        bounds=(lo, hi),
+        bounds=bounds,
         method="bounded",
-        options={"xatol": 1e-10 * f0_nominal, "maxiter": 500},
+        options={"xatol": xatol, "maxiter": 500},
     )
-    f_best, rss_best = float(res.x), float(res.fun)
-    if rss[i_best] < rss_best:  # the grid point itself was better than any trial of the search
-        f_best, rss_best = float(grid[i_best]), float(rss[i_best])
-    explained = 1.0 - rss_best / total_var
-    if explained < min_explained:
-        raise DataError(
-            f"the data contradict the nominal drive frequency of {f0_nominal:.6g} Hz: best fit "
-            f"at {f_best:.6g} Hz within +-{100 * search:.3g} % explains only "
-            f"{100 * max(explained, 0.0):.1f} % of the variance of the records "
-            f"(at least {100 * min_explained:.0f} % expected)"
-        )
-    # maximum likelihood for white noise: each record weighted by its own noise, so that a
-    # faint, noisy record (a probe near a node) does not pull as hard as a clean one
+    return float(res.x), float(res.fun)
+
+
+def _noise_weighted(groups: list[np.ndarray], n_records: int, fs: float, f_best: float,
+                    n_harmonics: int, t0: float, spacing: float, xatol: float) -> float:
+    """The fundamental [Hz] refined within +-``spacing`` of ``f_best`` with every record
+    weighted by its own noise (maximum likelihood for white noise), so that a faint, noisy
+    record (a probe near a node) does not pull as hard as a clean one. One record, or
+    noise-free records, keep ``f_best``."""
     noise = [fit_harmonics(g, fs, f_best, n_harmonics, t0=t0).residual_std for g in groups]
     floor = 1e-9                    # scaled records have unit RMS: below this, noise-free
-    if len(recs) > 1 and all(np.all(s > floor) for s in noise):
+    if n_records > 1 and all(np.all(s > floor) for s in noise):
         weighted = [g / s[:, None] for g, s in zip(groups, noise, strict=True)]
-        res = minimize_scalar(
-            lambda f: _total_rss(weighted, fs, f, n_harmonics, t0),
-            bounds=(f_best - spacing, f_best + spacing),
-            method="bounded",
-            options={"xatol": 1e-10 * f0_nominal, "maxiter": 500},
-        )
-        f_best = float(res.x)
+        bounds = (f_best - spacing, f_best + spacing)
+        f_best = _bounded_minimum(weighted, fs, n_harmonics, t0, bounds, xatol)[0]
     return f_best
 
 
@@ -512,19 +554,28 @@ def fundamental_uncertainty(
     Parameters
     ----------
     records : (n_records, n_samples) array or sequence of 1-D arrays [any unit]
+        The records the fundamental was refined from.
     fs : float [Hz]
+        Sampling rate.
     f0 : float [Hz]
         The refined fundamental.
     n_harmonics : int
+        Number H of harmonics in the model.
     t0 : float [s]
         Absolute time of the first sample.
 
     Returns
     -------
     float [Hz]
-        inf when the records carry no information (noise-free records give 0).
+        The standard uncertainty; inf when the records carry no information (noise-free
+        records give 0).
+
+    Raises
+    ------
+    DataError
+        Complex, non-finite or empty records (see :func:`forcecal.checks.as_records`).
     """
-    recs = _as_records(records)
+    recs = as_records(records)
     info = 0.0
     for rec in recs:
         fit = fit_harmonics(rec, fs, f0, n_harmonics, t0)

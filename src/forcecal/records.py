@@ -22,7 +22,8 @@ class Scan:
     Attributes
     ----------
     points : (n_points, n_dim) array [m]
-        Coordinates of the scan points in the rig's axes (n_dim = 1 for a beam, 2 for a plate).
+        Coordinates of the scan points in the rig's axes (n_dim = 1 for a beam, 2 for a plate;
+        a body's records are located by (x, y, z, dx, dy, dz), n_dim = 6).
     response : (n_points, n_samples) array [m/s] or [m]
         The vibration records, velocity or displacement according to ``quantity``.
     reference : (n_points, n_samples) array [A]
@@ -30,6 +31,7 @@ class Scan:
     fs : float [Hz]
         Sampling rate, common to all records.
     quantity : {"velocity", "displacement"}
+        What the response records hold.
     source : str
         Where the scan was read from, for messages.
     """
@@ -68,10 +70,12 @@ class Scan:
 
     @property
     def n_points(self) -> int:
+        """Number of scan points (records)."""
         return self.points.shape[0]
 
     @property
     def n_samples(self) -> int:
+        """Number of samples per record."""
         return self.response.shape[1]
 
 
@@ -84,12 +88,15 @@ class Run:
     channels : mapping name -> (n_samples,) array
         Raw channel values (the rig's per-channel scale is applied later).
     fs : float [Hz]
+        Sampling rate, common to all channels.
     t0 : float [s]
         Time stamp of the first sample.
     name : str
         The file name without its extension, used to name outputs.
     source : str
         The path the run was read from, for messages.
+    labels : mapping column -> str
+        Labels carried from the campaign manifest into the report (empty otherwise).
     """
 
     channels: Mapping[str, np.ndarray]
@@ -101,6 +108,7 @@ class Run:
 
     @property
     def n_samples(self) -> int:
+        """Number of samples per channel."""
         return len(next(iter(self.channels.values())))
 
     @property
@@ -109,7 +117,23 @@ class Run:
         return self.t0 + np.arange(self.n_samples) / self.fs
 
     def channel(self, name: str) -> np.ndarray:
-        """Raw values of a channel; DataError naming the run and the channel if it is missing."""
+        """Raw values of a channel.
+
+        Parameters
+        ----------
+        name : str
+            The channel's name, as the rig gives it.
+
+        Returns
+        -------
+        (n_samples,) float array
+            The raw values.
+
+        Raises
+        ------
+        DataError
+            Naming the run and the channel when the run has no such channel.
+        """
         if name not in self.channels:
             raise DataError(
                 f"run '{self.source}': channel '{name}' named in the rig is missing "

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .checks import check_scan_length
 from .errors import DataError
 from .harmonics import fit_harmonics, refine_fundamental
 from .records import Scan
@@ -27,14 +28,23 @@ class HarmonicShapes:
 
     Attributes
     ----------
-    points : (n_points, n_dim) [m]
-    harmonics : (n_harm,) int, 1..H
-    values : (n_harm, n_points) complex [m]: displacement phasor of harmonic n at each point,
-        phase referred to the drive's fundamental, scaled to the mean drive amplitude
-    std : (n_harm, n_points) [m]: standard uncertainty of Re and of Im of ``values``
-    f0 : [Hz] the fundamental refined from the scan
-    drive_amplitude : (n_points,) [A] |I_1| of each record's reference
-    drive_phase : (n_points,) [rad] theta_k
+    points : (n_points, n_dim) array [m]
+        The scan points (n_dim = 6 for a body's located records).
+    harmonics : (n_harm,) int array
+        The harmonic numbers 1..H.
+    values : (n_harm, n_points) complex array [m]
+        Displacement phasor of harmonic n at each point, phase referred to the drive's
+        fundamental, scaled to the mean drive amplitude.
+    std : (n_harm, n_points) array [m]
+        Standard uncertainty of Re and of Im of ``values``.
+    f0 : float [Hz]
+        The fundamental refined from the scan.
+    drive_amplitude : (n_points,) array [A]
+        |I_1| of each record's reference.
+    drive_phase : (n_points,) array [rad]
+        theta_k, the phase of each record's reference fundamental.
+    source : str
+        Where the scan was read from, for messages.
     """
 
     points: np.ndarray
@@ -58,19 +68,25 @@ def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> Harm
 
     Parameters
     ----------
-    scan : the SLDV scan (velocity or displacement records plus current references)
-    f0_nominal : [Hz] nominal drive frequency; the fundamental is refined from the references
-    n_harmonics : H, harmonics 1..H are returned
+    scan : Scan
+        The SLDV scan (velocity or displacement records plus current references).
+    f0_nominal : float
+        Nominal drive frequency [Hz]; the fundamental is refined from the references.
+    n_harmonics : int
+        H: harmonics 1..H are returned.
+
+    Returns
+    -------
+    HarmonicShapes
+        The aligned displacement phasors of harmonics 1..H at every point.
 
     Raises
     ------
     DataError
-        When a reference record carries no drive (its fundamental is at the noise level).
+        Records shorter than 5 periods, references whose fundamental cannot be refined, or a
+        reference record that carries no drive (its fundamental is at the noise level).
     """
-    periods = scan.n_samples / scan.fs * f0_nominal
-    if periods < 5:
-        raise DataError(f"scan '{scan.source}': each record holds {periods:.1f} periods of "
-                        f"{f0_nominal:.4g} Hz; at least 5 are needed")
+    check_scan_length(scan, f0_nominal)
     try:
         f0 = refine_fundamental(scan.reference, scan.fs, f0_nominal, n_harmonics)
     except DataError as exc:

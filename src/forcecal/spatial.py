@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._atomic import write_text_atomic
 from .basis import PolynomialBasis, ShapeFit, shape_similarity
 from .errors import DataError, InputError
 from .inertia import mass_coupling
@@ -166,8 +167,6 @@ class SpatialModel:
             raise InputError(f"model '{source}': not a forcecal spatial model ({exc})") from None
 
     def save(self, path: str | Path) -> Path:
-        from .io.atomic import write_text_atomic
-
         return write_text_atomic(path, json.dumps(self.to_json(), indent=1))
 
 

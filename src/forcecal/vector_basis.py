@@ -23,6 +23,7 @@ from functools import cached_property
 
 import numpy as np
 import scipy.linalg
+from numpy.typing import ArrayLike
 
 from .basis import PolynomialBasis, ShapeFit, fit_shape
 from .errors import DataError, DimensionError
@@ -34,8 +35,23 @@ AXES = ("x", "y", "z")
 _ALIGNED = 1.0 - 1e-6
 
 
-def as_locations(locations: object) -> np.ndarray:
-    """(n, 6) float array of locations (a single (6,) location becomes (1, 6))."""
+def as_locations(locations: ArrayLike) -> np.ndarray:
+    """(n, 6) float array of locations (a single (6,) location becomes (1, 6)).
+
+    Parameters
+    ----------
+    locations : (n, 6) or (6,) array
+        Rows (x, y, z [m], dx, dy, dz).
+
+    Returns
+    -------
+    (n, 6) float array
+
+    Raises
+    ------
+    DimensionError
+        Anything else than rows of six numbers.
+    """
     loc = np.atleast_2d(np.asarray(locations, dtype=float))
     if loc.ndim != 2 or loc.shape[1] != 6:
         raise DimensionError(f"a body's shapes take locations (n, 6) = (x, y, z, dx, dy, dz); "
@@ -45,6 +61,18 @@ def as_locations(locations: object) -> np.ndarray:
 
 def record_axes(locations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The axis (0, 1, 2) and sign (+1, -1) of every record's direction.
+
+    Parameters
+    ----------
+    locations : (n_records, 6) array
+        Rows (x, y, z [m], dx, dy, dz); the directions need not be unit vectors.
+
+    Returns
+    -------
+    axis : (n_records,) int array
+        0, 1 or 2 for x, y or z.
+    sign : (n_records,) float array
+        +1 or -1.
 
     Raises
     ------
@@ -64,17 +92,37 @@ def record_axes(locations: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 @dataclass(frozen=True)
 class VectorBasis:
-    """The basis functions e_a beta_{a,j}(x) of the measured axes, evaluable at locations."""
+    """The basis functions e_a beta_{a,j}(x) of the measured axes, evaluable at locations.
+
+    Attributes
+    ----------
+    axes : tuple of int
+        The measured axes (0, 1, 2 for x, y, z), ascending.
+    bases : tuple of PolynomialBasis
+        One 3-D basis per measured axis.
+    """
 
     axes: tuple[int, ...]
     bases: tuple[PolynomialBasis, ...]
 
     @property
     def n_funcs(self) -> int:
+        """Number of basis functions over all axes."""
         return sum(b.n_funcs for b in self.bases)
 
     def evaluate(self, locations: np.ndarray) -> np.ndarray:
-        """(n, n_funcs) [1]: d . e_a beta_{a,j}(x) at every location."""
+        """The basis functions seen along each location's direction.
+
+        Parameters
+        ----------
+        locations : (n, 6) array
+            Rows (x, y, z [m], dx, dy, dz).
+
+        Returns
+        -------
+        (n, n_funcs) array [1]
+            d . e_a beta_{a,j}(x) at every location, the axes' functions one after another.
+        """
         loc = as_locations(locations)
         return np.hstack([loc[:, 3 + a, None] * b.evaluate(loc[:, :3])
                           for a, b in zip(self.axes, self.bases, strict=True)])
@@ -87,6 +135,13 @@ class VectorShapeFit:
     It offers what the estimator uses of a scalar :class:`ShapeFit` (``evaluate``, ``std``,
     ``basis``, ``coefficients``, ``coefficient_covariance``, ``order``, ``criterion``,
     ``residual_std``), with locations in place of points.
+
+    Attributes
+    ----------
+    axes : tuple of int
+        The measured axes (0, 1, 2 for x, y, z), ascending.
+    components : tuple of ShapeFit
+        One scalar fit per measured axis, over the records along it.
     """
 
     axes: tuple[int, ...]
@@ -94,10 +149,12 @@ class VectorShapeFit:
 
     @cached_property
     def basis(self) -> VectorBasis:
+        """The components' bases as one :class:`VectorBasis`."""
         return VectorBasis(self.axes, tuple(c.basis for c in self.components))
 
     @cached_property
     def coefficients(self) -> np.ndarray:
+        """(n_funcs,) complex [m]: the components' coefficients one after another."""
         return np.concatenate([c.coefficients for c in self.components])
 
     @cached_property
@@ -112,10 +169,12 @@ class VectorShapeFit:
 
     @property
     def orders_by_axis(self) -> dict[str, int]:
+        """The order of each measured axis, by axis name."""
         return {AXES[a]: c.order for a, c in zip(self.axes, self.components, strict=True)}
 
     @property
     def criterion(self) -> str:
+        """How the orders were chosen ("gcv", "bic" or "fixed")."""
         return self.components[0].criterion
 
     @property
@@ -124,32 +183,64 @@ class VectorShapeFit:
         return max(c.residual_std for c in self.components)
 
     def evaluate(self, locations: np.ndarray) -> np.ndarray:
-        """d . u(x) at locations, (n,) [unit of the values]."""
+        """d . u(x) at locations.
+
+        Parameters
+        ----------
+        locations : (n, 6) array
+            Rows (x, y, z [m], dx, dy, dz).
+
+        Returns
+        -------
+        (n,) complex array [unit of the values]
+        """
         return self.basis.evaluate(locations) @ self.coefficients
 
     def std(self, locations: np.ndarray) -> np.ndarray:
-        """Standard uncertainty of Re (and of Im) of d . u(x) at locations."""
+        """Standard uncertainty of Re (and of Im) of d . u(x) at locations.
+
+        Parameters
+        ----------
+        locations : (n, 6) array
+            Rows (x, y, z [m], dx, dy, dz).
+
+        Returns
+        -------
+        (n,) array [unit of the values]
+        """
         b = self.basis.evaluate(locations)
         return np.sqrt(np.einsum("kr,rs,ks->k", b, self.coefficient_covariance, b))
 
 
-def fit_vector_shape(locations: np.ndarray, values: np.ndarray, extent: object,
+def fit_vector_shape(locations: np.ndarray, values: np.ndarray, extent: ArrayLike,
                      criterion: str = "gcv", weights: np.ndarray | None = None,
                      ) -> VectorShapeFit:
     """Fit each measured axis of a vector shape over the scan records along it.
 
     Parameters
     ----------
-    locations : (n_records, 6) where and along which axis each record measured
-    values : (n_records,) complex [m] the harmonic's phasor of each record
-    extent : ((x_min, x_max), (y_min, y_max), (z_min, z_max)) [m] the body's bounding box
-    criterion : "gcv" or "bic", how each component's order is chosen
-    weights : (n_records,) positive relative weights (inverse variances)
+    locations : (n_records, 6) array
+        Where and along which axis each record measured: (x, y, z [m], dx, dy, dz).
+    values : (n_records,) complex array [m]
+        The harmonic's phasor of each record.
+    extent : ((x_min, x_max), (y_min, y_max), (z_min, z_max)) [m]
+        The body's bounding box.
+    criterion : {"gcv", "bic"}
+        How each component's order is chosen.
+    weights : (n_records,) array, optional
+        Positive relative weights (inverse variances); default 1.
+
+    Returns
+    -------
+    VectorShapeFit
+        One :class:`~forcecal.basis.ShapeFit` per measured axis.
 
     Raises
     ------
     DataError
         A record not along an axis, or no record at all.
+    DimensionError
+        Values that do not match the locations.
     """
     loc = as_locations(locations)
     vals = np.asarray(values)

@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .._atomic import write_text_atomic
 from ..errors import DimensionError, InputError
-from ..io.atomic import write_text_atomic
 from .laws import Law, get_law
 
 if TYPE_CHECKING:

@@ -15,9 +15,9 @@ from typing import Any
 
 import numpy as np
 
+from .._atomic import write_text_atomic
 from ..actuator import Calibration, Law, Selection
 from ..actuator import report_text as selection_text
-from ..io.atomic import write_text_atomic
 from .repeatability import Repeatability
 from .runs import RunResult
 

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._atomic import write_text_atomic
 from ..errors import InputError
-from .atomic import write_text_atomic
 
 __all__ = ["ManifestEntry", "read_manifest", "write_manifest"]
 
@@ -86,6 +86,7 @@ def write_manifest(path: str | Path, rows: Sequence[Mapping[str, object]]) -> Pa
     Parameters
     ----------
     path : str or Path
+        The manifest CSV, replaced atomically.
     rows : sequence of mappings column -> value
         Each needs ``run``; columns are the union of all keys, ``run`` first, then in order of
         first appearance; a missing value or None is written as an empty cell, a float with
@@ -94,6 +95,12 @@ def write_manifest(path: str | Path, rows: Sequence[Mapping[str, object]]) -> Pa
     Returns
     -------
     Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        A row without ``run`` (rows counted from 2, the header being row 1).
     """
     columns = ["run"]
     for number, row in enumerate(rows, start=2):

@@ -7,43 +7,36 @@ from pathlib import Path
 
 import numpy as np
 
+from .._atomic import write_text_atomic
 from ..forces import SPLIT_CONDITION, ForceEstimate
-from .atomic import write_text_atomic
 from .run_files import write_table_csv
 
 __all__ = ["estimate_summary", "write_estimate"]
 
 
+_HarmonicRows = list[dict[str, int | float | bool]]
+"""One JSON object per harmonic the data support, in harmonic order."""
+
+
 def estimate_summary(est: ForceEstimate) -> dict:
-    """The JSON document of one run's forces: fundamental, per-harmonic phasors with standard
-    uncertainties, inertia share and conditioning figures."""
+    """The JSON document of one run's forces.
 
-    def harmonics(ph: np.ndarray, std: np.ndarray, static: np.ndarray | None) -> list[dict]:
-        rows = []
-        for n in est.harmonics:
-            if not est.kept[n]:
-                continue
-            row = {
-                "harmonic": int(n),
-                "frequency_hz": float(n * est.f0),
-                "amplitude_n": float(abs(ph[n])),
-                "phase_rad": float(np.angle(ph[n])),
-                "std_n": float(std[n]),
-                "inertia_compensated": bool(est.with_inertia[n]),
-            }
-            if static is not None:
-                row["static_amplitude_n"] = float(abs(static[n]))
-            rows.append(row)
-        return rows
+    Parameters
+    ----------
+    est : ForceEstimate
+        The run's estimate.
 
-    forces = {name: harmonics(est.force[k], est.force_std[k], est.static[k])
+    Returns
+    -------
+    dict
+        Fundamental, per-harmonic phasors with standard uncertainties (forces, total, and the
+        resultant's first moments and, on a body, components), inertia share, conditioning
+        figures and generalized coordinates, ready for :func:`json.dumps`.
+    """
+    forces = {name: _harmonic_rows(est, est.force[k], est.force_std[k], est.static[k])
               for k, name in enumerate(est.force_names)}
-    forces["total"] = harmonics(est.total, est.total_std, est.static.sum(axis=0))
-    resultant, components = {}, {}       # first moments (N m); a body's resultant vector (N)
-    for k, name in enumerate(est.combination_names):
-        if name.startswith(("moment", "resultant")):
-            target = resultant if name.startswith("moment") else components
-            target[name] = harmonics(est.combination[k], est.combination_std[k], None)
+    forces["total"] = _harmonic_rows(est, est.total, est.total_std, est.static.sum(axis=0))
+    resultant, components = _resultant_rows(est)
     c = est.coordinates
     return {
         "run": est.run_name,
@@ -72,8 +65,59 @@ def estimate_summary(est: ForceEstimate) -> dict:
     }
 
 
+def _harmonic_rows(est: ForceEstimate, ph: np.ndarray, std: np.ndarray,
+                   static: np.ndarray | None) -> _HarmonicRows:
+    """Rows of one force's phasors ``ph`` (H+1,) [N] and their uncertainties ``std`` (H+1,)
+    [N], with the reactions-only amplitude when ``static`` (H+1,) [N] is given."""
+    rows: _HarmonicRows = []
+    for n in est.harmonics:
+        if not est.kept[n]:
+            continue
+        row: dict[str, int | float | bool] = {
+            "harmonic": int(n),
+            "frequency_hz": float(n * est.f0),
+            "amplitude_n": float(abs(ph[n])),
+            "phase_rad": float(np.angle(ph[n])),
+            "std_n": float(std[n]),
+            "inertia_compensated": bool(est.with_inertia[n]),
+        }
+        if static is not None:
+            row["static_amplitude_n"] = float(abs(static[n]))
+        rows.append(row)
+    return rows
+
+
+def _resultant_rows(est: ForceEstimate) -> tuple[dict[str, _HarmonicRows],
+                                                   dict[str, _HarmonicRows]]:
+    """Rows of the resultant's first moments [N m] and of a body's resultant vector [N]."""
+    resultant: dict[str, _HarmonicRows] = {}
+    components: dict[str, _HarmonicRows] = {}
+    if est.combination is None or est.combination_std is None:
+        return resultant, components
+    for k, name in enumerate(est.combination_names):
+        if name.startswith(("moment", "resultant")):
+            target = resultant if name.startswith("moment") else components
+            target[name] = _harmonic_rows(est, est.combination[k], est.combination_std[k], None)
+    return resultant, components
+
+
 def write_estimate(est: ForceEstimate, out_dir: str | Path) -> tuple[Path, Path]:
-    """Write ``OUT/NAME.forces.csv`` and ``OUT/NAME.json`` atomically."""
+    """Write ``OUT/NAME.forces.csv`` and ``OUT/NAME.json`` atomically.
+
+    Parameters
+    ----------
+    est : ForceEstimate
+        The run's estimate.
+    out_dir : str or Path
+        The output folder OUT, created when missing.
+
+    Returns
+    -------
+    csv : Path
+        The force series: every force, the total and their reactions-only counterparts [N].
+    json : Path
+        The summary of :func:`estimate_summary`.
+    """
     out_dir = Path(out_dir)
     cols = {name: est.series[k] for k, name in enumerate(est.force_names)}
     cols["total"] = est.total_series

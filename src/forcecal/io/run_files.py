@@ -10,7 +10,9 @@ A run file holds uniformly sampled, named channels:
 
 Reading checks what would silently spoil an estimate and says where, in one line: no samples,
 a non-numeric cell, NaN or infinite samples, non-uniform time stamps, fewer than
-:data:`MIN_SAMPLES` samples. :func:`check_clipping` finds saturated (flat-topped) channels.
+:data:`forcecal.checks.MIN_SAMPLES` samples. The checks on the data themselves (sample count,
+equal lengths, finite samples, and :func:`forcecal.checks.check_clipping` for saturated
+channels) live in :mod:`forcecal.checks`; the ones on the file's layout and time stamps live here.
 """
 
 from __future__ import annotations
@@ -24,14 +26,13 @@ import h5py
 import numpy as np
 from nptdms import ChannelObject, TdmsFile, TdmsWriter
 
+from .._atomic import atomic_path, write_text_atomic
+from ..checks import check_equal_lengths, check_finite, check_sample_count
 from ..errors import DataError, InputError
 from ..records import Run
-from .atomic import atomic_path, write_text_atomic
 
 __all__ = [
-    "MIN_SAMPLES",
     "RUN_SUFFIXES",
-    "check_clipping",
     "read_run",
     "read_table_csv",
     "write_run_csv",
@@ -41,13 +42,9 @@ __all__ = [
     "write_table_hdf5",
 ]
 
-MIN_SAMPLES = 16
 RUN_SUFFIXES = (".csv", ".tdms", ".h5", ".hdf5")
 _UNIFORM_RTOL = 1e-6  # allowed deviation of a time step from the mean step, relative
 _ROUNDING_CAP = 0.25  # rounded stamps excuse at most this share of a step
-_CLIP_FRACTION = 0.005  # share of samples at one extreme from which clipping is suspected
-_CLIP_RUN = 3  # consecutive samples at the extreme from which clipping is suspected
-_CLIP_RATIO = 4.0  # extreme count / count just inside it; a smooth peak stays below ~2.5
 
 
 # --------------------------------------------------------------------------------------------
@@ -96,7 +93,7 @@ def _read_csv_run(path: Path) -> Run:
     header, cells, rows = _parse_csv(path, "run")
     values = _numeric(cells, header, rows, path, "run")
     time = values[:, 0]
-    _check_length(time.size, path)
+    check_sample_count(time.size, path)
 
     def where(k: int) -> str:
         return f"row {rows[k]}"
@@ -160,15 +157,15 @@ def _read_hdf5_run(path: Path) -> Run:
 
 def _sampled(path: Path, channels: dict[str, np.ndarray], fs: float, t0: float) -> Run:
     """A run whose sampling rate the file states: equal, long enough channels."""
-    _check_equal_lengths(channels, path)
-    _check_length(len(next(iter(channels.values()))), path)
+    check_equal_lengths(channels, path)
+    check_sample_count(len(next(iter(channels.values()))), path)
     return _finish(path, channels, fs, t0)
 
 
 def _with_time_channel(path: Path, time: np.ndarray, channels: dict[str, np.ndarray]) -> Run:
     """Finish a run whose sampling comes from a time channel."""
-    _check_equal_lengths({"time": time, **channels}, path)
-    _check_length(time.size, path)
+    check_equal_lengths({"time": time, **channels}, path)
+    check_sample_count(time.size, path)
     _check_finite_time(time, path, _sample_label)
     fs, t0 = _sampling_from_time(time, path, np.zeros_like(time), _sample_label)
     return _finish(path, channels, fs, t0)
@@ -177,30 +174,12 @@ def _with_time_channel(path: Path, time: np.ndarray, channels: dict[str, np.ndar
 def _finish(path: Path, channels: dict[str, np.ndarray], fs: float, t0: float) -> Run:
     """Check every channel for NaN/inf and build the Run."""
     for name, values in channels.items():
-        _check_finite(values, name, path, t0, fs)
+        check_finite(values, name, path, t0, fs)
     return Run(channels=channels, fs=fs, t0=t0, name=path.stem, source=str(path))
 
 
 # --------------------------------------------------------------------------------------------
-# checks
-
-
-def _check_length(n: int, path: Path) -> None:
-    if n == 0:
-        raise DataError(f"run '{path}': no samples")
-    if n < MIN_SAMPLES:
-        raise DataError(f"run '{path}': {n} samples; at least {MIN_SAMPLES} are needed")
-
-
-def _check_equal_lengths(channels: Mapping[str, np.ndarray], path: Path) -> None:
-    names = list(channels)
-    n0 = len(channels[names[0]])
-    for name in names[1:]:
-        if len(channels[name]) != n0:
-            raise DataError(
-                f"run '{path}': channel {name!r} has {len(channels[name])} samples, "
-                f"channel {names[0]!r} has {n0}"
-            )
+# time stamps
 
 
 def _sample_label(k: int) -> str:
@@ -214,22 +193,6 @@ def _check_finite_time(time: np.ndarray, path: Path, where: Callable[[int], str]
             f"run '{path}': time has {bad.size} NaN or infinite values, the first at "
             f"{where(int(bad[0]))}"
         )
-
-
-def _check_finite(values: np.ndarray, name: str, path: Path, t0: float, fs: float) -> None:
-    """DataError naming the channel, the count and the time of the first bad sample."""
-    bad = ~np.isfinite(values)
-    if not bad.any():
-        return
-    n_nan = int(np.count_nonzero(np.isnan(values)))
-    n_inf = int(np.count_nonzero(bad)) - n_nan
-    what = " and ".join(
-        text for count, text in ((n_nan, f"{n_nan} NaN"), (n_inf, f"{n_inf} infinite")) if count
-    )
-    first = int(np.flatnonzero(bad)[0])
-    raise DataError(
-        f"run '{path}': channel {name!r} has {what} samples starting at t={t0 + first / fs:.6g} s"
-    )
 
 
 def _first_irregular_step(time: np.ndarray, resolution: np.ndarray) -> int | None:
@@ -263,69 +226,6 @@ def _sampling_from_time(
             f"{100 * abs(actual - step) / step:.3g} %"
         )
     return 1.0 / step, float(time[0])
-
-
-def check_clipping(values: np.ndarray, name: str, source: str | Path, fs: float) -> None:
-    """Raise DataError when a channel is flat-topped (saturated) at its maximum or minimum.
-
-    A sine-like signal, quantised or not, passes through its extreme once per period and
-    rounds to the extreme value only over its smooth peak, so its extreme level holds at most
-    about 2.5 times as many samples as the level just inside it. A saturated signal sits at
-    the extreme for many consecutive samples. The channel is flagged when, at its maximum or
-    its minimum, at least 0.5 % of the samples (and at least 3 in a row) sit exactly at the
-    extreme, and more than 4 times as many as lie just inside it (closer than two quantisation
-    steps, the step being the distance from the extreme to the nearest other value).
-    Constant channels are not flagged; the check is meant for sine-like channels, not for
-    square waves or trigger lines.
-
-    Parameters
-    ----------
-    values : (n_samples,) array
-        Raw channel values; non-finite samples are ignored.
-    name : str
-        Channel name, for the message.
-    source : str or Path
-        The run file, for the message.
-    fs : float [Hz]
-        Sampling rate, to say when the first flat top starts (s after the record start).
-    """
-    v = np.asarray(values, dtype=float).ravel()
-    v = v[np.isfinite(v)]
-    if v.size < MIN_SAMPLES or v.max() == v.min():
-        return
-    for side, level in (("maximum", v.max()), ("minimum", v.min())):
-        at_level = v == level
-        count = int(np.count_nonzero(at_level))
-        if count < max(_CLIP_RUN, _CLIP_FRACTION * v.size):
-            continue
-        longest, start = _flat_runs(at_level)
-        if longest < _CLIP_RUN or count <= _CLIP_RATIO * _count_just_inside(v, level):
-            continue
-        raise DataError(
-            f"run '{source}': channel {name!r} is clipped: {count} samples "
-            f"({100 * count / v.size:.2g} %) sit at its {side} {level:.6g}, up to {longest} in "
-            f"a row, the first flat top at {start / fs:.6g} s after the start"
-        )
-
-
-def _flat_runs(mask: np.ndarray) -> tuple[int, int]:
-    """(longest run of True, start index of the first run of at least ``_CLIP_RUN``)."""
-    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    lengths = ends - starts
-    long_enough = np.flatnonzero(lengths >= _CLIP_RUN)
-    first = int(starts[long_enough[0]]) if long_enough.size else -1
-    return int(lengths.max()), first
-
-
-def _count_just_inside(v: np.ndarray, level: float) -> int:
-    """Samples within two quantisation steps inside ``level``, ``level`` itself excluded.
-
-    The step is the distance from ``level`` to the nearest other value in the record.
-    """
-    others = v[v != level]
-    gap = float(np.min(np.abs(others - level)))
-    return int(np.count_nonzero(np.abs(others - level) < 2 * gap))
 
 
 # --------------------------------------------------------------------------------------------
@@ -471,10 +371,24 @@ def _positive_number(value: object, what: str, path: Path) -> float:
 def read_table_csv(path: str | Path) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Read a CSV table with a ``time`` column (e.g. ``NAME.forces.csv``).
 
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file: a header row, ``time`` first.
+
     Returns
     -------
     time : (n_rows,) array [s]
-    columns : dict name -> (n_rows,) array, in file order
+        The ``time`` column.
+    columns : dict name -> (n_rows,) array
+        The other columns, in file order.
+
+    Raises
+    ------
+    InputError
+        A missing file or a malformed header.
+    DataError
+        An empty table or a cell that is not a number (named by row and column).
     """
     path = Path(path)
     if not path.is_file():
@@ -490,12 +404,22 @@ def write_table_csv(path: str | Path, time: np.ndarray, columns: Mapping[str, np
     Parameters
     ----------
     path : str or Path
+        The CSV file, replaced atomically.
     time : (n_rows,) array [s]
+        The first column.
     columns : mapping name -> (n_rows,) array
+        The other columns, in order.
 
     Returns
     -------
     Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        A column name CSV cannot hold (``time``, empty, or with a comma, quote or line
+        break), or a column whose length differs from ``time``.
     """
     time = np.asarray(time, dtype=float).ravel()
     names = list(columns)
@@ -518,7 +442,20 @@ def write_table_csv(path: str | Path, time: np.ndarray, columns: Mapping[str, np
 
 
 def write_run_csv(run: Run, path: str | Path) -> Path:
-    """Write a run as CSV (``time`` then one column per channel), atomically."""
+    """Write a run as CSV (``time`` then one column per channel), atomically.
+
+    Parameters
+    ----------
+    run : Run
+        The recording.
+    path : str or Path
+        The CSV file, replaced atomically.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     return write_table_csv(path, run.time, run.channels)
 
 
@@ -527,6 +464,20 @@ def write_run_tdms(run: Run, path: str | Path, group: str = "forcecal") -> Path:
 
     Each channel carries ``wf_increment`` = 1/fs [s], ``wf_start_offset`` = t0 [s] and
     ``wf_samples``.
+
+    Parameters
+    ----------
+    run : Run
+        The recording.
+    path : str or Path
+        The ``.tdms`` file, replaced atomically.
+    group : str
+        The name of the one group.
+
+    Returns
+    -------
+    Path
+        ``path``.
     """
     properties = {
         "wf_increment": 1.0 / run.fs,
@@ -543,7 +494,25 @@ def write_run_tdms(run: Run, path: str | Path, group: str = "forcecal") -> Path:
 
 
 def write_run_hdf5(run: Run, path: str | Path) -> Path:
-    """Write a run as HDF5: one root dataset per channel, root attributes fs, t0; atomically."""
+    """Write a run as HDF5: one root dataset per channel, root attributes fs, t0; atomically.
+
+    Parameters
+    ----------
+    run : Run
+        The recording.
+    path : str or Path
+        The ``.h5`` file, replaced atomically.
+
+    Returns
+    -------
+    Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        A channel name that cannot name an HDF5 dataset (empty, ``.`` or with a ``/``).
+    """
     for name in run.channels:
         if not name or "/" in name or name == ".":
             raise InputError(f"run '{path}': channel name {name!r} cannot name an HDF5 dataset")
@@ -557,8 +526,25 @@ def write_run_hdf5(run: Run, path: str | Path) -> Path:
 
 def write_table_hdf5(path: str | Path, time: np.ndarray,
                      columns: Mapping[str, np.ndarray]) -> Path:
-    """Write ``time`` and named columns as HDF5 in the run layout (root datasets, attribute
-    ``fs`` from the time step, ``t0``), atomically; :func:`read_run` reads it back."""
+    """Write ``time`` and named columns as HDF5 in the run layout, atomically.
+
+    Root datasets, attribute ``fs`` from the mean time step and ``t0``; :func:`read_run`
+    reads it back.
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.h5`` file, replaced atomically.
+    time : (n_rows,) array [s]
+        Uniform time stamps.
+    columns : mapping name -> (n_rows,) array
+        The columns, in order.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     time = np.asarray(time, dtype=float).ravel()
     step = float(np.mean(np.diff(time))) if time.size > 1 else 1.0
     return write_run_hdf5(Run(channels=dict(columns), fs=1.0 / step,
@@ -566,5 +552,6 @@ def write_table_hdf5(path: str | Path, time: np.ndarray,
 
 
 def _first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (its type name when it has none)."""
     text = str(exc).strip() or type(exc).__name__
     return text.splitlines()[0]

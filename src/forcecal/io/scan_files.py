@@ -12,13 +12,14 @@ from __future__ import annotations
 import zipfile
 from collections.abc import Mapping
 from pathlib import Path
+from typing import TypedDict
 
 import h5py
 import numpy as np
 
+from .._atomic import atomic_path
 from ..errors import InputError
 from ..records import Scan
-from .atomic import atomic_path
 from .uff import read_scan_uff
 
 __all__ = ["SCAN_SUFFIXES", "read_scan", "write_scan_hdf5", "write_scan_npz"]
@@ -43,6 +44,14 @@ def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = 
     Returns
     -------
     Scan
+        The records in SI units, ``source`` = ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        An unknown suffix, a missing or unreadable file, or a missing or malformed array.
+    DataError
+        Records that do not pair up or disagree (see :func:`forcecal.io.uff.read_scan_uff`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
@@ -58,7 +67,26 @@ def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = 
 
 
 def read_scan_npz(path: str | Path, locations: bool = False) -> Scan:
-    """Read a scan from an ``.npz`` archive (arrays named as in the module docstring)."""
+    """Read a scan from an ``.npz`` archive (arrays named as in the module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.npz`` archive.
+    locations : bool
+        For a 3-D body: ``x`` (n, 3) and ``direction`` give every record's point and measuring
+        direction, (n, 6).
+
+    Returns
+    -------
+    Scan
+        The records, ``source`` = ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        A missing or unreadable archive, or a missing or malformed array.
+    """
     path = _existing(path)
     try:
         loaded = np.load(path, allow_pickle=False)
@@ -75,7 +103,26 @@ def read_scan_npz(path: str | Path, locations: bool = False) -> Scan:
 
 
 def read_scan_hdf5(path: str | Path, locations: bool = False) -> Scan:
-    """Read a scan from an HDF5 file (root datasets named as in the module docstring)."""
+    """Read a scan from an HDF5 file (root datasets named as in the module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.h5``/``.hdf5`` file.
+    locations : bool
+        For a 3-D body: ``x`` (n, 3) and ``direction`` give every record's point and measuring
+        direction, (n, 6).
+
+    Returns
+    -------
+    Scan
+        The records, ``source`` = ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        A missing or unreadable file, or a missing or malformed dataset.
+    """
     path = _existing(path)
     try:
         with h5py.File(path, "r") as h5:
@@ -89,26 +136,68 @@ def read_scan_hdf5(path: str | Path, locations: bool = False) -> Scan:
 
 
 def write_scan_npz(scan: Scan, path: str | Path) -> Path:
-    """Write a scan as an ``.npz`` archive, atomically; returns the path."""
+    """Write a scan as an ``.npz`` archive, atomically.
+
+    Parameters
+    ----------
+    scan : Scan
+        The scan (a body's located records are written as ``x`` and ``direction``).
+    path : str or Path
+        The ``.npz`` archive, replaced atomically.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     with atomic_path(path) as tmp, open(tmp, "wb") as fh:
         np.savez(fh, **_content_of(scan))
     return Path(path)
 
 
 def write_scan_hdf5(scan: Scan, path: str | Path) -> Path:
-    """Write a scan as an HDF5 file (one root dataset per key), atomically; returns the path."""
+    """Write a scan as an HDF5 file (one root dataset per key), atomically.
+
+    Parameters
+    ----------
+    scan : Scan
+        The scan (a body's located records are written as ``x`` and ``direction``).
+    path : str or Path
+        The ``.h5`` file, replaced atomically.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     with atomic_path(path) as tmp, h5py.File(tmp, "w") as h5:
         for key, value in _content_of(scan).items():
             h5.create_dataset(key, data=str(value) if isinstance(value, str) else value)
     return Path(path)
 
 
-def _content_of(scan: Scan) -> dict[str, np.ndarray]:
+class _Direction(TypedDict, total=False):
+    direction: np.ndarray
+
+
+class _ScanContent(_Direction):
+    """The named arrays of a scan file, in file order (see the module docstring)."""
+
+    x: np.ndarray
+    response: np.ndarray
+    reference: np.ndarray
+    fs: np.float64
+    quantity: np.str_
+
+
+def _content_of(scan: Scan) -> _ScanContent:
+    """The arrays a scan file holds: a body's located points become ``x`` and ``direction``."""
     x = scan.points[:, 0] if scan.points.shape[1] == 1 else scan.points
     located = scan.points.shape[1] == 6
+    direction: _Direction = {"direction": np.asarray(x[:, 3:], dtype=float)} if located else {}
     return {
         "x": np.asarray(x[:, :3] if located else x, dtype=float),
-        **({"direction": np.asarray(x[:, 3:], dtype=float)} if located else {}),
+        **direction,
         "response": scan.response,
         "reference": scan.reference,
         "fs": np.float64(scan.fs),
@@ -117,6 +206,7 @@ def _content_of(scan: Scan) -> dict[str, np.ndarray]:
 
 
 def _existing(path: str | Path) -> Path:
+    """``path`` as a Path; InputError when there is no such file."""
     path = Path(path)
     if not path.is_file():
         raise InputError(f"scan '{path}': file does not exist")
@@ -170,6 +260,7 @@ def _located(x: np.ndarray, direction: np.ndarray | None, path: Path) -> np.ndar
 
 
 def _float_array(value: np.ndarray, key: str, path: Path) -> np.ndarray:
+    """The named array as floats; InputError naming the key when it is not numeric."""
     try:
         return np.asarray(value, dtype=float)
     except (TypeError, ValueError) as exc:
@@ -177,6 +268,7 @@ def _float_array(value: np.ndarray, key: str, path: Path) -> np.ndarray:
 
 
 def _text(value: object, path: Path) -> str:
+    """The ``quantity`` string, stripped; InputError when it is not a string."""
     item = np.asarray(value).item() if np.asarray(value).size == 1 else value
     if isinstance(item, bytes):
         item = item.decode("utf-8", errors="replace")
@@ -186,5 +278,6 @@ def _text(value: object, path: Path) -> str:
 
 
 def _first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (its type name when it has none)."""
     text = str(exc).strip() or type(exc).__name__
     return text.splitlines()[0]

@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 from matplotlib.figure import Figure
 
+from .._atomic import write_text_atomic
 from ..errors import InputError
 from ..forces import ForceEstimate
-from ..io.atomic import write_text_atomic
 from .figures import png_bytes
 
 __all__ = [

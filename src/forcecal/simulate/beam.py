@@ -48,12 +48,15 @@ def hermite_row(nodes: np.ndarray, x: float | np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    nodes : (n_nodes,) array [m], increasing
-    x : float or (n_points,) array [m], within [nodes[0], nodes[-1]]
+    nodes : (n_nodes,) array [m]
+        Node coordinates, increasing.
+    x : float or (n_points,) array [m]
+        Where the deflection is wanted, within [nodes[0], nodes[-1]].
 
     Returns
     -------
-    (n_points, 2 * n_nodes) array, or (2 * n_nodes,) for a scalar x.
+    (n_points, 2 * n_nodes) array [1]
+        Row k maps the nodal DOFs to w(x_k); (2 * n_nodes,) for a scalar x.
     """
     scalar = np.ndim(x) == 0
     xs = np.atleast_1d(np.asarray(x, dtype=float))
@@ -76,13 +79,20 @@ class BeamModel(ModalModel):
 
     Attributes
     ----------
-    nodes : (n_nodes,) [m]
-    stiffness : (n_dof, n_dof) [N/m], beam bending plus the gauge springs
-    mass : (n_dof, n_dof) [kg], consistent distributed mass plus lumped masses
-    damping : (n_dof, n_dof) [N s/m], ``beta * stiffness``
-    bending_stiffness : (n_dof, n_dof) [N/m], the beam alone (no springs), singular
+    nodes : (n_nodes,) array [m]
+        Node coordinates along the beam.
+    stiffness : (n_dof, n_dof) array [N/m]
+        Beam bending plus the gauge springs.
+    mass : (n_dof, n_dof) array [kg]
+        Consistent distributed mass plus lumped masses.
+    damping : (n_dof, n_dof) array [N s/m]
+        ``beta * stiffness``.
+    bending_stiffness : (n_dof, n_dof) array [N/m]
+        The beam alone (no springs), singular.
     springs : tuple of (x [m], stiffness [N/m])
-    beta : [s] damping is ``beta * stiffness``
+        The gauge springs.
+    beta : float [s]
+        Damping is ``beta * stiffness``.
     """
 
     nodes: np.ndarray
@@ -93,12 +103,25 @@ class BeamModel(ModalModel):
     springs: tuple[tuple[float, float], ...] = field(default=())
     beta: float = 0.0
 
-    def row(self, x):
-        """See :func:`hermite_row`."""
+    def row(self, x: float | np.ndarray) -> np.ndarray:
+        """Rows mapping nodal DOFs to w(x) [1]; see :func:`hermite_row`."""
         return hermite_row(self.nodes, x)
 
     def rigid_mode(self, a: float, b: float) -> np.ndarray:
-        """Nodal vector of the rigid motion w(x) = a + b x (exact in the Hermite basis)."""
+        """Nodal vector of the rigid motion w(x) = a + b x (exact in the Hermite basis).
+
+        Parameters
+        ----------
+        a : float
+            Translation [m].
+        b : float
+            Rotation [rad].
+
+        Returns
+        -------
+        (n_dof,) array
+            Deflections [m] and rotations [rad] of every node.
+        """
         v = np.empty(self.n_dof)
         v[0::2] = a + b * self.nodes
         v[1::2] = b
@@ -118,13 +141,28 @@ def assemble_beam(
 
     Parameters
     ----------
-    length : [m]; ei : bending stiffness [N m^2]; mass_per_length : [kg/m]
-    masses : ((x [m], m [kg]), ...) point masses
-    springs : ((x [m], k [N/m]), ...) grounded springs: the force gauges
-    beta : stiffness-proportional damping coefficient [s]: ``C = beta K``. On the beam it is
+    length : float
+        Beam length [m].
+    ei : float
+        Bending stiffness [N m^2].
+    mass_per_length : float
+        Distributed mass [kg/m].
+    n_elements : int
+        Number of equal Hermite elements.
+    masses : tuple of (x [m], m [kg])
+        Point masses.
+    springs : tuple of (x [m], k [N/m])
+        Grounded springs: the force gauges.
+    beta : float
+        Stiffness-proportional damping coefficient [s]: ``C = beta K``. On the beam it is
         internal (rigid motions are stress free, so it exerts no net force or moment on the
         structure); on a gauge it is a dashpot ``beta k`` inside the gauge, whose force the
         gauge measures. Either way the rigid-body balance of METHOD.md eq. 6 holds exactly.
+
+    Returns
+    -------
+    BeamModel
+        The assembled matrices and the springs.
     """
     nodes = np.linspace(0.0, length, n_elements + 1)
     n_dof = 2 * len(nodes)
@@ -146,8 +184,21 @@ def assemble_beam(
                      springs=tuple(springs), beta=beta)
 
 
-def natural_frequencies(model: BeamModel, n: int | None = None) -> np.ndarray:
-    """Undamped natural frequencies [Hz] of the assembled model, ascending."""
+def natural_frequencies(model: ModalModel, n: int | None = None) -> np.ndarray:
+    """Undamped natural frequencies of an assembled model (beam, plate or body), ascending.
+
+    Parameters
+    ----------
+    model : ModalModel
+        The model, with its ``stiffness`` [N/m] and ``mass`` [kg] matrices.
+    n : int, optional
+        How many of the lowest frequencies to return (default all).
+
+    Returns
+    -------
+    (n_dof,) or (n,) array [Hz]
+        The rigid modes give 0.
+    """
     w2 = scipy.linalg.eigh(model.stiffness, model.mass, eigvals_only=True)
     f = np.sqrt(np.clip(w2, 0.0, None)) / (2 * np.pi)
     return f if n is None else f[:n]
@@ -155,7 +206,25 @@ def natural_frequencies(model: BeamModel, n: int | None = None) -> np.ndarray:
 
 def pinned_pinned_frequencies(length: float, ei: float, mass_per_length: float,
                               n_elements: int = 60, n_modes: int = 3) -> np.ndarray:
-    """Natural frequencies [Hz] of the beam pinned at both ends (w = 0 at x = 0 and L)."""
+    """Natural frequencies [Hz] of the beam pinned at both ends (w = 0 at x = 0 and L).
+
+    Parameters
+    ----------
+    length : float
+        Beam length [m].
+    ei : float
+        Bending stiffness [N m^2].
+    mass_per_length : float
+        Distributed mass [kg/m].
+    n_elements : int
+        Number of equal Hermite elements.
+    n_modes : int
+        How many of the lowest frequencies to return.
+
+    Returns
+    -------
+    (n_modes,) array [Hz]
+    """
     model = assemble_beam(length, ei, mass_per_length, n_elements)
     free = np.setdiff1d(np.arange(model.n_dof), [0, model.n_dof - 2])
     w2 = scipy.linalg.eigh(model.bending_stiffness[np.ix_(free, free)],
@@ -165,7 +234,28 @@ def pinned_pinned_frequencies(length: float, ei: float, mass_per_length: float,
 
 def pinned_static_deflection(length: float, ei: float, load: float, x_load: float,
                              x_eval: float, n_elements: int = 60) -> float:
-    """Static deflection [m] at x_eval of the pinned-pinned beam under a point load [N]."""
+    """Static deflection at x_eval of the pinned-pinned beam under a point load.
+
+    Parameters
+    ----------
+    length : float
+        Beam length [m].
+    ei : float
+        Bending stiffness [N m^2].
+    load : float
+        The point load [N].
+    x_load : float
+        Where the load acts [m].
+    x_eval : float
+        Where the deflection is wanted [m].
+    n_elements : int
+        Number of equal Hermite elements.
+
+    Returns
+    -------
+    float
+        The deflection [m].
+    """
     model = assemble_beam(length, ei, 1.0, n_elements)
     free = np.setdiff1d(np.arange(model.n_dof), [0, model.n_dof - 2])
     f = load * model.row(x_load)

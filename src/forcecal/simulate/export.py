@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import tomli_w
 
-from ..io.atomic import atomic_path, write_text_atomic
+from .._atomic import atomic_path, write_text_atomic
 from ..io.manifest import write_manifest
 from ..io.run_files import write_run_csv, write_table_csv
 from ..io.uff import write_scan_uff
@@ -27,7 +27,17 @@ __all__ = ["write_simulation", "write_truth"]
 
 
 def write_truth(out: Path, name: str, truth: Truth) -> None:
-    """The truth of one run: forces as a reconstruct-style CSV, the rest as NPZ."""
+    """The truth of one run: forces as a reconstruct-style CSV, the rest as NPZ.
+
+    Parameters
+    ----------
+    out : Path
+        The truth folder; ``NAME.forces.csv`` and ``NAME.npz`` are written there atomically.
+    name : str
+        The run's name.
+    truth : Truth
+        What the virtual rig did during the run.
+    """
     cols = {n: truth.pole_force[k] for k, n in enumerate(truth.pole_names)}
     cols["total"] = truth.pole_force.sum(axis=0)
     write_table_csv(out / f"{name}.forces.csv", truth.t, cols)
@@ -88,7 +98,33 @@ def _simulator_facts(preset: Preset) -> dict:
 def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
                      progress: Callable[[str], None] | None = None,
                      binary_uff: bool = False) -> Path:
-    """Simulate ``preset_name`` and write every file of the public formats under ``out``."""
+    """Simulate ``preset_name`` and write every file of the public formats under ``out``.
+
+    Parameters
+    ----------
+    out : str or Path
+        The output folder (see the module docstring for its layout).
+    preset_name : str
+        A name of :data:`forcecal.simulate.presets.PRESETS`.
+    seed : int
+        Seed of the measurement noise.
+    progress : callable, optional
+        Called with a short message before each stage.
+    binary_uff : bool
+        Write the scan as binary (58b) records instead of ASCII.
+
+    Returns
+    -------
+    Path
+        ``out``.
+
+    Raises
+    ------
+    InputError
+        An unknown preset.
+    SimulationError
+        A pole closes its gap or the magnetic circuit does not converge.
+    """
     preset = get_preset(preset_name)
     out = Path(out)
     rng = np.random.default_rng(seed)

@@ -13,15 +13,28 @@ waited out.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
 from .beam import BeamModel
-from .magnet import MU0, Drive, Magnet
+from .magnet import MU0, Drive, Magnet, Pole
 from .plate import PlateModel
+from .solid import SolidModel
 
 __all__ = ["Response", "SimulationError", "integrate", "pole_points"]
+
+Model = BeamModel | PlateModel | SolidModel
+"""A finite-element model of the structure: beam, plate or body."""
+
+State = tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float]]
+"""The stepper's state: modal q, qd, qdd (n_modes,), and per magnet the flux linkage [Wb]
+and the coil current [A]."""
+
+Record = dict[str, np.ndarray]
+"""Kept samples by name: ``q``, ``qd``, ``qdd`` (modal state) and ``lam``, ``i``, ``f``, ``d``
+(flux linkage, current, force and drive value of every magnet)."""
 
 
 class SimulationError(RuntimeError):
@@ -34,11 +47,24 @@ class Response:
 
     Attributes
     ----------
-    t : (n_samples,) [s]
-    u, v, a : (n_dof, n_samples) nodal displacement [m], velocity [m/s], acceleration [m/s^2]
-    current, flux, voltage : (n_magnets, n_samples) [A], [Wb] per pole, [V]
-    pole_force : (n_poles, n_samples) [N], force on the structure at each pole, +w
-    gap : (n_poles, n_samples) [m]
+    t : (n_samples,) array [s]
+        Sample times, the first at 0.
+    u : (n_dof, n_samples) array [m]
+        Nodal displacement.
+    v : (n_dof, n_samples) array [m/s]
+        Nodal velocity.
+    a : (n_dof, n_samples) array [m/s^2]
+        Nodal acceleration.
+    current : (n_magnets, n_samples) array [A]
+        Coil current.
+    flux : (n_magnets, n_samples) array [Wb]
+        Flux through each pole of the magnet.
+    voltage : (n_magnets, n_samples) array [V]
+        Coil voltage.
+    pole_force : (n_poles, n_samples) array [N]
+        Force on the structure at each pole, +w.
+    gap : (n_poles, n_samples) array [m]
+        Air gap at each pole.
     """
 
     t: np.ndarray
@@ -52,7 +78,7 @@ class Response:
     gap: np.ndarray
 
 
-def _scalar_drive(drive: Drive):
+def _scalar_drive(drive: Drive) -> Callable[[float], float]:
     """``drive.value`` for one float time, on plain floats (the per-step hot path)."""
     w = 2 * math.pi * drive.frequency
     dc, ac, phase = float(drive.dc), float(drive.ac), float(drive.phase)
@@ -68,7 +94,7 @@ def _scalar_drive(drive: Drive):
     return value
 
 
-def _new_record(n_modes: int, n_m: int, n_keep: int) -> dict | None:
+def _new_record(n_modes: int, n_m: int, n_keep: int) -> Record | None:
     """Row-per-sample storage of the kept states (transposed by :func:`_finish_record`)."""
     if not n_keep:
         return None
@@ -77,21 +103,37 @@ def _new_record(n_modes: int, n_m: int, n_keep: int) -> dict | None:
     return out
 
 
-def _keep(out, k, q, qd, qdd, lam, cur, f, d) -> None:
+def _keep(out: Record, k: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+          lam: Sequence[float], cur: Sequence[float], f: Sequence[float],
+          d: Sequence[float]) -> None:
+    """Store the state of step k (time on the first axis until :func:`_finish_record`)."""
     out["q"][k], out["qd"][k], out["qdd"][k] = q, qd, qdd
     out["lam"][k], out["i"][k], out["f"][k], out["d"][k] = lam, cur, f, d
 
 
-def _finish_record(out: dict | None) -> dict | None:
+def _finish_record(out: Record | None) -> Record | None:
     """Time on the last axis: (n_modes or n_m, n_keep)."""
     if out is None:
         return None
     return {k: np.ascontiguousarray(v.T) for k, v in out.items()}
 
 
-def pole_points(model, poles) -> np.ndarray:
-    """Where the poles act, as ``model.row`` takes them: x (n,) on a beam, (x, y) (n, 2) on a
-    plate (a model with ``dim == 2``), locations (x, y, z, dx, dy, dz) (n, 6) on a body."""
+def pole_points(model: Model, poles: Sequence[Pole]) -> np.ndarray:
+    """Where the poles act, as ``model.row`` takes them.
+
+    Parameters
+    ----------
+    model : BeamModel, PlateModel or SolidModel
+        The structure; its ``dim`` (1 when absent) says how it takes points.
+    poles : sequence of Pole
+        The poles.
+
+    Returns
+    -------
+    array [m]
+        x (n,) on a beam, (x, y) (n, 2) on a plate (a model with ``dim == 2``), locations
+        (x, y, z, dx, dy, dz) (n, 6) on a body.
+    """
     if getattr(model, "dim", 1) == 3:
         return np.array([[p.x, p.y, p.z, *p.direction] for p in poles],
                         dtype=float).reshape(-1, 6)
@@ -108,7 +150,8 @@ class _Stepper:
     in nodal coordinates, at a fraction of the cost per step.
     """
 
-    def __init__(self, model: BeamModel | PlateModel, magnets, drives, dt: float, beta: float):
+    def __init__(self, model: Model, magnets: Sequence[Magnet], drives: Sequence[Drive],
+                 dt: float, beta: float):
         if len(magnets) > 2:
             raise ValueError("at most two independent magnets")
         self.model, self.magnets, self.drives, self.dt = model, magnets, drives, dt
@@ -137,15 +180,18 @@ class _Stepper:
         self.mu_a = [MU0 * mg.pole_area for mg in magnets]
         self.iron = [mg.iron_gap for mg in magnets]
         self.res = [mg.resistance for mg in magnets]
-        self.voltage_driven = [d.kind == "voltage" for d in drives]
+        self.voltage_driven = [d.voltage_driven for d in drives]
         self.fscale = [1.0 / (2 * mg.turns**2 * MU0 * mg.pole_area) for mg in magnets]
         self.n_m = n_m
         self._drive_fns = [_scalar_drive(d) for d in drives]
 
     def drive(self, t: float) -> list[float]:
+        """The drive of every magnet at time t [s], [A] or [V]."""
         return [fn(t) for fn in self._drive_fns]
 
-    def solve_flux(self, lam, lam_old, d_old, d_new, i_old, gsum_lin):
+    def solve_flux(self, lam: list[float], lam_old: list[float], d_old: list[float],
+                   d_new: list[float], i_old: list[float],
+                   gsum_lin: list[float]) -> tuple[list[float], list[float], list[float]]:
         """Newton on the flux linkages of step n+1 (plain floats: one or two magnets).
 
         ``gsum_lin[m]`` is the sum of magnet m's pole gaps if no magnetic force acted in the
@@ -197,7 +243,8 @@ class _Stepper:
                 cur.append(d_new[m])
         return lam, cur, f
 
-    def _solve_flux_1(self, lam, lam_old, d_old, d_new, i_old, gsum_lin):
+    def _solve_flux_1(self, lam: float, lam_old: float, d_old: float, d_new: float,
+                      i_old: float, gsum_lin: float) -> tuple[float, float, float]:
         """:meth:`solve_flux` for a single magnet on plain floats; returns (lam, i, f).
 
         The same arithmetic, operation for operation, as the general path.
@@ -229,7 +276,9 @@ class _Stepper:
         cur = lam * (gsum_lin - hs * f + iron) / mu_a / n2 if voltage else d_new
         return lam, cur, f
 
-    def run(self, t0, n_steps, q, qd, qdd, lam, cur, keep_every=0):
+    def run(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+            lam: list[float], cur: list[float],
+            keep_every: int = 0) -> tuple[State, np.ndarray, Record | None]:
         """Advance n_steps from time t0 (modal state q, qd, qdd; coil state lam, cur).
 
         Returns the final state, the magnet forces of every step (n_m, n_steps) and, when
@@ -263,11 +312,13 @@ class _Stepper:
             q, qd = q_new, qd_new
             d_old = d_new
             forces[:, n] = f
-            if n_keep and (n + 1) % keep_every == 0:
+            if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
                 _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, lam, cur, f, d_new)
         return (q, qd, qdd, lam, cur), forces, _finish_record(out)
 
-    def _run_1(self, t0, n_steps, q, qd, qdd, lam, cur, keep_every):
+    def _run_1(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
+               lam0: list[float], cur0: list[float],
+               keep_every: int) -> tuple[State, np.ndarray, Record | None]:
         """:meth:`run` for a single magnet: scalar coil state, numpy modal update."""
         dt = self.dt
         a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
@@ -278,7 +329,7 @@ class _Stepper:
         drive = self._drive_fns[0]
         solve = self._solve_flux_1
         d_old = drive(t0)
-        lam, cur = float(lam[0]), float(cur[0])
+        lam, cur = float(lam0[0]), float(cur0[0])
         lam_prev = lam
         n_keep = n_steps // keep_every if keep_every else 0
         out = _new_record(len(q), 1, n_keep)
@@ -298,13 +349,13 @@ class _Stepper:
             q, qd = q_new, qd_new
             d_old = d_new
             fr[n] = f
-            if n_keep and (n + 1) % keep_every == 0:
+            if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
                 _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, (lam,), (cur,), (f,), (d_new,))
         return (q, qd, qdd, [lam], [cur]), forces, _finish_record(out)
 
     # ---------------------------------------------------------------- steady state
 
-    def static_state(self, t0: float):
+    def static_state(self, t0: float) -> State:
         """Static equilibrium under the coil state of time t0 (quasi-static coil)."""
         d = self.drive(t0)
         cur = np.array([d[m] / self.res[m] if self.voltage_driven[m] else d[m]
@@ -323,7 +374,8 @@ class _Stepper:
                 break
         return q, np.zeros_like(q), np.zeros_like(q), lam.tolist(), cur.tolist()
 
-    def periodic_structure(self, t, forces, t_end, f0, n_harm=40):
+    def periodic_structure(self, t: np.ndarray, forces: np.ndarray, t_end: float, f0: float,
+                           n_harm: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Exact discrete periodic response of the structure to periodic magnet forces.
 
         ``forces`` (n_m, n) sampled at ``t`` holds at least one period; returns the modal
@@ -349,23 +401,44 @@ class _Stepper:
                 (s**2 * qh * ph).real.sum(0))
 
 
-def integrate(model: BeamModel | PlateModel, magnets: tuple[Magnet, ...], drives: tuple[Drive, ...],
+def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ...],
               fs: float, duration: float, oversample: int = 1, settle_periods: int = 3,
               max_passes: int = 8, tol: float = 1e-8) -> Response:
     """Simulate the rig on its periodic steady state and sample it at ``fs`` for ``duration``.
 
     Parameters
     ----------
-    model : the assembled beam or plate with its gauge springs (damping ``beta * stiffness``);
-        a plate (``model.dim == 2``) takes each pole at its (x, y)
-    magnets, drives : one drive per magnet; all drives share one fundamental frequency
-    fs : output sampling rate [Hz]; oversample : internal steps per output sample
-    duration : record length [s]; the first sample is at t = 0
+    model : BeamModel, PlateModel or SolidModel
+        The assembled structure with its gauge springs (damping ``beta * stiffness``); a plate
+        (``model.dim == 2``) takes each pole at its (x, y), a body at its location.
+    magnets : tuple of Magnet
+        The electromagnets (at most two).
+    drives : tuple of Drive
+        One drive per magnet; all drives share one fundamental frequency.
+    fs : float
+        Output sampling rate [Hz].
+    duration : float
+        Record length [s]; the first sample is at t = 0.
+    oversample : int
+        Internal steps per output sample.
+    settle_periods : int
+        Periods stepped per pass towards the steady state.
+    max_passes : int
+        Most passes towards the steady state.
+    tol : float
+        Relative change of the modal state between passes that counts as steady.
+
+    Returns
+    -------
+    Response
+        The record, sampled at ``fs``.
 
     Raises
     ------
     SimulationError
         When a pole closes its gap or the magnetic circuit does not converge.
+    ValueError
+        Not one drive per magnet, or more than two magnets.
     """
     if len(magnets) != len(drives):
         raise ValueError("one drive per magnet")
@@ -377,7 +450,25 @@ def integrate(model: BeamModel | PlateModel, magnets: tuple[Magnet, ...], drives
     n_out = int(round(duration * fs))
     t_start = -1.0 / fs                       # the first kept sample falls on t = 0
     t = t_start - (max_passes + 1) * n_settle * dt
-    state = st.static_state(t)
+    state, t = _steady_state(st, st.static_state(t), t, n_settle, per_period, f0, max_passes,
+                             tol)
+    n_lead = int(round((t_start - t) / dt))
+    if n_lead > 0:
+        state, _, _ = st.run(t, n_lead, *state)
+    _, _, rec = st.run(t_start, n_out * oversample, *state, keep_every=oversample)
+    assert rec is not None, "a record of no sample"          # n_out > 0 samples were kept
+    return _response(st, rec, n_out, fs)
+
+
+def _steady_state(st: _Stepper, state: State, t: float, n_settle: int, per_period: int,
+                  f0: float, max_passes: int, tol: float) -> tuple[State, float]:
+    """(state, time [s]) on the periodic steady state, from ``state`` at time ``t``.
+
+    Passes of ``n_settle`` steps alternate with a projection of the structure onto the exact
+    discrete periodic response to the magnetic forces of the last two periods, until the
+    modal displacement changes by less than ``tol`` (relative) or ``max_passes`` are done.
+    """
+    dt = st.dt
     for _ in range(max_passes):
         state, forces, _ = st.run(t, n_settle, *state)
         times = t + dt * np.arange(1, n_settle + 1)
@@ -388,10 +479,11 @@ def integrate(model: BeamModel | PlateModel, magnets: tuple[Magnet, ...], drives
         state = (q, qd, qdd, state[3], state[4])
         if change < tol:
             break
-    n_lead = int(round((t_start - t) / dt))
-    if n_lead > 0:
-        state, _, _ = st.run(t, n_lead, *state)
-    _, _, rec = st.run(t_start, n_out * oversample, *state, keep_every=oversample)
+    return state, t
+
+
+def _response(st: _Stepper, rec: Record, n_out: int, fs: float) -> Response:
+    """The :class:`Response` of ``n_out`` samples at ``fs`` [Hz] kept in ``rec``."""
     phi = st.phi
     u, v, a = phi @ rec["q"], phi @ rec["qd"], phi @ rec["qdd"]
     gaps = st.static_gap[:, None] - st.pole_rows @ u

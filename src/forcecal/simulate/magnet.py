@@ -15,6 +15,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 __all__ = ["MU0", "Drive", "Magnet", "Pole"]
 
@@ -24,9 +25,23 @@ MU0 = 4e-7 * math.pi
 
 @dataclass(frozen=True)
 class Pole:
-    """One pole face: the force point's name, position x [m], static gap at w = 0 [m] and,
-    on a plate, the second coordinate y [m] (ignored by a beam); on a body also z [m] and the
-    unit ``direction`` of the pull (motion along it closes the gap)."""
+    """One pole face of a magnet: a force point of the rig.
+
+    Attributes
+    ----------
+    name : str
+        The force point's name.
+    x : float [m]
+        Position along the structure.
+    gap : float [m]
+        Static air gap at zero deflection.
+    y : float [m]
+        On a plate or a body, the second coordinate (ignored by a beam).
+    z : float [m]
+        On a body, the third coordinate.
+    direction : (dx, dy, dz)
+        On a body, the unit direction of the pull (motion along it closes the gap).
+    """
 
     name: str
     x: float
@@ -40,17 +55,51 @@ class Pole:
 class Drive:
     """Periodic coil drive: ``dc + ac * sin(2 pi f t + phase)`` in V or A.
 
-    ``harmonics`` adds ``(n, amplitude, phase)`` terms for distorted drives.
+    Attributes
+    ----------
+    source : {"current", "voltage"}
+        What the source imposes on the coil.
+    dc : float [A] or [V]
+        The bias.
+    ac : float [A] or [V]
+        Amplitude of the fundamental.
+    frequency : float [Hz]
+        The fundamental frequency f.
+    phase : float [rad]
+        Phase of the fundamental.
+    harmonics : tuple of (n, amplitude, phase)
+        Extra terms ``amplitude * sin(2 pi n f t + phase)`` for distorted drives.
     """
 
-    kind: str  # "current" or "voltage"
+    source: str  # "current" or "voltage"
     dc: float
     ac: float
     frequency: float
     phase: float = 0.0
     harmonics: tuple[tuple[int, float, float], ...] = ()
 
+    def __post_init__(self) -> None:
+        if self.source not in ("current", "voltage"):
+            raise ValueError(f"a drive imposes 'current' or 'voltage', not {self.source!r}")
+
+    @property
+    def voltage_driven(self) -> bool:
+        """Whether the coil's voltage is imposed (its current then follows the circuit)."""
+        return self.source == "voltage"
+
     def value(self, t: np.ndarray | float) -> np.ndarray | float:
+        """The drive at given times.
+
+        Parameters
+        ----------
+        t : float or array [s]
+            The times.
+
+        Returns
+        -------
+        float or array [A] or [V]
+            Shaped like ``t``.
+        """
         w = 2 * math.pi * self.frequency
         out = self.dc + self.ac * np.sin(w * np.asarray(t) + self.phase)
         for n, amp, ph in self.harmonics:
@@ -64,10 +113,24 @@ class Magnet:
 
     Attributes
     ----------
-    poles : the pole faces (one or two)
-    turns : N; pole_area : A [m^2]; iron_length : l_fe [m]; mu_r : relative permeability
-    resistance : coil resistance [ohm] (used by a voltage drive)
-    current_channel, flux_channel, voltage_channel : names of the recorded channels
+    poles : tuple of Pole
+        The pole faces (one or two).
+    turns : float
+        N, the coil's turns.
+    pole_area : float [m^2]
+        A, the area of each pole face.
+    iron_length : float [m]
+        l_fe, the length of the iron path.
+    mu_r : float
+        Relative permeability of the iron.
+    resistance : float [ohm]
+        Coil resistance (used by a voltage drive).
+    current_channel : str
+        Name of the recorded coil current channel.
+    flux_channel : str
+        Name of the recorded flux channel.
+    voltage_channel : str
+        Name of the recorded coil voltage channel.
     """
 
     poles: tuple[Pole, ...]
@@ -96,19 +159,67 @@ class Magnet:
         return MU0 * self.turns**2 * self.pole_area / 4.0
 
     def reluctance(self, gaps: np.ndarray) -> np.ndarray:
-        """Circuit reluctance [1/H] for pole gaps ``(n_poles, ...)`` [m]."""
+        """Circuit reluctance of the magnet.
+
+        Parameters
+        ----------
+        gaps : (n_poles, ...) array [m]
+            The pole gaps.
+
+        Returns
+        -------
+        array [1/H]
+            (sum of the gaps + l_fe / mu_r) / (mu0 A), shaped like ``gaps[0]``.
+        """
         return (np.sum(gaps, axis=0) + self.iron_gap) / (MU0 * self.pole_area)
 
-    def flux_from_current(self, current, gaps):
-        """Flux through each pole [Wb]."""
+    def flux_from_current(self, current: ArrayLike, gaps: np.ndarray) -> np.ndarray:
+        """Flux through each pole.
+
+        Parameters
+        ----------
+        current : float or array [A]
+            The coil current.
+        gaps : (n_poles, ...) array [m]
+            The pole gaps, broadcast against ``current`` after the pole axis is summed.
+
+        Returns
+        -------
+        array [Wb]
+            N i / reluctance, the same through every pole.
+        """
         return self.turns * np.asarray(current) / self.reluctance(gaps)
 
-    def pole_force(self, flux):
-        """Force per pole [N] for the flux [Wb]; acts on the structure toward the magnet."""
+    def pole_force(self, flux: ArrayLike) -> np.ndarray:
+        """Force per pole, acting on the structure toward the magnet.
+
+        Parameters
+        ----------
+        flux : float or array [Wb]
+            The flux through the pole.
+
+        Returns
+        -------
+        array [N]
+            Phi^2 / (2 mu0 A).
+        """
         return np.asarray(flux) ** 2 / (2 * MU0 * self.pole_area)
 
     def static_force(self, current: float, gap: float) -> float:
-        """Per-pole force [N] with every pole at the same gap [m] (closed form)."""
+        """Per-pole force with every pole at the same gap (closed form).
+
+        Parameters
+        ----------
+        current : float
+            The coil current [A].
+        gap : float
+            The gap at every pole [m].
+
+        Returns
+        -------
+        float
+            The force per pole [N].
+        """
         n_p = len(self.poles)
         return (MU0 * self.turns**2 * self.pole_area * current**2
                 / (2 * (n_p * gap + self.iron_gap) ** 2))

@@ -23,6 +23,7 @@ class ModalModel:
 
     @property
     def n_dof(self) -> int:
+        """Number of degrees of freedom."""
         return self.stiffness.shape[0]
 
     @cached_property

@@ -26,6 +26,7 @@ from typing import ClassVar
 
 import numpy as np
 import scipy.linalg
+from numpy.typing import ArrayLike
 
 from .modal import ModalModel
 
@@ -48,7 +49,22 @@ _KY = np.array([2 * iy + (d in (2, 3)) for _, iy in _CORNERS for d in range(4)])
 
 
 def flexural_rigidity(youngs_modulus: float, thickness: float, poisson: float) -> float:
-    """D = E h^3 / (12 (1 - nu^2)) [N m]."""
+    """Flexural rigidity D = E h^3 / (12 (1 - nu^2)) of a plate.
+
+    Parameters
+    ----------
+    youngs_modulus : float
+        E [Pa].
+    thickness : float
+        h [m].
+    poisson : float
+        Poisson's ratio nu.
+
+    Returns
+    -------
+    float
+        D [N m].
+    """
     return youngs_modulus * thickness**3 / (12.0 * (1.0 - poisson**2))
 
 
@@ -79,8 +95,8 @@ def _element_matrices(d: float, nu: float, rho_h: float, hx: float,
     """Stiffness [N/m] and consistent mass [kg] (16 x 16) of one hx x hy BFS element."""
     g, wg = np.polynomial.legendre.leggauss(4)
     g, wg = (g + 1) / 2, wg / 2                                  # on [0, 1]
-    xi, eta = np.meshgrid(g, g, indexing="ij")
-    xi, eta = xi.ravel(), eta.ravel()
+    xi_grid, eta_grid = np.meshgrid(g, g, indexing="ij")
+    xi, eta = xi_grid.ravel(), eta_grid.ravel()
     weight = np.outer(wg, wg).ravel() * hx * hy                 # (16,) physical area weights
     x0, x1, x2 = (_hermite(xi, hx, k)[:, _KX] for k in range(3))
     y0, y1, y2 = (_hermite(eta, hy, k)[:, _KY] for k in range(3))
@@ -103,17 +119,27 @@ def _element_dofs(nx: int, i: np.ndarray, j: np.ndarray) -> np.ndarray:
     return np.stack(cols, axis=-1)
 
 
-def bfs_row(xs: np.ndarray, ys: np.ndarray, points) -> np.ndarray:
+def bfs_row(xs: np.ndarray, ys: np.ndarray, points: ArrayLike) -> np.ndarray:
     """Rows mapping nodal DOFs to the deflection w(x, y).
 
     Parameters
     ----------
-    xs, ys : (nx + 1,), (ny + 1,) node coordinates [m], increasing
-    points : (n_points, 2) array [m] of (x, y) on the rectangle, or one (2,) point
+    xs : (nx + 1,) array [m]
+        Node x coordinates, increasing.
+    ys : (ny + 1,) array [m]
+        Node y coordinates, increasing.
+    points : (n_points, 2) or (2,) array [m]
+        (x, y) on the rectangle, or one point.
 
     Returns
     -------
-    (n_points, 4 * (nx + 1) * (ny + 1)) array, or (n_dof,) for a single point.
+    (n_points, 4 * (nx + 1) * (ny + 1)) array [1]
+        Row k maps the nodal DOFs to w(x_k, y_k); (n_dof,) for a single point.
+
+    Raises
+    ------
+    ValueError
+        Points that are not (x, y) pairs.
     """
     pts = np.asarray(points, dtype=float)
     single = pts.ndim == 1
@@ -137,13 +163,22 @@ class PlateModel(ModalModel):
 
     Attributes
     ----------
-    xs, ys : (nx + 1,), (ny + 1,) node coordinates [m]
-    stiffness : (n_dof, n_dof) [N/m], plate bending plus the gauge springs
-    mass : (n_dof, n_dof) [kg], consistent distributed mass plus lumped masses
-    damping : (n_dof, n_dof) [N s/m], ``beta * stiffness``
-    bending_stiffness : (n_dof, n_dof) [N/m], the plate alone (no springs), singular
+    xs : (nx + 1,) array [m]
+        Node x coordinates.
+    ys : (ny + 1,) array [m]
+        Node y coordinates.
+    stiffness : (n_dof, n_dof) array [N/m]
+        Plate bending plus the gauge springs.
+    mass : (n_dof, n_dof) array [kg]
+        Consistent distributed mass plus lumped masses.
+    damping : (n_dof, n_dof) array [N s/m]
+        ``beta * stiffness``.
+    bending_stiffness : (n_dof, n_dof) array [N/m]
+        The plate alone (no springs), singular.
     springs : tuple of (x [m], y [m], stiffness [N/m])
-    beta : [s] damping is ``beta * stiffness``
+        The gauge springs.
+    beta : float [s]
+        Damping is ``beta * stiffness``.
     """
 
     dim: ClassVar[int] = 2
@@ -163,12 +198,27 @@ class PlateModel(ModalModel):
         gx, gy = np.meshgrid(self.xs, self.ys, indexing="xy")
         return np.column_stack([gx.ravel(), gy.ravel()])
 
-    def row(self, points) -> np.ndarray:
-        """See :func:`bfs_row`: (n, 2) points -> (n, n_dof)."""
+    def row(self, points: ArrayLike) -> np.ndarray:
+        """Rows mapping nodal DOFs to w at (n, 2) points [m]: (n, n_dof); see :func:`bfs_row`."""
         return bfs_row(self.xs, self.ys, points)
 
     def rigid_mode(self, c0: float, c1: float, c2: float = 0.0) -> np.ndarray:
-        """Nodal vector of the rigid motion w = c0 + c1 x + c2 y (exact in the BFS basis)."""
+        """Nodal vector of the rigid motion w = c0 + c1 x + c2 y (exact in the BFS basis).
+
+        Parameters
+        ----------
+        c0 : float
+            Translation [m].
+        c1 : float
+            Rotation about y, the slope along x [rad].
+        c2 : float
+            Rotation about x, the slope along y [rad].
+
+        Returns
+        -------
+        (n_dof,) array
+            [w, w_x, w_y, w_xy] of every node.
+        """
         nodes = self.nodes
         v = np.zeros(self.n_dof)
         v[0::4] = c0 + c1 * nodes[:, 0] + c2 * nodes[:, 1]
@@ -192,19 +242,59 @@ def assemble_plate(
 
     Parameters
     ----------
-    a, b : side lengths along x and y [m]; flexural : D [N m]; mass_per_area : rho h [kg/m^2]
-    poisson : nu; mesh : (nx, ny) elements along x and y
-    masses : ((x [m], y [m], m [kg]), ...) point masses
-    springs : ((x [m], y [m], k [N/m]), ...) grounded springs: the force gauges
-    beta : stiffness-proportional damping coefficient [s]: ``C = beta K``. On the plate it is
+    a : float
+        Side length along x [m].
+    b : float
+        Side length along y [m].
+    flexural : float
+        Flexural rigidity D [N m].
+    mass_per_area : float
+        rho h [kg/m^2].
+    poisson : float
+        Poisson's ratio nu.
+    mesh : (nx, ny)
+        Elements along x and y.
+    masses : tuple of (x [m], y [m], m [kg])
+        Point masses.
+    springs : tuple of (x [m], y [m], k [N/m])
+        Grounded springs: the force gauges.
+    beta : float
+        Stiffness-proportional damping coefficient [s]: ``C = beta K``. On the plate it is
         internal (rigid motions are stress free: no net force or moment), on a gauge a dashpot
         inside the gauge whose force the gauge measures, so the rigid-body balance of
         METHOD.md eq. 6 holds exactly.
+
+    Returns
+    -------
+    PlateModel
+        The assembled matrices and the springs.
+
+    Raises
+    ------
+    ValueError
+        A mesh without an element along x or y.
     """
     nx, ny = (int(n) for n in mesh)
     if nx < 1 or ny < 1:
         raise ValueError(f"mesh {mesh} needs at least one element each way")
     xs, ys = np.linspace(0.0, a, nx + 1), np.linspace(0.0, b, ny + 1)
+    kb, mm = _plate_matrices(xs, ys, flexural, poisson, mass_per_area)
+    for x, y, m in masses:
+        r = bfs_row(xs, ys, (x, y))
+        mm += m * np.outer(r, r)
+    kk = kb.copy()
+    for x, y, k in springs:
+        r = bfs_row(xs, ys, (x, y))
+        kk += k * np.outer(r, r)
+    return PlateModel(xs=xs, ys=ys, stiffness=kk, mass=mm, damping=beta * kk,
+                      bending_stiffness=kb, springs=tuple(springs), beta=beta)
+
+
+def _plate_matrices(xs: np.ndarray, ys: np.ndarray, flexural: float, poisson: float,
+                    mass_per_area: float) -> tuple[np.ndarray, np.ndarray]:
+    """Bending stiffness [N/m] and consistent mass [kg] of the free plate on the grid xs x ys
+    [m]; each distinct element size is computed once."""
+    nx, ny = len(xs) - 1, len(ys) - 1
     n_dof = 4 * (nx + 1) * (ny + 1)
     kb = np.zeros((n_dof, n_dof))
     mm = np.zeros((n_dof, n_dof))
@@ -219,15 +309,7 @@ def assemble_plate(
             ix = np.ix_(dofs, dofs)
             kb[ix] += ke
             mm[ix] += me
-    for x, y, m in masses:
-        r = bfs_row(xs, ys, (x, y))
-        mm += m * np.outer(r, r)
-    kk = kb.copy()
-    for x, y, k in springs:
-        r = bfs_row(xs, ys, (x, y))
-        kk += k * np.outer(r, r)
-    return PlateModel(xs=xs, ys=ys, stiffness=kk, mass=mm, damping=beta * kk,
-                      bending_stiffness=kb, springs=tuple(springs), beta=beta)
+    return kb, mm
 
 
 def simply_supported_dofs(model: PlateModel) -> np.ndarray:
@@ -236,6 +318,16 @@ def simply_supported_dofs(model: PlateModel) -> np.ndarray:
     w = 0 along an edge fixes w and its tangential derivative there: w and w_y on the edges
     x = 0 and x = a, w and w_x on the edges y = 0 and y = b (the normal slope and the twist
     stay free, except that a corner fixes both slopes).
+
+    Parameters
+    ----------
+    model : PlateModel
+        The plate.
+
+    Returns
+    -------
+    (n_fixed,) int array
+        The fixed DOFs, ascending.
     """
     nodes = model.nodes
     on_x_edge = np.isclose(nodes[:, 0], model.xs[0]) | np.isclose(nodes[:, 0], model.xs[-1])
@@ -249,7 +341,29 @@ def simply_supported_dofs(model: PlateModel) -> np.ndarray:
 def simply_supported_frequencies(a: float, b: float, flexural: float, mass_per_area: float,
                                  poisson: float = 0.3, mesh: tuple[int, int] = (8, 8),
                                  n_modes: int = 4) -> np.ndarray:
-    """Natural frequencies [Hz] of the plate simply supported on all four edges."""
+    """Natural frequencies of the plate simply supported on all four edges.
+
+    Parameters
+    ----------
+    a : float
+        Side length along x [m].
+    b : float
+        Side length along y [m].
+    flexural : float
+        Flexural rigidity D [N m].
+    mass_per_area : float
+        rho h [kg/m^2].
+    poisson : float
+        Poisson's ratio nu.
+    mesh : (nx, ny)
+        Elements along x and y.
+    n_modes : int
+        How many of the lowest frequencies to return.
+
+    Returns
+    -------
+    (n_modes,) array [Hz]
+    """
     model = assemble_plate(a, b, flexural, mass_per_area, poisson, mesh)
     free = np.setdiff1d(np.arange(model.n_dof), simply_supported_dofs(model))
     w2 = scipy.linalg.eigh(model.bending_stiffness[np.ix_(free, free)],
@@ -262,7 +376,32 @@ def simply_supported_static_deflection(a: float, b: float, flexural: float, load
                                        load_point: tuple[float, float],
                                        eval_point: tuple[float, float], poisson: float = 0.3,
                                        mesh: tuple[int, int] = (8, 8)) -> float:
-    """Static deflection [m] at eval_point of the simply supported plate under a point load."""
+    """Static deflection at eval_point of the simply supported plate under a point load.
+
+    Parameters
+    ----------
+    a : float
+        Side length along x [m].
+    b : float
+        Side length along y [m].
+    flexural : float
+        Flexural rigidity D [N m].
+    load : float
+        The point load [N].
+    load_point : (x, y)
+        Where the load acts [m].
+    eval_point : (x, y)
+        Where the deflection is wanted [m].
+    poisson : float
+        Poisson's ratio nu.
+    mesh : (nx, ny)
+        Elements along x and y.
+
+    Returns
+    -------
+    float
+        The deflection [m].
+    """
     model = assemble_plate(a, b, flexural, 1.0, poisson, mesh)
     free = np.setdiff1d(np.arange(model.n_dof), simply_supported_dofs(model))
     f = load * model.row(load_point)

@@ -107,6 +107,7 @@ class BodySpec:
 
     @property
     def size(self) -> tuple[float, float, float]:
+        """(a, b, c) side lengths [m]."""
         return (self.a, self.b, self.c)
 
     @property
@@ -154,20 +155,29 @@ class ScanSpec:
     heights: int = 3                           # body only
 
 
+BeamSensor = tuple[str, float]
+"""A probe on a beam: (name, x [m])."""
+PlateSensor = tuple[str, float, float]
+"""A probe on a plate: (name, x [m], y [m])."""
+BodySensor = tuple[str, float, float, float, float, float, float]
+"""A probe on a body: (name, x, y, z [m], dx, dy, dz), measuring along (dx, dy, dz)."""
+
+
 @dataclass(frozen=True)
 class Preset:
     """A complete virtual rig.
 
-    ``beam`` is the structure: a :class:`BeamSpec` (sensors ``(name, x)``) or a
-    :class:`PlateSpec` (sensors ``(name, x, y)``, poles with their ``y``); the field keeps its
-    historical name, :attr:`structure` is the neutral alias.
+    ``beam`` is the structure: a :class:`BeamSpec` (sensors ``(name, x)``), a
+    :class:`PlateSpec` (sensors ``(name, x, y)``, poles with their ``y``) or a :class:`BodySpec`
+    (sensors ``(name, x, y, z, dx, dy, dz)``, poles with their ``y``, ``z`` and direction); the
+    field keeps its historical name, :attr:`structure` is the neutral alias.
     """
 
     name: str
     description: str
     beam: BeamSpec | PlateSpec | BodySpec
     magnets: tuple[Magnet, ...]
-    sensors: tuple[tuple[str, float], ...] | tuple[tuple[str, float, float], ...]
+    sensors: (tuple[BeamSensor, ...] | tuple[PlateSensor, ...] | tuple[BodySensor, ...])
     scan: ScanSpec
     runs: tuple[RunSpec, ...]
     nominal_frequency: float
@@ -181,10 +191,12 @@ class Preset:
 
     @property
     def is_plate(self) -> bool:
+        """True when the structure is a plate."""
         return isinstance(self.beam, PlateSpec)
 
     @property
     def is_body(self) -> bool:
+        """True when the structure is a body (a 3-D block)."""
         return isinstance(self.beam, BodySpec)
 
 
@@ -293,7 +305,23 @@ PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign, "pla
 
 
 def get_preset(name: str) -> Preset:
-    """The preset called ``name`` (see :data:`PRESETS`)."""
+    """The preset called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`PRESETS`.
+
+    Returns
+    -------
+    Preset
+        A fresh description of the virtual rig.
+
+    Raises
+    ------
+    InputError
+        An unknown name.
+    """
     from ..errors import InputError
 
     if name not in PRESETS:
@@ -302,5 +330,18 @@ def get_preset(name: str) -> Preset:
 
 
 def first_mode_beta(beam: BeamSpec | PlateSpec | BodySpec, f1: float) -> float:
-    """Stiffness-proportional coefficient [s] giving ``damping_ratio`` at f1 [Hz]."""
+    """Stiffness-proportional damping coefficient giving the structure's ``damping_ratio`` at f1.
+
+    Parameters
+    ----------
+    beam : BeamSpec, PlateSpec or BodySpec
+        The structure, with its ``damping_ratio``.
+    f1 : float
+        The first bending frequency [Hz].
+
+    Returns
+    -------
+    float
+        beta [s], so that ``C = beta K``.
+    """
     return 2 * beam.damping_ratio / (2 * math.pi * f1)

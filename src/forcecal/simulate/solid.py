@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from typing import ClassVar
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .modal import ModalModel
 
@@ -70,8 +71,30 @@ def hex8_element(youngs_modulus: float, poisson: float, density: float, hx: floa
     """Stiffness [N/m] and consistent mass [kg] (24 x 24) of one hx x hy x hz box [m].
 
     Local DOF ``3 n + c`` is component c (x, y, z) at local node n = ix + 2 iy + 4 iz, the corner
-    (ix, iy, iz) in {0, 1}^3 (the global ordering restricted to one element). With
-    ``incompatible=False`` the plain trilinear brick (which locks in bending) is returned.
+    (ix, iy, iz) in {0, 1}^3 (the global ordering restricted to one element).
+
+    Parameters
+    ----------
+    youngs_modulus : float
+        E [Pa].
+    poisson : float
+        Poisson's ratio nu.
+    density : float
+        rho [kg/m^3].
+    hx : float
+        Element size along x [m].
+    hy : float
+        Element size along y [m].
+    hz : float
+        Element size along z [m].
+    incompatible : bool
+        With the Wilson-Taylor incompatible modes (condensed out); False gives the plain
+        trilinear brick, which locks in bending.
+
+    Returns
+    -------
+    stiffness : (24, 24) array [N/m]
+    mass : (24, 24) array [kg]
     """
     e, nu = youngs_modulus, poisson
     lam, mu = e * nu / ((1 + nu) * (1 - 2 * nu)), e / (2 * (1 + nu))
@@ -111,19 +134,32 @@ def _dofs(nodes: np.ndarray) -> np.ndarray:
     return (3 * nodes[:, :, None] + np.arange(3)).reshape(len(nodes), -1)
 
 
-def solid_row(xs: np.ndarray, ys: np.ndarray, zs: np.ndarray, locations) -> np.ndarray:
+def solid_row(xs: np.ndarray, ys: np.ndarray, zs: np.ndarray,
+              locations: ArrayLike) -> np.ndarray:
     """Rows mapping nodal DOFs to the displacement d . u(x) at locations.
 
     Parameters
     ----------
-    xs, ys, zs : node coordinates [m] per axis, increasing
-    locations : (n, 6) array of (x, y, z [m], dx, dy, dz), or one (6,) location; the directions
-        are normalised. A point on an element face belongs to the element on its far side (the
-        last element along an axis for the block's far face); points outside extrapolate.
+    xs : (nx + 1,) array [m]
+        Node x coordinates, increasing.
+    ys : (ny + 1,) array [m]
+        Node y coordinates, increasing.
+    zs : (nz + 1,) array [m]
+        Node z coordinates, increasing.
+    locations : (n, 6) or (6,) array
+        Rows (x, y, z [m], dx, dy, dz), or one location; the directions are normalised. A
+        point on an element face belongs to the element on its far side (the last element
+        along an axis for the block's far face); points outside extrapolate.
 
     Returns
     -------
-    (n, 3 * n_nodes) array, or (n_dof,) for a single location.
+    (n, 3 * n_nodes) array [1]
+        Row k maps the nodal DOFs to d_k . u(x_k); (n_dof,) for a single location.
+
+    Raises
+    ------
+    ValueError
+        Locations that are not rows of six numbers, or a zero measuring direction.
     """
     loc = np.asarray(locations, dtype=float)
     single = loc.ndim == 1
@@ -153,13 +189,24 @@ class SolidModel(ModalModel):
 
     Attributes
     ----------
-    xs, ys, zs : (nx + 1,), (ny + 1,), (nz + 1,) node coordinates [m]
-    stiffness : (n_dof, n_dof) [N/m], the solid plus the gauge springs
-    mass : (n_dof, n_dof) [kg], consistent distributed mass plus lumped masses
-    damping : (n_dof, n_dof) [N s/m], ``beta * stiffness``
-    bending_stiffness : (n_dof, n_dof) [N/m], the solid alone (no springs): 6 rigid modes
+    xs : (nx + 1,) array [m]
+        Node x coordinates.
+    ys : (ny + 1,) array [m]
+        Node y coordinates.
+    zs : (nz + 1,) array [m]
+        Node z coordinates.
+    stiffness : (n_dof, n_dof) array [N/m]
+        The solid plus the gauge springs.
+    mass : (n_dof, n_dof) array [kg]
+        Consistent distributed mass plus lumped masses.
+    damping : (n_dof, n_dof) array [N s/m]
+        ``beta * stiffness``.
+    bending_stiffness : (n_dof, n_dof) array [N/m]
+        The solid alone (no springs): 6 rigid modes.
     springs : tuple of (x, y, z [m], dx, dy, dz, stiffness [N/m])
-    beta : [s] damping is ``beta * stiffness``
+        The gauge springs, each along its direction.
+    beta : float [s]
+        Damping is ``beta * stiffness``.
     """
 
     dim: ClassVar[int] = 3
@@ -180,14 +227,27 @@ class SolidModel(ModalModel):
         gz, gy, gx = np.meshgrid(self.zs, self.ys, self.xs, indexing="ij")
         return np.column_stack([gx.ravel(), gy.ravel(), gz.ravel()])
 
-    def row(self, locations) -> np.ndarray:
-        """See :func:`solid_row`: (n, 6) locations -> (n, n_dof)."""
+    def row(self, locations: ArrayLike) -> np.ndarray:
+        """Rows mapping DOFs to d . u at (n, 6) locations: (n, n_dof); see :func:`solid_row`."""
         return solid_row(self.xs, self.ys, self.zs, locations)
 
-    def rigid_mode(self, translation, rotation, origin=(0.0, 0.0, 0.0)) -> np.ndarray:
+    def rigid_mode(self, translation: ArrayLike, rotation: ArrayLike,
+                   origin: ArrayLike = (0.0, 0.0, 0.0)) -> np.ndarray:
         """Nodal vector of the rigid motion u(x) = t + theta x (x - origin) (exact here).
 
-        translation t [m], rotation theta [rad] (small-angle vector), origin [m].
+        Parameters
+        ----------
+        translation : (3,) array [m]
+            t.
+        rotation : (3,) array [rad]
+            theta, the small-angle rotation vector.
+        origin : (3,) array [m]
+            The point the rotation is about.
+
+        Returns
+        -------
+        (n_dof,) array [m]
+            (u_x, u_y, u_z) of every node.
         """
         arm = self.nodes - np.asarray(origin, dtype=float)
         u = np.asarray(translation, dtype=float) + np.cross(np.asarray(rotation, float), arm)
@@ -231,28 +291,46 @@ def assemble_solid(
 
     Parameters
     ----------
-    size : (a, b, c) side lengths along x, y, z [m]; the block is origin + [0, a]x[0, b]x[0, c]
-    youngs_modulus : E [Pa]; poisson : nu; density : rho [kg/m^3]
-    mesh : (nx, ny, nz) elements along x, y and z; origin : the block's lowest corner [m]
-    masses : ((x, y, z [m], m [kg]), ...) point masses rigidly attached at a point: they add
-        ``m (rx rx^T + ry ry^T + rz rz^T)``, r* the rows of the point along each axis
-    springs : ((x, y, z [m], dx, dy, dz, k [N/m]), ...) grounded springs acting along d at a
-        point (the force gauges): they add ``k r r^T``, r the row of the location
-    beta : stiffness-proportional damping coefficient [s]: ``C = beta K``. In the solid it is
+    size : (a, b, c)
+        Side lengths along x, y, z [m]; the block is origin + [0, a] x [0, b] x [0, c].
+    youngs_modulus : float
+        E [Pa].
+    poisson : float
+        Poisson's ratio nu.
+    density : float
+        rho [kg/m^3].
+    mesh : (nx, ny, nz)
+        Elements along x, y and z.
+    origin : (x0, y0, z0)
+        The block's lowest corner [m].
+    masses : tuple of (x, y, z [m], m [kg])
+        Point masses rigidly attached at a point: they add ``m (rx rx^T + ry ry^T + rz rz^T)``,
+        r* the rows of the point along each axis.
+    springs : tuple of (x, y, z [m], dx, dy, dz, k [N/m])
+        Grounded springs acting along d at a point (the force gauges): they add ``k r r^T``,
+        r the row of the location.
+    beta : float
+        Stiffness-proportional damping coefficient [s]: ``C = beta K``. In the solid it is
         internal (rigid motions are stress free: no net force or moment), on a gauge a dashpot
         inside the gauge whose force the gauge measures, as for the beam and the plate.
+
+    Returns
+    -------
+    SolidModel
+        The assembled matrices and the springs.
+
+    Raises
+    ------
+    ValueError
+        A mesh without an element along x, y or z.
     """
-    mesh = tuple(int(n) for n in mesh)
-    if len(mesh) != 3 or min(mesh) < 1:
-        raise ValueError(f"mesh {mesh} needs at least one element along each of x, y, z")
+    counts = tuple(int(n) for n in mesh)
+    if len(counts) != 3 or min(counts) < 1:
+        raise ValueError(f"mesh {counts} needs at least one element along each of x, y, z")
     xs, ys, zs = (o + np.linspace(0.0, s, n + 1)
-                  for o, s, n in zip(origin, size, mesh, strict=True))
+                  for o, s, n in zip(origin, size, counts, strict=True))
     kb, mm = _solid_matrices(xs, ys, zs, youngs_modulus, poisson, density)
-    m = np.asarray(masses, dtype=float).reshape(-1, 4)
-    if len(m):
-        axes = np.tile(np.eye(3), (len(m), 1))
-        r = solid_row(xs, ys, zs, np.column_stack([np.repeat(m[:, :3], 3, axis=0), axes]))
-        mm = mm + (r.T * np.repeat(m[:, 3], 3)) @ r
+    mm = _with_masses(mm, xs, ys, zs, masses)
     s = np.asarray(springs, dtype=float).reshape(-1, 7)
     kk = kb.copy()
     if len(s):
@@ -262,8 +340,37 @@ def assemble_solid(
                       bending_stiffness=kb, springs=tuple(map(tuple, s.tolist())), beta=beta)
 
 
+def _with_masses(mm: np.ndarray, xs: np.ndarray, ys: np.ndarray, zs: np.ndarray,
+                 masses: tuple[tuple[float, float, float, float], ...]) -> np.ndarray:
+    """The mass matrix [kg] with point masses (x, y, z [m], m [kg]) rigidly attached."""
+    m = np.asarray(masses, dtype=float).reshape(-1, 4)
+    if len(m):
+        axes = np.tile(np.eye(3), (len(m), 1))
+        r = solid_row(xs, ys, zs, np.column_stack([np.repeat(m[:, :3], 3, axis=0), axes]))
+        mm = mm + (r.T * np.repeat(m[:, 3], 3)) @ r
+    return mm
+
+
 def clamped_dofs(model: SolidModel, x: float = 0.0) -> np.ndarray:
-    """DOFs (all three components) of every node on the face x = x."""
+    """DOFs (all three components) of every node on the face x = x.
+
+    Parameters
+    ----------
+    model : SolidModel
+        The block.
+    x : float
+        The face's x coordinate [m].
+
+    Returns
+    -------
+    (3 n_face_nodes,) int array
+        The clamped DOFs.
+
+    Raises
+    ------
+    ValueError
+        No node lies on that face.
+    """
     nodes = np.flatnonzero(np.isclose(model.nodes[:, 0], x, rtol=0.0,
                                       atol=1e-9 * np.ptp(model.xs)))
     if not len(nodes):

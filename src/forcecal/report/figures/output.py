@@ -7,7 +7,7 @@ from pathlib import Path
 
 from matplotlib.figure import Figure
 
-from ...io.atomic import atomic_path
+from ..._atomic import atomic_path
 
 __all__ = ["png_bytes", "save_png"]
 

@@ -21,6 +21,16 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
 
     On any exception (KeyboardInterrupt included) the temporary file is removed and the
     exception propagates; an existing ``target`` is left untouched.
+
+    Parameters
+    ----------
+    target : str or Path
+        The file to write; its folder is created when missing.
+
+    Yields
+    ------
+    Path
+        The temporary file to write, beside ``target``.
     """
     target = Path(target)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -40,7 +50,20 @@ def atomic_path(target: str | Path) -> Iterator[Path]:
 
 
 def write_text_atomic(target: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``target`` atomically and return the path."""
+    """Write ``text`` (UTF-8) to ``target`` atomically.
+
+    Parameters
+    ----------
+    target : str or Path
+        The file to write; its folder is created when missing.
+    text : str
+        The whole content.
+
+    Returns
+    -------
+    Path
+        ``target``.
+    """
     with atomic_path(target) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(target)
