@@ -419,8 +419,20 @@ def test_sensors_at_a_node_of_the_shape(lab, model_json, short_run, tmp_path, ca
         doc["sensors"][1]["x"] = 0.6
 
     rig = edited_rig(lab, tmp_path, to_the_ends)
-    reconstruct_refused(lab, model_json, short_run, tmp_path, capsys,
+    # a model records its rig's sensor layout: this rig's model comes from the scan
+    reconstruct_refused(lab, lab / "scan.uff", short_run, tmp_path, capsys,
                         "s1", "s2", "node", rig=rig)
+
+
+def test_a_model_is_refused_for_another_rig(lab, model_json, short_run, tmp_path, capsys):
+    """Editing the rig's masses after 'forcecal scan' makes its model stale: refused, naming
+    the key that differs (once the forces were bit-identical with a 1e30 kg armature)."""
+    def heavy(doc):
+        doc["structure"]["masses"][0]["mass"] = 1e30
+
+    rig = edited_rig(lab, tmp_path, heavy)
+    reconstruct_refused(lab, model_json, short_run, tmp_path, capsys,
+                        "structure.masses[0].mass", "forcecal scan", rig=rig)
 
 
 def test_manifest_naming_a_missing_run(lab, model_json, tmp_path, capsys):
