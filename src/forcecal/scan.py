@@ -18,6 +18,7 @@ from .checks import check_scan_length
 from .errors import DataError
 from .harmonics import fit_harmonics, refine_fundamental
 from .records import Scan
+from .screening import record_weights
 
 __all__ = ["HarmonicShapes", "harmonic_shapes"]
 
@@ -55,12 +56,27 @@ class HarmonicShapes:
     drive_amplitude: np.ndarray
     drive_phase: np.ndarray
     source: str = "<scan>"
+    reference_ok: np.ndarray | None = None
 
-    def snr(self) -> np.ndarray:
-        """(n_harm,) RMS shape amplitude over the points divided by the RMS noise [1]."""
-        signal = np.sqrt(np.mean(np.abs(self.values) ** 2, axis=1))
-        noise = np.sqrt(np.mean(self.std**2, axis=1)) * np.sqrt(2)
-        return signal / noise
+    def snr(self, keep: np.ndarray | None = None) -> np.ndarray:
+        """(n_harm,) RMS shape amplitude over the records divided by the records' median
+        noise [1], both judged record by record: the mean square is weighted by each record's
+        floored inverse noise variance (:func:`forcecal.screening.record_weights`), so that a
+        spiky record neither drowns a harmonic in noise nor makes one out of its own spike.
+
+        Parameters
+        ----------
+        keep : (n_points,) bool ndarray, optional
+            The records to judge by (default: those whose reference shows the drive).
+        """
+        sel = self.reference_ok if keep is None else keep
+        values = self.values if sel is None else self.values[:, sel]
+        std = self.std if sel is None else self.std[:, sel]
+        weights = np.stack([record_weights(row) for row in std])
+        signal = np.sqrt(np.sum(weights * np.abs(values) ** 2, axis=1) / np.sum(weights, axis=1))
+        noise = np.median(std, axis=1) * np.sqrt(2)
+        ratio: np.ndarray = signal / noise
+        return ratio
 
 
 def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> HarmonicShapes:
@@ -83,8 +99,10 @@ def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> Harm
     Raises
     ------
     DataError
-        Records shorter than 5 periods, references whose fundamental cannot be refined, or a
-        reference record that carries no drive (its fundamental is at the noise level).
+        Records shorter than 5 periods, references whose fundamental cannot be refined, or
+        more than half of the reference records without the drive (a record whose reference
+        shows no drive is kept and flagged in ``reference_ok``; the spatial model sets it
+        aside, :mod:`forcecal.screening`).
     """
     check_scan_length(scan, f0_nominal)
     try:
@@ -96,13 +114,14 @@ def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> Harm
     resp = fit_harmonics(scan.response, scan.fs, f0, n_harmonics)
     i1 = ref.phasors[:, 1]
     amp = np.abs(i1)
-    weak = amp < 10 * ref.phasor_std[:, 1]
-    if np.any(weak):
+    weak = ~(amp >= 10 * ref.phasor_std[:, 1])
+    if np.count_nonzero(weak) > 0.5 * len(weak):
         k = int(np.flatnonzero(weak)[0])
         raise DataError(
-            f"scan '{scan.source}': the reference record of point {k + 1} (x = "
-            f"{scan.points[k, 0]:.4g} m) shows no drive at {f0:.4g} Hz "
-            f"(|I_1| = {amp[k]:.3g} A, noise {ref.phasor_std[k, 1]:.2g} A)")
+            f"scan '{scan.source}': {np.count_nonzero(weak)} of {len(weak)} reference records "
+            f"show no drive at {f0:.4g} Hz, the first of point {k + 1} (x = "
+            f"{scan.points[k, 0]:.4g} m: |I_1| = {amp[k]:.3g} A, noise "
+            f"{ref.phasor_std[k, 1]:.2g} A); check the reference label and channel")
     n = np.arange(1, n_harmonics + 1)
     u = resp.phasors[:, 1:]
     u_std = resp.phasor_std[:, 1:]
@@ -111,8 +130,11 @@ def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> Harm
         u = u / jw
         u_std = u_std / np.abs(jw)
     theta = np.angle(i1)
-    scale = amp.mean() / amp
+    # records whose reference shows no drive are kept (with their phase unknown) so that the
+    # screening lists them; their scale is 1
+    scale = np.where(weak, 1.0, amp[~weak].mean() / np.where(weak, 1.0, amp))
     values = u * np.exp(-1j * np.outer(theta, n)) * scale[:, None]
     std = u_std * scale[:, None]
     return HarmonicShapes(points=scan.points, harmonics=n, values=values.T, std=std.T, f0=f0,
-                          drive_amplitude=amp, drive_phase=theta, source=scan.source)
+                          drive_amplitude=amp, drive_phase=theta, source=scan.source,
+                          reference_ok=~weak)

@@ -17,8 +17,10 @@ Three things go wrong on real rigs, and each is handled here before the shapes a
   by pulling the fit through itself) is compared with the robust scale of all of them (their
   median over the Rayleigh median); a record beyond ``OUTLIER`` such scales in a harmonic the
   scan resolves is set aside, the worst first, and the shapes are refit
-  (:func:`screen_records`). At most ``MAX_SET_ASIDE`` of the records go, so that a scan that
-  is wrong everywhere is not quietly thinned out.
+  (:func:`screen_records`), provided it also misses the shape by ``MIN_RELATIVE`` of its RMS
+  amplitude (a clean scan's smooth shapes leave residuals of a few % where they bend
+  sharply, which are model error, not a bad record). At most ``MAX_SET_ASIDE`` of the
+  records go, so that a scan that is wrong everywhere is not quietly thinned out.
 
 Every record set aside is listed with its reason: on the terminal, in the model's JSON and on
 the report's shape figure.
@@ -39,6 +41,7 @@ from .vector_basis import VectorShapeFit
 
 __all__ = [
     "MAX_SET_ASIDE",
+    "MIN_RELATIVE",
     "NOISE_FLOOR",
     "OUTLIER",
     "Screening",
@@ -51,9 +54,13 @@ __all__ = [
 NOISE_FLOOR = 0.3
 """A record's noise std is taken as at least this fraction of the scan's median."""
 OUTLIER = 8.0
-"""Leave-one-out residual, in robust scales, beyond which a record contradicts the shape.
+"""Leave-one-out residual, in robust scales, beyond which a record contradicts the shape...
 For Gaussian noise a residual's modulus is Rayleigh distributed: P(> 8 scales) ~ 1e-14 per
 record, so a clean scan loses nothing."""
+MIN_RELATIVE = 0.2
+"""...and by more than this fraction of the shape's RMS amplitude over the records: a clean
+scan's polynomial shapes miss a record by a few % of it where the shape bends sharply, a
+dropout by about 100 %."""
 MAX_SET_ASIDE = 0.2
 """Largest fraction of the records that may be set aside."""
 _RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
@@ -132,8 +139,8 @@ def unusable_records(scan: Scan, reference_ok: np.ndarray) -> dict[int, str]:
 
 
 def loo_scores(fit: Fit, points: np.ndarray, values: np.ndarray,
-               weights: np.ndarray) -> np.ndarray:
-    """Leave-one-out residuals of a fit in robust scales.
+               weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Leave-one-out residuals of a fit in robust scales and relative to the shape.
 
     Parameters
     ----------
@@ -148,19 +155,21 @@ def loo_scores(fit: Fit, points: np.ndarray, values: np.ndarray,
 
     Returns
     -------
-    (n_records,) ndarray
+    scores : (n_records,) ndarray
         |r_k| sqrt(w_k) / sqrt(1 - h_kk), divided by its median over the Rayleigh median.
+    relative : (n_records,) ndarray
+        |r_k| / sqrt(1 - h_kk) over the RMS of the measured values.
     """
     b = fit.basis.evaluate(points)                              # (n, p)
     gram = b.T @ (weights[:, None] * b)
     hat = weights * np.einsum("kp,pq,kq->k", b, np.linalg.pinv(gram), b)
-    resid = np.abs(values - fit.evaluate(points)) * np.sqrt(weights)
-    loo = resid / np.sqrt(np.clip(1.0 - hat, 1e-6, None))
+    leave_out = np.abs(values - fit.evaluate(points)) / np.sqrt(np.clip(1.0 - hat, 1e-6, None))
+    loo = leave_out * np.sqrt(weights)
+    rms = float(np.sqrt(np.mean(np.abs(values) ** 2)))
+    relative = leave_out / rms if rms > 0 else np.zeros_like(leave_out)
     scale = float(np.median(loo)) / _RAYLEIGH_MEDIAN
-    if scale <= 0:
-        return np.zeros_like(loo)
-    scores: np.ndarray = loo / scale
-    return scores
+    scores = loo / scale if scale > 0 else np.zeros_like(loo)
+    return scores, relative
 
 
 def screen_records(points: np.ndarray, values: np.ndarray, std: np.ndarray,
@@ -196,18 +205,20 @@ def screen_records(points: np.ndarray, values: np.ndarray, std: np.ndarray,
     keep[list(reasons)] = False
     while len(reasons) < budget:
         idx = np.flatnonzero(keep)
-        worst, where, score = -1, -1, OUTLIER
+        worst, where, score, share = -1, -1, OUTLIER, 0.0
         for row, harmonic in resolved:
             w = record_weights(std[row, idx])
             shape = fit(idx, w, row)
-            z = loo_scores(shape, points[idx], values[row, idx], w)
+            z, relative = loo_scores(shape, points[idx], values[row, idx], w)
+            z = np.where(relative > MIN_RELATIVE, z, 0.0)
             j = int(np.argmax(z))
             if z[j] > score:
                 worst, where, score = int(idx[j]), harmonic, float(z[j])
+                share = float(relative[j])
         if worst < 0:
             break
         keep[worst] = False
         reasons[worst] = (f"it contradicts the fitted shape of harmonic {where}: its "
-                          f"leave-one-out residual is {score:.3g} robust scales (a dropout, a "
-                          "spike or a misplaced point)")
+                          f"leave-one-out residual is {score:.3g} robust scales, {share:.0%} of "
+                          "the shape's RMS amplitude (a dropout, a spike or a misplaced point)")
     return Screening(keep=keep, reasons=reasons)

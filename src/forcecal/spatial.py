@@ -24,7 +24,10 @@ from .inertia import mass_coupling
 from .records import Scan
 from .rig import Rig, rig_to_dict
 from .scan import HarmonicShapes, harmonic_shapes
+from .screening import Screening, record_weights, screen_records, unusable_records
 from .vector_basis import AXES, VectorShapeFit
+
+Fit = ShapeFit | VectorShapeFit
 
 __all__ = [
     "SpatialModel",
@@ -57,6 +60,8 @@ class SpatialModel:
     similarity : (n_harm, n_harm) MAC of the fitted shapes over the scan points [1]
     snr : (n_harm_scanned,) the scan's signal-to-noise ratio of every harmonic 1..H
     dropped : {harmonic: reason} harmonics left out
+    set_aside : {record index: reason} scan records left out of the shapes
+        (:mod:`forcecal.screening`)
     rig : the keys of the rig the model was built for (:func:`rig_keys`); a model is refused
         for a rig whose geometry, masses or sensor layout differ (:func:`check_model_rig`)
     """
@@ -73,6 +78,7 @@ class SpatialModel:
     source: str = "<scan>"
     notes: tuple[str, ...] = ()
     rig: dict[str, float | str] = field(default_factory=dict)
+    set_aside: dict[int, str] = field(default_factory=dict)
 
     @property
     def one_shape(self) -> bool:
@@ -127,6 +133,7 @@ class SpatialModel:
             "couplings_im": self.couplings.imag.tolist(),
             "shapes": [shape(s) for s in self.shapes],
             "notes": list(self.notes),
+            "set_aside": [{"record": k + 1, "reason": why} for k, why in self.set_aside.items()],
             "rig": {"sha256": _digest(self.rig), "keys": self.rig},
         }
 
@@ -162,6 +169,8 @@ class SpatialModel:
                 source=doc.get("source", source),
                 notes=tuple(doc.get("notes", ())),
                 rig=dict(doc.get("rig", {}).get("keys", {})),
+                set_aside={int(r["record"]) - 1: str(r["reason"])
+                           for r in doc.get("set_aside", [])},
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"model '{source}': not a forcecal spatial model ({exc})") from None
@@ -222,29 +231,65 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
                          + " or ".join(f"{b} basis (--basis {b})" for b in st.bases))
     _check_points_on_structure(rig, scan)
     points = st.coordinates(hs.points, source=f"scan '{scan.source}'")
-    snr = hs.snr()
-    kept, fits, dropped = [], [], {}
-    for k, n in enumerate(hs.harmonics):
-        if snr[k] < MIN_SNR:
-            dropped[int(n)] = f"scan signal-to-noise {snr[k]:.1f} < {MIN_SNR:g}"
-            continue
-        try:
-            fits.append(st.fit_shape(points, hs.values[k], criterion,
-                                     _inverse_variance(hs.std[k]), basis))
-        except DataError as exc:
-            raise InputError(f"scan '{scan.source}': {exc}") from None
-        kept.append(int(n))
+    fits, screening, snr = _screened_fits(rig, scan, hs, points, criterion, basis)
+    keep = screening.keep
+    dropped = {int(n): f"scan signal-to-noise {snr[k]:.1f} < {MIN_SNR:g}"
+               for k, n in enumerate(hs.harmonics) if snr[k] < MIN_SNR}
+    kept = [int(n) for n in hs.harmonics if int(n) not in dropped]
     if not kept:
         raise InputError(f"scan '{scan.source}': no harmonic rises above the noise "
                          f"(signal-to-noise {snr.max():.1f} at best)")
-    couplings = np.stack([mass_coupling(rig, f.evaluate) for f in fits])
-    vals = [f.evaluate(points) for f in fits]
+    chosen = [fits[n] for n in kept]
+    couplings = np.stack([mass_coupling(rig, f.evaluate) for f in chosen])
+    vals = [f.evaluate(points[keep]) for f in chosen]
     mac = np.array([[shape_similarity(a, b) for b in vals] for a in vals])
-    return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(fits),
+    notes = st.model_notes(chosen) + _set_aside_notes(scan, screening.reasons)
+    return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(chosen),
                         couplings=couplings, similarity=mac, snr=snr,
                         gauge_names=tuple(rig.gauge_names), dropped=dropped,
-                        n_points=len(points), source=scan.source, notes=st.model_notes(fits),
-                        rig=rig_keys(rig))
+                        n_points=int(np.count_nonzero(keep)), source=scan.source, notes=notes,
+                        rig=rig_keys(rig), set_aside=dict(sorted(screening.reasons.items())))
+
+
+def _screened_fits(rig: Rig, scan: Scan, hs: HarmonicShapes, points: np.ndarray,
+                   criterion: str, basis: str) -> tuple[dict[int, Fit], Screening, np.ndarray]:
+    """Every resolved harmonic's shape fitted over the records that survive the screening
+    (:mod:`forcecal.screening`), with the records' floored weights; the screening; every
+    harmonic's signal-to-noise ratio over the records kept."""
+    st = rig.structure
+    reasons = unusable_records(scan, hs.reference_ok if hs.reference_ok is not None
+                               else np.ones(scan.n_points, dtype=bool))
+    usable = np.ones(scan.n_points, dtype=bool)
+    usable[list(reasons)] = False
+    snr = hs.snr(usable)
+    resolved = [(k, int(n)) for k, n in enumerate(hs.harmonics) if snr[k] >= MIN_SNR]
+    cache: dict[tuple[bytes, int], Fit] = {}
+
+    def fit(idx: np.ndarray, weights: np.ndarray, row: int) -> Fit:
+        key = (idx.tobytes(), row)
+        if key not in cache:
+            try:
+                cache[key] = st.fit_shape(points[idx], hs.values[row, idx], criterion, weights,
+                                          basis)
+            except DataError as exc:
+                raise InputError(f"scan '{scan.source}': {exc}") from None
+        return cache[key]
+
+    screening = screen_records(points, hs.values, hs.std, resolved, fit, reasons)
+    idx = np.flatnonzero(screening.keep)
+    snr = hs.snr(screening.keep)
+    fits = {int(n): fit(idx, record_weights(hs.std[k, idx]), k)
+            for k, n in enumerate(hs.harmonics) if snr[k] >= MIN_SNR}
+    return fits, screening, snr
+
+
+def _set_aside_notes(scan: Scan, reasons: dict[int, str]) -> tuple[str, ...]:
+    """One note per record set aside, naming it by its number and position."""
+    notes = []
+    for k, why in sorted(reasons.items()):
+        where = ", ".join(f"{c:.4g}" for c in scan.points[k, :3])
+        notes.append(f"scan '{scan.source}': record {k + 1} at ({where}) m set aside: {why}")
+    return tuple(notes)
 
 
 def structure_extent(rig: Rig) -> tuple:
@@ -260,15 +305,6 @@ def structure_coordinates(rig: Rig, points: np.ndarray, source: str = "<points>"
 def structure_grid(rig: Rig, n: int = 401) -> np.ndarray:
     """Structure coordinates covering the structure (:meth:`Structure.grid`)."""
     return rig.structure.grid(n)
-
-
-def _inverse_variance(std: np.ndarray) -> np.ndarray:
-    """Relative weights 1/std^2 scaled to mean 1 (equal weights for noise-free data)."""
-    top = float(np.max(std))
-    if top <= 0:
-        return np.ones_like(std)
-    w = 1.0 / np.maximum(std / top, 1e-6) ** 2
-    return w / w.mean()
 
 
 def _check_points_on_structure(rig: Rig, scan: Scan) -> None:
