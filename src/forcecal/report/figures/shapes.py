@@ -117,6 +117,10 @@ def _draw_beam_harmonic(ax: Axes, shapes: HarmonicShapes, model: SpatialModel, n
                 mfc="none", color="C1", elinewidth=0.6, label="Im measured")
     ax.plot(xf * 1e3, fit.real * factor, "-", color="C0", lw=1.4, label="Re fitted")
     ax.plot(xf * 1e3, fit.imag * factor, "--", color="C1", lw=1.4, label="Im fitted")
+    aside = _set_aside(model, len(x))
+    if aside.size:
+        ax.plot(x[aside] * 1e3, meas[aside].real * factor, "x", color="C3", ms=8, mew=1.8,
+                label="set aside")
     m = model.index(n)
     ax.set_title(f"harmonic {n}: {n * shapes.f0:.1f} Hz, polynomial order "
                  f"{model.shapes[m].order}, scan SNR {model.snr[n - 1]:.0f}",
@@ -147,6 +151,11 @@ def _draw_normalized(ax: Axes, shapes: HarmonicShapes, model: SpatialModel,
               title_fontsize="small", alignment="left", framealpha=0.9)
     lo, hi = ax.get_ylim()
     ax.set_ylim(min(lo, -0.1), max(hi, 1.1))
+
+
+def _set_aside(model: SpatialModel, n_records: int) -> np.ndarray:
+    """Indices of the scan records the model set aside (:mod:`forcecal.screening`)."""
+    return np.array([k for k in sorted(model.set_aside) if k < n_records], dtype=int)
 
 
 def _mac_text(model: SpatialModel, harmonics: list[int]) -> str:
@@ -229,6 +238,10 @@ def _draw_plate_harmonic(ax: Axes, shapes: HarmonicShapes, model: SpatialModel,
     contour = ax.contourf(xx * 1e3, yy * 1e3, z, levels=np.linspace(-1, 1, 21), cmap="RdBu_r")
     ax.contour(xx * 1e3, yy * 1e3, z, levels=[0.0], colors="k", linewidths=0.8)
     ax.plot(shapes.points[:, 0] * 1e3, shapes.points[:, 1] * 1e3, ".", color="0.3", ms=2)
+    aside = _set_aside(model, len(shapes.points))
+    if aside.size:
+        ax.plot(shapes.points[aside, 0] * 1e3, shapes.points[aside, 1] * 1e3, "x", color="C3",
+                ms=7, mew=1.6, label="set aside")
     ax.set_aspect("equal")
     ax.set_xlabel("x [mm]")
     if k == 0:
@@ -277,6 +290,10 @@ def fig_shapes_body(shapes: HarmonicShapes, model: SpatialModel) -> Figure:
                 ax.plot(measured[sel].real, fitted[sel].real, ".", color=colour, ms=3,
                         label=f"along {'xyz'[a]}")
                 ax.plot(measured[sel].imag, fitted[sel].imag, ".", color=colour, ms=3)
+        aside = _set_aside(model, len(measured))
+        if aside.size:
+            ax.plot(measured[aside].real, fitted[aside].real, "x", color="C3", ms=7,
+                    label="set aside")
         ax.set_aspect("equal")
         ax.set_xlabel("measured Re, Im [um]")
         if k == 0:
