@@ -42,7 +42,25 @@ def rms(x):
     return float(np.sqrt(np.mean(np.square(x))))
 
 
-def study(preset_name: str, run_name: str, seeds: int, basis: str = "polynomial") -> dict:
+def damage_scan(scan, rng):
+    """The scan with a laser dropout, a saturated record and a spike, each at its own record
+    (the faults of a real SLDV scan that the screening must survive)."""
+    import dataclasses
+
+    resp = scan.response.copy()
+    n = scan.n_points
+    k = n // 3
+    resp[k] = 1e-3 * resp[k] + 1e-3 * np.std(resp[k]) * rng.standard_normal(resp.shape[1])
+    k = n // 2
+    top = 0.6 * np.max(np.abs(resp[k]))
+    resp[k] = np.clip(resp[k], -top, top)
+    k = 2 * n // 3 + 1
+    resp[k, 100:103] += 50 * np.max(np.abs(resp[k]))
+    return dataclasses.replace(scan, response=resp)
+
+
+def study(preset_name: str, run_name: str, seeds: int, basis: str = "polynomial",
+          damaged: bool = False) -> dict:
     preset = get_preset(preset_name)
     model_fe = build_model(preset)
     spec = next(r for r in preset.runs if r.name == run_name)
@@ -58,12 +76,15 @@ def study(preset_name: str, run_name: str, seeds: int, basis: str = "polynomial"
     h = 6
 
     errors, stated, wave_err, wave_std, times, static_err = [], [], [], [], [], []
+    force_err, set_aside = [], []
     first = None
     for seed in range(seeds):
         rng = np.random.default_rng(1000 + seed)
         t1 = time.perf_counter()
         scan = measure_scan(preset, model_fe, scan_r, rng)
         run = measure_run(preset, spec, model_fe, run_r, rng)
+        if damaged:
+            scan = damage_scan(scan, rng)
         if spec.gap is not None:
             import dataclasses
             rig_run = dataclasses.replace(rig, forces=tuple(
@@ -73,6 +94,9 @@ def study(preset_name: str, run_name: str, seeds: int, basis: str = "polynomial"
         model = build_spatial_model(rig_run, scan, basis=basis)
         est = reconstruct(rig_run, model, run)
         times.append(time.perf_counter() - t1)
+        set_aside.append(len(model.set_aside))
+        force_err.append([100 * rms((est.series[k] - tf) - (est.series[k] - tf).mean())
+                          / rms(tf - tf.mean()) for k, tf in enumerate(truth.pole_force)])
         # the truth's phasors on the estimate's own basis (same fundamental, same window)
         true_total_ph = fit_harmonics(true_total, preset.fs, est.f0, h).phasors
         err_ph = est.total - true_total_ph
@@ -133,6 +157,10 @@ def study(preset_name: str, run_name: str, seeds: int, basis: str = "polynomial"
             "static_error_pct_mean": 100 * float(np.mean(static_err)) / ac_rms,
             "waveform_ratio_observed_to_stated": wave_ratio,
             "per_harmonic": ratios,
+            "per_force_error_pct_mean": dict(zip(rig.force_names,
+                                                 np.mean(force_err, axis=0).tolist(),
+                                                 strict=True)),
+            "records_set_aside_mean": float(np.mean(set_aside)),
         },
         "seconds_simulation": t_sim,
         "seconds_per_estimate": float(np.median(times)),
@@ -144,6 +172,8 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, default=50)
     ap.add_argument("--basis-seeds", type=int, default=10,
                     help="noise seeds of the mode-shape basis comparison")
+    ap.add_argument("--robust-seeds", type=int, default=10,
+                    help="noise seeds of the clean vs damaged scan comparison")
     ap.add_argument("--cases", nargs="*", default=[c[0] for c in CASES])
     ap.add_argument("--out", default="accuracy.json", help="file name in benchmarks/results")
     args = ap.parse_args()
@@ -156,14 +186,22 @@ def main() -> None:
         results.append(res)
     comparison = []
     for preset, run, _ in CASES:
-        if preset not in args.cases or preset == "body":      # modes: beams and plates only
-            continue
+        if preset not in args.cases or preset == "body" or not args.basis_seeds:
+            continue                                          # modes: beams and plates only
         for basis in ("polynomial", "modes"):
             r = study(preset, run, args.basis_seeds, basis=basis)
             comparison.append({"preset": preset, "basis": basis, "seeds": args.basis_seeds,
                                "total_error_pct_mean": r["over_seeds"]["total_error_pct_mean"],
                                "orders": r["first_seed"]["orders"],
                                "ratio": r["over_seeds"]["waveform_ratio_observed_to_stated"]})
+    robust = []
+    for preset, run, _ in CASES:
+        if preset not in args.cases or not args.robust_seeds:
+            continue
+        clean = study(preset, run, args.robust_seeds)
+        bad = study(preset, run, args.robust_seeds, damaged=True)
+        robust.append({"preset": preset, "seeds": args.robust_seeds,
+                       "clean": clean["over_seeds"], "damaged": bad["over_seeds"]})
     print(f"\nforce reconstruction vs truth ({args.seeds} noise seeds; errors in % of true AC RMS)")
     hdr = (f"{'case':<22}{'total %':>9}{'max %':>8}{'F1 %':>8}{'F2 %':>8}{'static %':>10}"
            f"{'target':>8}{'obs/stated':>11}{'inertia':>9}{'s/run':>7}")
@@ -187,10 +225,20 @@ def main() -> None:
     for c in comparison:
         print(f"{c['preset']:<12}{c['basis']:<12}{c['total_error_pct_mean']:9.4f}"
               f"{c['ratio']:12.2f}  {c['orders']}")
+    print(f"\nrobust scan: clean vs a dropout, a saturated record and a spike "
+          f"({args.robust_seeds} seeds; per-force error in % of its true AC RMS, mean)")
+    print(f"{'case':<12}{'force':<8}{'clean %':>9}{'damaged %':>11}{'ratio':>8}"
+          f"{'set aside':>11}  (target ratio <= 1.5)")
+    for r in robust:
+        c, d = r["clean"], r["damaged"]
+        for name, e in c["per_force_error_pct_mean"].items():
+            e2 = d["per_force_error_pct_mean"][name]
+            print(f"{r['preset']:<12}{name:<8}{e:9.4f}{e2:11.4f}{e2 / e:8.2f}"
+                  f"{d['records_set_aside_mean']:11.1f}")
     out = Path(__file__).resolve().parent / "results" / args.out
     out.parent.mkdir(exist_ok=True)
-    out.write_text(json.dumps({"studies": results, "basis_comparison": comparison}, indent=1,
-                              default=float))
+    out.write_text(json.dumps({"studies": results, "basis_comparison": comparison,
+                              "robust_scan": robust}, indent=1, default=float))
     print(f"\nwritten {out}")
 
 

@@ -1,0 +1,129 @@
+"""Self-checks (forcecal.diagnostics): each fires when the mistake is made on purpose on the
+virtual rig, and none fires on the clean presets."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from forcecal.errors import DataError
+from forcecal.forces import implied_phasors, reconstruct
+from forcecal.records import Run
+from forcecal.rig import parse_rig, rig_to_dict
+from forcecal.simulate.magnet import Drive, Magnet, Pole
+from forcecal.simulate.presets import RunSpec, ScanSpec, get_preset
+from forcecal.simulate.virtual_rig import (
+    build_model,
+    measure_run,
+    measure_scan,
+    public_rig,
+    scan_response,
+    simulate_response,
+)
+from forcecal.spatial import build_spatial_model
+
+CHECKS = ("disagree with the scan model's shape", "pushes", "far from the",
+          "drifts within the record")
+"""The phrases of the self-checks' notes."""
+
+
+def self_check_notes(estimate) -> list[str]:
+    return [n for n in estimate.notes if any(c in n for c in CHECKS)]
+
+
+def edited(rig, edit):
+    doc = rig_to_dict(rig)
+    edit(doc)
+    return parse_rig(doc, source="edited.toml")
+
+
+@pytest.mark.parametrize("preset", ["paper", "resonance", "plate"])
+def test_no_self_check_fires_on_a_clean_preset(preset, paper):
+    if preset == "paper":
+        rig, _, model, run = paper
+    else:
+        p = get_preset(preset)
+        fe = build_model(p)
+        rng = np.random.default_rng(5)
+        rig = public_rig(p)
+        model = build_spatial_model(rig, measure_scan(p, fe, scan_response(p, fe), rng))
+        spec = p.runs[0]
+        r = simulate_response(p, spec.drives, spec.gap, spec.duration, fe)
+        run = measure_run(p, spec, fe, r, rng)
+    assert self_check_notes(reconstruct(rig, model, run)) == []
+
+
+def test_a_gauge_with_the_wrong_sign_is_noticed(paper):
+    """R1's scale flipped: the magnet seems to push, and its DC contradicts the current."""
+    rig, _, model, run = paper
+
+    def flip(doc):
+        doc["gauges"][0]["scale"] = -1.0
+
+    notes = self_check_notes(reconstruct(edited(rig, flip), model, run))
+    assert any("pushes" in n for n in notes) or any("far from the" in n for n in notes), notes
+
+
+def test_a_probe_with_the_wrong_sign_is_noticed(paper):
+    rig, _, model, run = paper
+
+    def flip(doc):
+        doc["sensors"][1]["scale"] = -1.0
+
+    notes = self_check_notes(reconstruct(edited(rig, flip), model, run))
+    assert any("s1, s2 disagree" in n and "harmonic 1" in n for n in notes), notes
+
+
+def test_a_drifting_drive_is_noticed(paper):
+    """The paper run's phasors replayed with a frequency that drifts 0.5 % over the record."""
+    rig, _, model, run = paper
+    est = reconstruct(rig, model, run)
+    phasors = implied_phasors(rig, model, run, est)
+    t = run.time - run.t0
+    duration = t[-1]
+    f0 = est.f0
+    cycles = f0 * t + 0.005 * f0 * t**2 / (2 * duration)
+    h = len(est.harmonics) - 1
+    rot = np.exp(2j * np.pi * np.outer(np.arange(h + 1), cycles))
+    rng = np.random.default_rng(2)
+    channels = {name: (x @ rot).real + 1e-3 * np.std((x @ rot).real)
+                * rng.standard_normal(t.size) for name, x in phasors.items()}
+    drifting = Run(channels=channels, fs=run.fs, name="drift", source="drift.csv")
+    try:
+        notes = self_check_notes(reconstruct(rig, model, drifting))
+    except DataError as exc:                  # refused: then it must say why
+        assert "drifts" in str(exc), exc
+        return
+    assert any("drifts within the record" in n for n in notes), notes
+
+
+@pytest.fixture(scope="module")
+def two_coils():
+    """The paper beam with two magnets on their own coils; scanned with coil B at 40 % of
+    coil A's drive, then run with coil B at 120 % and shifted in phase (a coil changed)."""
+    p = get_preset("paper")
+    f = p.runs[0].drives[0].frequency
+    left = Magnet(poles=(Pole("FA", 0.2, 1.0e-3),), current_channel="ia",
+                  flux_channel="phia", voltage_channel="va")
+    right = Magnet(poles=(Pole("FB", 0.42, 1.0e-3),), current_channel="ib",
+                   flux_channel="phib", voltage_channel="vb")
+    scan_drives = (Drive("current", 0.5, 0.25, f), Drive("current", 0.2, 0.1, f))
+    run_drives = (Drive("current", 0.5, 0.25, f), Drive("current", 0.6, 0.3, f, phase=1.5))
+    preset = dataclasses.replace(p, magnets=(left, right), scan=ScanSpec(drives=scan_drives),
+                                 runs=(RunSpec("changed", drives=run_drives, duration=1.0),))
+    fe = build_model(preset)
+    rng = np.random.default_rng(4)
+    rig = public_rig(preset)
+    model = build_spatial_model(rig, measure_scan(preset, fe, scan_response(preset, fe), rng))
+    spec = preset.runs[0]
+    run = measure_run(preset, spec, fe, simulate_response(preset, spec.drives, None,
+                                                          spec.duration, fe), rng)
+    return rig, model, run
+
+
+def test_a_load_changed_since_the_scan_is_noticed(two_coils):
+    rig, model, run = two_coils
+    notes = self_check_notes(reconstruct(rig, model, run))
+    assert any("disagree with the scan model's shape" in n for n in notes), notes
