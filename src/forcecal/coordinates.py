@@ -67,12 +67,36 @@ class Coordinates:
 
 
 def sensor_rows(model: SpatialModel, rig: Rig, n: int) -> np.ndarray:
-    """phi_n at the sensors, (n_sensors,) complex [m]."""
+    """phi_n at the sensors.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    rig : Rig
+    n : int
+        The harmonic.
+
+    Returns
+    -------
+    (n_sensors,) complex ndarray [m]
+    """
     return model.shape_values(n, rig.structure.coordinates(rig.sensor_points))
 
 
 def sensor_gain(model: SpatialModel, rig: Rig, n: int) -> float:
-    """RMS |phi_n| at the sensors relative to its maximum over the structure [1]."""
+    """RMS |phi_n| at the sensors relative to its maximum over the structure.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    rig : Rig
+    n : int
+        The harmonic.
+
+    Returns
+    -------
+    float [1]
+    """
     peak = np.max(np.abs(model.shape_values(n, rig.structure.grid())))
     at = sensor_rows(model, rig, n)
     return float(np.sqrt(np.mean(np.abs(at) ** 2)) / peak)
@@ -110,7 +134,17 @@ def check_sensor_gain(model: SpatialModel, rig: Rig, n: int, what: str) -> float
 
 
 def sensor_weights(std: np.ndarray) -> np.ndarray:
-    """Inverse variances 1 / std^2 of the sensors' phasors (finite for noise-free data)."""
+    """Inverse variances of the sensors' phasors (finite for noise-free data).
+
+    Parameters
+    ----------
+    std : (n_sensors,) ndarray
+        [m] standard uncertainties of the phasors.
+
+    Returns
+    -------
+    (n_sensors,) ndarray [1/m^2]
+    """
     weights: np.ndarray = 1.0 / np.maximum(np.asarray(std, dtype=float), 1e-150) ** 2
     return weights
 

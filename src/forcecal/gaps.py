@@ -40,7 +40,7 @@ from .forces import ForceEstimate, channels_si
 from .harmonics import fit_harmonics
 from .records import Run
 from .rig import Rig
-from .spatial import SpatialModel, structure_coordinates, structure_grid
+from .spatial import SpatialModel
 
 __all__ = ["PoleMotion", "fourier_series", "pole_motion", "quasi_static_shape", "static_gaps"]
 
@@ -87,15 +87,15 @@ def quasi_static_shape(model: SpatialModel, rig: Rig) -> Callable[[np.ndarray], 
     -------
     callable
         ``points -> (n,) [m]``, the shape at points of the structure (as
-        :func:`forcecal.spatial.structure_coordinates` gives them); its scale and sign are
+        :meth:`forcecal.structures.Structure.coordinates` gives them); its scale and sign are
         arbitrary (the DC amplitude is fitted to the probes).
     """
     n1 = 1 if 1 in model.harmonics else int(np.min(model.harmonics))
-    phi = model.shape_values(n1, structure_grid(rig, _SHAPE_GRID))
+    phi = model.shape_values(n1, rig.structure.grid(_SHAPE_GRID))
     rotor = np.exp(-0.5j * np.angle(np.sum(phi**2)))
 
     def shape(points: np.ndarray) -> np.ndarray:
-        return (model.shape_values(n1, structure_coordinates(rig, points)) * rotor).real
+        return (model.shape_values(n1, rig.structure.coordinates(points)) * rotor).real
 
     return shape
 
@@ -255,7 +255,7 @@ def pole_motion(
     InputError
         When a force point has no static gap.
     """
-    xp = structure_coordinates(rig, rig.force_points)
+    xp = rig.structure.coordinates(rig.force_points)
     phasors = _harmonic_phasors(model, estimate, xp, len(rig.forces))
     dc, var = _probe_dc(rig, run, estimate, tare)
     shape = quasi_static_shape(model, rig)

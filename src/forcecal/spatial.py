@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from ._atomic import write_text_atomic
+from ._schema import check_model_document, reject_constant
 from .basis import PolynomialBasis, ShapeFit, shape_similarity
 from .errors import DataError, InputError
 from .inertia import mass_coupling
@@ -35,9 +36,6 @@ __all__ = [
     "check_model_rig",
     "load_model",
     "rig_keys",
-    "structure_coordinates",
-    "structure_extent",
-    "structure_grid",
 ]
 
 MIN_SNR = 3.0
@@ -139,6 +137,8 @@ class SpatialModel:
 
     @classmethod
     def from_json(cls, doc: dict, source: str = "<model>") -> SpatialModel:
+        check_model_document(doc, source)  # the schema: format, types, sizes, finite numbers
+
         def shape(s: dict) -> ShapeFit:
             basis = PolynomialBasis(int(s["order"]), np.asarray(s["domain"], dtype=float),
                                     np.asarray(s["basis"], dtype=float),
@@ -180,14 +180,34 @@ class SpatialModel:
 
 
 def load_model(path: str | Path) -> SpatialModel:
-    """Read a spatial model written by :meth:`SpatialModel.save`."""
+    """Read a spatial model written by :meth:`SpatialModel.save`.
+
+    Parameters
+    ----------
+    path : str or Path
+        The MODEL.json file.
+
+    Returns
+    -------
+    SpatialModel
+    """
+    from ._schema import MAX_DOCUMENT_BYTES
+
     path = Path(path)
     if not path.is_file():
         raise InputError(f"model '{path}': file not found")
+    if path.stat().st_size > MAX_DOCUMENT_BYTES:
+        raise InputError(f"model '{path}': {path.stat().st_size} bytes; a model file is at most "
+                         f"{MAX_DOCUMENT_BYTES} bytes")
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=reject_constant)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"model '{path}': not JSON ({exc})") from None
+    except RecursionError:
+        raise InputError(f"model '{path}': not a forcecal spatial model (JSON nested too "
+                         "deeply)") from None
+    except ValueError as exc:  # NaN/Infinity constants, an integer beyond the digit limit
+        raise InputError(f"model '{path}': not valid JSON ({exc})") from None
     return SpatialModel.from_json(doc, source=str(path))
 
 
@@ -290,21 +310,6 @@ def _set_aside_notes(scan: Scan, reasons: dict[int, str]) -> tuple[str, ...]:
         where = ", ".join(f"{c:.4g}" for c in scan.points[k, :3])
         notes.append(f"scan '{scan.source}': record {k + 1} at ({where}) m set aside: {why}")
     return tuple(notes)
-
-
-def structure_extent(rig: Rig) -> tuple:
-    """The structure's extent mapped onto the basis domain (:meth:`Structure.extent`)."""
-    return rig.structure.extent()
-
-
-def structure_coordinates(rig: Rig, points: np.ndarray, source: str = "<points>") -> np.ndarray:
-    """Points in the structure's own coordinates (:meth:`Structure.coordinates`)."""
-    return rig.structure.coordinates(points, source)
-
-
-def structure_grid(rig: Rig, n: int = 401) -> np.ndarray:
-    """Structure coordinates covering the structure (:meth:`Structure.grid`)."""
-    return rig.structure.grid(n)
 
 
 def _check_points_on_structure(rig: Rig, scan: Scan) -> None:

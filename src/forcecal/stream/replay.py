@@ -33,16 +33,37 @@ def replay(rig: Rig, model: SpatialModel, run: Run, block: int = 256, *,
 
     Parameters
     ----------
-    block : samples per block
-    f0_guess : [Hz] start of the frequency tracking (default: the scan model's fundamental)
-    tare : a zero-current record whose gauge DC is subtracted (as in the batch estimate)
-    others : as :class:`StreamEstimator`
+    rig : Rig
+    model : SpatialModel
+    run : Run
+        The recording, fed in blocks.
+    block : int
+        Samples per block.
+    f0_guess : float, optional
+        [Hz] start of the frequency tracking (default: the scan model's fundamental).
+    n_harmonics : int, optional
+        As :class:`StreamEstimator`.
+    forgetting : float, optional
+        As :class:`StreamEstimator`.
+    track_frequency : bool
+        As :class:`StreamEstimator`.
+    sensor_std : sequence of float, optional
+        As :class:`StreamEstimator`.
+    tare : Run, optional
+        A zero-current record whose gauge DC is subtracted (as in the batch estimate).
+    ac_coupled : bool
+        As :class:`StreamEstimator`.
+    extra_harmonics : sequence of int
+        As :class:`StreamEstimator`.
 
     Returns
     -------
-    time : (n_samples,) [s]
-    forces : {force name: (n_samples,) [N]}
-    static : {force name: (n_samples,) [N]} reactions-only
+    time : (n_samples,) ndarray
+        [s]
+    forces : dict
+        Force name -> (n_samples,) [N].
+    static : dict
+        Force name -> (n_samples,) [N], reactions-only.
     """
     if int(block) != block or block < 1:
         raise InputError(f"stream: block must be a positive whole number of samples; "
@@ -74,6 +95,21 @@ def write_stream_csv(path: str | Path, time: np.ndarray, forces: Mapping[str, np
 
     A path ending in ``.h5``/``.hdf5`` is written as HDF5 (one dataset per column, the
     layout of a run file), which is an order of magnitude faster than text for long streams.
+
+    Parameters
+    ----------
+    path : str or Path
+        The output file.
+    time : (n_samples,) ndarray
+        [s]
+    forces : mapping
+        Force name -> (n_samples,) [N].
+    static : mapping
+        Force name -> (n_samples,) [N], reactions-only.
+
+    Returns
+    -------
+    Path
     """
     if list(forces) != list(static):
         raise InputError(f"table '{path}': forces {list(forces)} and static {list(static)} "

@@ -115,7 +115,21 @@ class RlsState:
 
 
 def rls_start(n_regressors: int, n_outputs: int, prior: float = PRIOR) -> RlsState:
-    """The state before any sample: prior information ``prior * I``, no data."""
+    """The state before any sample: prior information ``prior * I``, no data.
+
+    Parameters
+    ----------
+    n_regressors : int
+        p, the regressor's length.
+    n_outputs : int
+        Outputs sharing the regressor.
+    prior : float
+        r0, the prior's information per regressor.
+
+    Returns
+    -------
+    RlsState
+    """
     return RlsState(information=prior * np.eye(n_regressors),
                     moment=np.zeros((n_regressors, n_outputs)))
 
@@ -195,6 +209,23 @@ def harmonic_start(n_channels: int, n_harmonics: int, f0: float, fs: float,
 
     With the phase started at f0 * t0 the phasors follow the absolute-time convention of
     :mod:`forcecal.harmonics` for as long as the frequency is not changed.
+
+    Parameters
+    ----------
+    n_channels : int
+        Channels sharing the regressor.
+    n_harmonics : int
+        H.
+    f0 : float
+        [Hz] the drive frequency.
+    fs : float
+        [Hz] the sampling rate.
+    t0 : float
+        [s] absolute time of the first sample.
+
+    Returns
+    -------
+    HarmonicState
     """
     step = f0 / fs
     return HarmonicState(demod=np.zeros((n_channels, n_harmonics + 1), dtype=complex),
@@ -323,17 +354,46 @@ def window_tables(lam: float, step: float, n_harmonics: int, length: int) -> _Ta
 
 
 def steady_count(lam: float) -> int:
-    """Samples after which M_k is stationary to rounding (lambda^k < STEADY_TOL)."""
+    """Samples after which M_k is stationary to rounding (lambda^k < STEADY_TOL).
+
+    Parameters
+    ----------
+    lam : float
+        The forgetting factor.
+
+    Returns
+    -------
+    int
+    """
     return int(math.ceil(math.log(STEADY_TOL) / math.log(lam)))
 
 
 def chunk_limit(lam: float) -> int:
-    """Longest stretch summed at once: lambda^-n stays below 4."""
+    """Longest stretch summed at once: lambda^-n stays below 4.
+
+    Parameters
+    ----------
+    lam : float
+        The forgetting factor.
+
+    Returns
+    -------
+    int
+    """
     return max(1, int(_GROWTH / -math.log(lam)))
 
 
 def to_real(z: np.ndarray) -> np.ndarray:
-    """Complex (..., H+1, n) -> real (..., 2H+1, n): [Re z0, Re z1, Im z1, ...]."""
+    """Complex phasors to real coefficients [Re z0, Re z1, Im z1, ...].
+
+    Parameters
+    ----------
+    z : (..., H+1, n) complex ndarray
+
+    Returns
+    -------
+    (..., 2H+1, n) ndarray
+    """
     h = z.shape[-2] - 1
     out = np.empty((*z.shape[:-2], 2 * h + 1, z.shape[-1]))
     out[..., 0, :] = z[..., 0, :].real
@@ -343,7 +403,16 @@ def to_real(z: np.ndarray) -> np.ndarray:
 
 
 def to_complex(u: np.ndarray) -> np.ndarray:
-    """Real (..., 2H+1, n) -> complex (..., H+1, n); inverse of :func:`_to_real`."""
+    """Real coefficients to complex phasors; the inverse of :func:`to_real`.
+
+    Parameters
+    ----------
+    u : (..., 2H+1, n) ndarray
+
+    Returns
+    -------
+    (..., H+1, n) complex ndarray
+    """
     z = np.empty((*u.shape[:-2], (u.shape[-2] + 1) // 2, u.shape[-1]), dtype=complex)
     z[..., 0, :] = u[..., 0, :]
     z[..., 1:, :] = u[..., 1::2, :] + 1j * u[..., 2::2, :]
@@ -351,8 +420,25 @@ def to_complex(u: np.ndarray) -> np.ndarray:
 
 
 def mixing(readout: np.ndarray, lam: float, step: float, n_harmonics: int) -> np.ndarray:
-    """Readout (n_out, n_ch, p) of u -> complex kappa (n_out, H+1, n_ch) acting on the rotated
-    right-hand side: readout . u = Re(sum kappa . beta_complex) with u = M^-1 beta."""
+    """The readout folded into the channel mixing of the stationary window:
+    readout . u = Re(sum kappa . beta_complex) with u = M^-1 beta.
+
+    Parameters
+    ----------
+    readout : (n_out, n_channels, 2H+1) ndarray
+        A linear functional of the rotated coefficients u.
+    lam : float
+        The forgetting factor.
+    step : float
+        [cycles per sample] f0 / fs.
+    n_harmonics : int
+        H.
+
+    Returns
+    -------
+    (n_out, H+1, n_channels) complex ndarray
+        kappa, acting on the demodulated right-hand side.
+    """
     k = readout @ stationary(lam, step, n_harmonics)[1]
     kap = np.empty((k.shape[0], n_harmonics + 1, k.shape[1]), dtype=complex)
     kap[:, 0] = k[..., 0]
@@ -401,7 +487,32 @@ def harmonic_update(state: HarmonicState, y: np.ndarray, lam: float,
 def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
             readout: np.ndarray | None, kap: np.ndarray | None,
             prior: float) -> tuple[HarmonicState, np.ndarray]:
-    """One piece of at most ``chunk_limit(lam)`` samples (the tables' length or less)."""
+    """Exact RLS over one piece of at most ``chunk_limit(lam)`` samples.
+
+    Parameters
+    ----------
+    state : HarmonicState
+        After the previous sample.
+    y : (n_channels, c) ndarray
+        The piece's samples, c no longer than the tables.
+    lam : float
+        The forgetting factor.
+    tables : _Tables
+        Per-sample factors at the state's frequency (:func:`window_tables`).
+    readout : (n_out, n_channels, 2H+1) ndarray or None
+        A linear functional of the rotated coefficients (None: return the phasors).
+    kap : ndarray or None
+        ``mixing(readout, ...)``, the readout folded for the stationary window.
+    prior : float
+        r0.
+
+    Returns
+    -------
+    state : HarmonicState
+        After the piece's last sample.
+    out : ndarray
+        (n_out, c) readouts, or (n_channels, H+1, c) complex phasors without ``readout``.
+    """
     n_ch, c = y.shape
     h = state.n_harmonics
     if c == 0:
@@ -437,7 +548,20 @@ def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
 
 
 def last_coefficients(state: HarmonicState, lam: float, prior: float) -> np.ndarray:
-    """(n_channels, p) rotated coefficients u of the last sample."""
+    """The rotated coefficients u of the last sample.
+
+    Parameters
+    ----------
+    state : HarmonicState
+    lam : float
+        The forgetting factor.
+    prior : float
+        r0.
+
+    Returns
+    -------
+    (n_channels, 2H+1) ndarray
+    """
     h = state.n_harmonics
     rot = np.exp(-2j * np.pi * state.phase * np.arange(h + 1))
     beta = to_real((state.demod * rot.conj())[..., None])[..., 0]     # (n_ch, p)
