@@ -315,17 +315,9 @@ def test_contradicting_probe_is_covered(draws, c):
     check_covers(z, f"probe s2 x {PROBE_GAIN}: {c}")
 
 
-BIRGE_FALSE_ALARMS = (
-    "the misfit test compares the sensors' residuals with the probes' noise only, not with the "
-    "fitted shape's own uncertainty at the sensors (already counted by the shape term): at "
-    "n = 1 the nominal sensors 'contradict' the shape in 9 of 40 seeds (22.5 %, against 1 % "
-    "at MISFIT_LEVEL; 2.5 % once the shape's std at the sensors is added to the probes'), "
-    "82.5 % with the noisy scan, where the inflated seeds' total has RMS(z) 0.80 (n = 1) and "
-    "0.63 (n = 2) against 1.03 and 0.92 in the others: the stated std is conservative there")
-
-
-# Achieved: Q inflated at n = 1 in 9 of 40 nominal seeds; bound (binomial, 1 %, 99.9 %): 4
-@pytest.mark.xfail(strict=True, reason=BIRGE_FALSE_ALARMS)
+# Achieved: Q inflated at n = 1 in 0 of 40 nominal seeds and 0 of 40 with the noisy scan (9
+# and 33 of 40 while the misfit test left out the fitted shape's own uncertainty at the
+# sensors); bound (binomial, 1 %, 99.9 %): 4
 def test_birge_inflation_is_rare_for_sound_sensors(draws):
     """The nominal probes measure the true motion: the inflation for contradicting sensors
     should fire about as often as its significance level says (1 - MISFIT_LEVEL)."""

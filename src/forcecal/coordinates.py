@@ -55,8 +55,9 @@ class Coordinates:
     gain : (n_h,) ndarray
         [1] RMS |phi_n| at the sensors / max |phi_n| on the structure.
     chi2 : (n_h,) ndarray
-        [1] reduced chi-square of the sensor fit (about 1 when the shape fits; NaN with a
-        single sensor).
+        [1] reduced chi-square of the sensor fit, against the probes' noise and the fitted
+        shape's uncertainty at the probes (about 1 when the shape fits; NaN with a single
+        sensor).
     """
 
     harmonics: np.ndarray
@@ -198,7 +199,8 @@ def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
         When the sensors sit at a node of a harmonic's shape.
     """
     qs, stds, gains, chi2 = [], [], [], []
-    for n in model.harmonics:
+    at_sensors = rig.structure.coordinates(rig.sensor_points)
+    for k, n in enumerate(model.harmonics):
         gains.append(check_sensor_gain(model, rig, int(n), f"run '{run_name}'"))
         phi = sensor_rows(model, rig, int(n))
         s = sensors.phasors[:, n]
@@ -207,12 +209,17 @@ def generalized_coordinates(model: SpatialModel, rig: Rig, sensors: HarmonicFit,
         q = complex(gain @ s)
         resid = s - phi * q
         dof = 2 * (len(s) - 1)
-        red = float(np.sum(w * np.abs(resid) ** 2) / dof) if dof > 0 else np.nan
+        # the residual's variance: the probes' noise and the fitted shape's own uncertainty
+        # there (the latter is propagated as the shape term, not as a contradiction)
+        var = 1.0 / w + (model.shapes[k].std(at_sensors) * abs(q)) ** 2
+        red = float(np.sum(np.abs(resid) ** 2 / var) / dof) if dof > 0 else np.nan
         chi2.append(red)
         qs.append(q)
-        # the shape misses the sensors by more than their noise (1 % significance): the model
-        # error is real, and Q is only known to within it (Birge ratio)
-        misfit = red if dof > 0 and red > scipy.stats.chi2.ppf(MISFIT_LEVEL, dof) / dof else 1.0
+        # the shape misses the sensors by more than their noise and its own uncertainty (1 %
+        # significance): the mismatch is real, and Q is only known to within the residual's
+        # scatter about the fit's weights (Birge ratio)
+        contradicts = dof > 0 and red > scipy.stats.chi2.ppf(MISFIT_LEVEL, dof) / dof
+        misfit = float(np.sum(w * np.abs(resid) ** 2) / dof) if contradicts else 1.0
         stds.append(float(np.sqrt(misfit / float(info))))
     return Coordinates(harmonics=model.harmonics.copy(), q=np.array(qs), q_std=np.array(stds),
                        gain=np.array(gains), chi2=np.array(chi2))
