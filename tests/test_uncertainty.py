@@ -278,19 +278,11 @@ def test_coverage_shape_dominated(draws, c, n):
     check_two_sided(draws.noisy_scan.cell(c, n), f"noisy scan {c} at n = {n}")
 
 
-UNRESOLVED_TOTAL = (
-    "the bound of an unresolved harmonic (the whole mass moving with the probes' RMS "
-    "amplitude) is smaller than the total force's uncompensated inertia: at n = 3 of the "
-    "'paper' rig the total's RMS(z) is 1.36 here (1.37 over 100 seeds, z about (-1.5, 1.2) "
-    "in every draw; 1.39 on the full 'paper' preset, 1.24 on 'resonance'), while F1, F2 and "
-    "the moment are covered (RMS(z) 0.23, 0.23, 0.97)")
-
-
 # Achieved (80 draws: RMS <= 1.27, fraction >= 86.2 %): F1 0.23/100 %, F2 0.23/100 %,
-# moment_x 0.97/100 %; total 1.36/100 % (xfail: RMS above the bound)
-@pytest.mark.parametrize("c", [
-    "F1", "F2", "moment_x",
-    pytest.param("total", marks=pytest.mark.xfail(strict=True, reason=UNRESOLVED_TOTAL))])
+# moment_x 0.72/100 %, total 0.72/100 % (the total was at 1.36 while the bound was the whole
+# mass moving with the probes' RMS motion; it is now the nearest shape's inertia from the
+# probes' own phasors)
+@pytest.mark.parametrize("c", ["F1", "F2", "moment_x", "total"])
 def test_unresolved_harmonic_is_covered(draws, c):
     """n = 3 shows in the reactions but the noisy scan does not resolve it: its inertia is left
     in the forces and only its bound enters the stated std, which must cover the error."""

@@ -34,6 +34,7 @@ from .uncertainty import (
     gauge_variance,
     inertia_variance,
     shape_operators,
+    unresolved_inertia,
     unresolved_inertia_bound,
 )
 
@@ -318,15 +319,19 @@ def _inertia(rig: Rig, model: SpatialModel, coords: Coordinates, s_fit: Harmonic
 def _unresolved(rig: Rig, model: SpatialModel, s_fit: HarmonicFit, a_r: np.ndarray,
                 with_inertia: np.ndarray, kept: np.ndarray, w0: float,
                 var: np.ndarray) -> list[str]:
-    """Harmonics kept without a shape: their inertia's bound enters the variance ``var``
-    (updated in place); returns a note per harmonic."""
+    """Harmonics kept without a shape: their uncompensated inertia enters the variance ``var``
+    (updated in place) as a standard uncertainty of each part (Re, Im) equal to the inertia
+    that the nearest harmonic's shape would give it from the probes, and never below the whole
+    mass moving at the probes' noise; returns a note per harmonic."""
     notes = []
     n_g = len(rig.gauges)
     for n in np.flatnonzero(kept & ~with_inertia):
         if n == 0:
             continue
         bound = unresolved_inertia_bound(rig, s_fit, int(n), w0)
-        var[:, n, :] += (bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1))[:, None]
+        floor = bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1)
+        proxy = np.abs(a_r @ unresolved_inertia(model, rig, s_fit, int(n), w0)) ** 2
+        var[:, n, :] += np.maximum(proxy, floor)[:, None]
         notes.append(f"harmonic {n}: no shape in the scan model "
                      f"({model.dropped.get(int(n), 'not scanned')}); its inertia, up to "
                      f"{bound:.2g} N, is not compensated and is counted in the uncertainty")

@@ -37,6 +37,7 @@ __all__ = [
     "inertia_variance",
     "shape_jacobian",
     "shape_operators",
+    "unresolved_inertia",
     "unresolved_inertia_bound",
 ]
 
@@ -207,3 +208,32 @@ def unresolved_inertia_bound(rig: Rig, sensors: HarmonicFit, n: int, w0: float) 
     noise = float(np.sqrt(np.mean(sensors.phasor_std[:, n] ** 2)))
     motion = max(float(np.sqrt(np.mean(np.abs(sensors.phasors[:, n]) ** 2))), noise)
     return rig.structure.total_mass * (n * w0) ** 2 * motion
+
+
+def unresolved_inertia(model: SpatialModel, rig: Rig, sensors: HarmonicFit, n: int,
+                       w0: float) -> np.ndarray:
+    """The inertia term a harmonic without a shape would have if it deflected in the shape of
+    the nearest harmonic that has one: a proxy, from the probes' own phasors at harmonic n,
+    that carries how the probes see the mass distribution (the whole mass moving with the
+    probes' RMS motion misjudges it wherever the probes sit off the antinodes).
+
+    Parameters
+    ----------
+    model : SpatialModel
+    rig : Rig
+    sensors : HarmonicFit
+        The sensors' harmonic fit.
+    n : int
+        The harmonic without a shape.
+    w0 : float
+        [rad/s] the fundamental.
+
+    Returns
+    -------
+    (n_gauges,) complex ndarray [N]
+    """
+    k = int(np.argmin(np.abs(model.harmonics - n)))
+    phi = model.shape_values(int(model.harmonics[k]),
+                             rig.structure.coordinates(rig.sensor_points))
+    gain, _ = coordinate_map(phi, sensor_weights(sensors.phasor_std[:, n]))
+    return inertia_term(model.couplings[k], complex(gain @ sensors.phasors[:, n]), n * w0)
