@@ -130,13 +130,20 @@ def scan_subset(scan_datasets, path: Path, n_points: int = 4, coordinates: bool 
     """A small UFF of the lab's first ``n_points`` scan points; ``keep(kind, node)`` selects
     records (kind 'vibration' or 'reference'); ``coordinates=False`` drops dataset 2411."""
     nodes, records = scan_datasets[0], scan_datasets[1:]
-    kept = [nodes] if coordinates else []
+    kept = []
+    measured: set[int] = set()
     for record in records[: 2 * n_points]:
         lines = record.splitlines()
         kind = "reference" if "Ref" in lines[2] else "vibration"
         node = int(lines[6].split()[5])
+        measured.add(node)
         if keep(kind, node):
             kept.append(record)
+    if coordinates:  # the geometry of the measured points only (a subset, not a scan cut short)
+        head, *pairs = nodes.splitlines(keepends=True)
+        pairs = [pairs[k] + pairs[k + 1] for k in range(0, len(pairs) - 1, 2)
+                 if int(pairs[k].split()[0]) in measured]
+        kept.insert(0, head + "".join(pairs))
     path.write_text("".join(f"    -1\n{d}    -1\n" for d in kept))
     return path
 
@@ -426,9 +433,10 @@ def test_sensors_at_a_node_of_the_shape(lab, model_json, short_run, tmp_path, ca
 
 def test_a_model_is_refused_for_another_rig(lab, model_json, short_run, tmp_path, capsys):
     """Editing the rig's masses after 'forcecal scan' makes its model stale: refused, naming
-    the key that differs (once the forces were bit-identical with a 1e30 kg armature)."""
+    the key that differs (once the forces were bit-identical with a 1e30 kg armature, which
+    the rig's number limits now refuse by themselves)."""
     def heavy(doc):
-        doc["structure"]["masses"][0]["mass"] = 1e30
+        doc["structure"]["masses"][0]["mass"] = 2.5
 
     rig = edited_rig(lab, tmp_path, heavy)
     reconstruct_refused(lab, model_json, short_run, tmp_path, capsys,
@@ -471,3 +479,97 @@ def test_two_runs_with_one_name(command, lab, model_json, tmp_path, capsys):
 def test_bad_arguments(argv, named, tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     assert_refused(main(argv), capsys, tmp_path, named)
+
+
+# --------------------------------------------------------------------------------------------
+# arguments and outputs under interruption
+
+
+@pytest.mark.parametrize(("argv", "option"), [
+    (["--harmonics", "0"], "--harmonics"),
+    (["--harmonics", "-3"], "--harmonics"),
+])
+def test_harmonics_below_one_are_refused_even_with_a_model(lab, model_json, short_run, tmp_path,
+                                                           capsys, argv, option):
+    out = tmp_path / "out"
+    code = cli("reconstruct", lab / "rig.toml", model_json, short_run, "-o", out, *argv)
+    assert_refused(code, capsys, out, option)
+
+
+def test_an_empty_output_path_is_refused(lab, model_json, short_run, tmp_path, capsys,
+                                         monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code = cli("reconstruct", lab / "rig.toml", model_json, short_run, "-o", "")
+    assert_refused(code, capsys, tmp_path / "out", "-o/--output")
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_negative_seed_is_refused(tmp_path, capsys):
+    assert_refused(cli("simulate", tmp_path / "out", "--seed", "-1"), capsys, tmp_path / "out",
+                   "--seed")
+
+
+def test_stream_refuses_an_unknown_output_type(lab, model_json, short_run, tmp_path, capsys):
+    out = tmp_path / "out.mat"
+    code = cli("stream", lab / "rig.toml", model_json, short_run, "-o", out)
+    assert_refused(code, capsys, out, "out.mat", ".csv")
+    assert not out.exists()
+
+
+def test_report_refuses_a_missing_truth_folder(lab, model_json, short_run, tmp_path, capsys):
+    out = tmp_path / "out"
+    code = cli("report", lab / "rig.toml", lab / "scan.uff", short_run, "-o", out,
+               "--truth", tmp_path / "nonexistent")
+    assert_refused(code, capsys, out, "--truth")
+
+
+@pytest.mark.parametrize(("current", "gap", "option"), [
+    ("1e308", "0.0009", "--current"), ("nan", "0.0009", "--current"),
+    ("1", "0.8", "--gap"), ("1", "1e-12", "--gap"), ("1", "inf", "--gap"),
+])
+def test_predict_refuses_absurd_inputs(tmp_path, capsys, current, gap, option):
+    pytest.importorskip("forcecal.campaign")
+    from forcecal.actuator import Calibration
+
+    cal = Calibration(law="k_i2_s2", params=np.array([9e-6]), covariance=np.array([[1e-18]]),
+                      n_poles=2, current_range=(0.8, 1.2), gap_range=(0.0008, 0.001))
+    path = cal.save(tmp_path / "calibration.json")
+    code = cli("predict", path, "--current", current, "--gap", gap, "--json")
+    assert_refused(code, capsys, tmp_path / "none", option)
+
+
+def test_a_failed_command_leaves_the_old_outputs_and_no_staging(lab, model_json, short_run,
+                                                                tmp_path, capsys):
+    out = tmp_path / "out"
+    assert cli("reconstruct", lab / "rig.toml", model_json, short_run, "-o", out) == 0
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    capsys.readouterr()
+    bad = tmp_path / "bad" / short_run.name
+    bad.parent.mkdir()
+    bad.write_text(short_run.read_text().replace("time,", "time,", 1) + "1e9,1,1,1,1,1,1,1\n")
+    assert cli("reconstruct", lab / "rig.toml", model_json, bad, "-o", out) == 2
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+
+
+def test_leftovers_of_a_killed_command_are_cleaned_or_finished(tmp_path):
+    import os
+
+    from forcecal.io.staging import JOURNAL, STAGING_PREFIX, clean_stale
+
+    out = tmp_path / "out"
+    dead = out / f"{STAGING_PREFIX}999999999-x"          # no such process
+    dead.mkdir(parents=True)
+    (dead / "half.csv").write_text("partial")
+    stopped = out / f"{STAGING_PREFIX}999999998-y"       # killed while moving its files
+    stopped.mkdir()
+    (stopped / "b.json").write_text("new b")
+    (out / "a.csv").write_text("new a")                  # already moved
+    (out / "b.json").write_text("old b")
+    (out / JOURNAL).write_text(json.dumps({"staging": stopped.name,
+                                           "files": ["a.csv", "b.json"]}))
+    part = out / ".a.csv.abc.part"
+    part.write_text("x")
+    os.utime(part, (0, 0))
+    clean_stale(out)
+    assert sorted(p.name for p in out.iterdir()) == ["a.csv", "b.json"]
+    assert (out / "b.json").read_text() == "new b"

@@ -120,7 +120,8 @@ def test_points_are_ordered_by_node_and_line_scan_is_1d(tmp_path):
     sets = [node_set([3, 1, 2, 9], [0.3, 0.1, 0.2, 0.9])]
     for node in (3, 1, 2):
         sets += [ref(node, seed=node), vib(node, seed=10 + node)]
-    scan = read_scan_uff(write_sets(tmp_path / "s.uff", sets))
+    with pytest.warns(UserWarning, match="no records for node 9"):
+        scan = read_scan_uff(write_sets(tmp_path / "s.uff", sets))
     np.testing.assert_array_equal(scan.points, [[0.1], [0.2], [0.3]])  # node 9 is unmeasured
     np.testing.assert_allclose(scan.response[0], vib(1, seed=11)["data"], rtol=ASCII_RTOL)
 
@@ -419,3 +420,11 @@ def test_bad_fs_in_npz(tmp_path):
     )
     with pytest.raises(InputError, match="'fs' must be one positive number"):
         read_scan(path)
+
+
+def test_a_scan_cut_short_is_refused_naming_the_missing_nodes(tmp_path):
+    sets = [node_set([1, 2, 3, 4, 5], [0.1, 0.2, 0.3, 0.4, 0.5])]
+    for node in (1, 2):
+        sets += [ref(node, seed=node), vib(node, seed=10 + node)]
+    with pytest.raises(DataError, match=r"no records for node 3, 4, 5 \(a scan cut short"):
+        read_scan_uff(write_sets(tmp_path / "cut.uff", sets))

@@ -166,3 +166,23 @@ def test_rig_error_is_an_input_error(tmp_path):
         load_rig(path)
     with pytest.raises(ValueError, match=re.escape("structure.length")):
         load_rig(path)
+
+
+@pytest.mark.parametrize(("old", "new", "key"), [
+    ("length = 0.6", "length = 1e300", "structure.length"),
+    ("length = 0.6", "length = 1e5", "structure.length"),            # 100 km: not a rig
+    ("mass_per_length = 3.768", "mass_per_length = 1e300", "structure.mass_per_length"),
+    ("scale = -1.0", "scale = 1e300", "gauges[0].scale"),
+    ("length = 0.6", "length = " + "9" * 5000, "rig.toml"),           # beyond int's digits
+    ("length = 0.6", "length = " + "9" * 40, "structure.length"),
+])
+def test_implausible_numbers_are_refused(tmp_path, old, new, key):
+    path = write(tmp_path, VALID.replace(old, new, 1))
+    with pytest.raises(RigError, match=re.escape(key)):
+        load_rig(path)
+
+
+def test_deep_nesting_is_refused_in_one_line(tmp_path):
+    path = write(tmp_path, VALID + "deep = " + "[" * 100_000 + "\n")
+    with pytest.raises(RigError, match="not a valid TOML file"):
+        load_rig(path)

@@ -15,11 +15,15 @@ from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .errors import DataError, DimensionError
 from .records import Run, Scan
+
+if TYPE_CHECKING:
+    from .rig import Rig
 
 __all__ = [
     "MIN_SAMPLES",
@@ -28,13 +32,36 @@ __all__ = [
     "check_equal_lengths",
     "check_finite",
     "check_periods",
+    "check_plausible",
     "check_record_length",
+    "check_run_for_rig",
     "check_sample_count",
     "check_scan_length",
+    "check_scan_values",
 ]
 
 MIN_SAMPLES = 16
 """Fewest samples a run's channel may hold."""
+
+MAX_RAW_SAMPLE = 1e30
+"""Largest magnitude of a raw sample in any file (ADC counts of 64 bits stay below 1e19);
+anything beyond is a damaged file, and its squares would overflow."""
+SPIKE_FACTOR = 1e6
+"""A sample farther from a channel's median than this many times the channel's robust span
+(the 0.1 to 99.9 percentile range) is a damaged value, not a measurement (a 24-bit ADC spans
+1.7e7 levels; its noise floor is many levels wide)."""
+MIN_SIGNAL = 1e-30
+"""Smallest plausible non-zero peak of a rig's channel in SI (a probe's 1e-30 m is far below
+any sensor's noise): smaller values come from a wrong scale and underflow in the fits."""
+RIG_SPIKE_FACTOR = 1e3
+"""The same for the channels a rig names (gauges, probes, current, flux): continuous signals
+of a steady drive, where a sample a thousand times the signal's span away is a glitch that
+would dominate every harmonic."""
+PHYSICAL_LIMITS = {"gauge": (1e7, "N"), "sensor": (1.0, "m"), "current": (1e5, "A"),
+                   "flux": (10.0, "Wb")}
+"""Largest plausible magnitude of a channel in SI, after the rig's scale: a force gauge's
+10 MN, a proximity probe's 1 m, a coil's 100 kA, a pole's 10 Wb. A value beyond says the
+scale or the file's unit is wrong (e.g. a probe in um read as m)."""
 
 _CLIP_FRACTION = 0.005  # share of samples at one extreme from which clipping is suspected
 _CLIP_RUN = 3  # consecutive samples at the extreme from which clipping is suspected
@@ -123,6 +150,114 @@ def check_finite(values: np.ndarray, name: str, source: str | Path, t0: float,
         f"run '{source}': channel {name!r} has {what} samples starting at "
         f"t={t0 + first / fs:.6g} s"
     )
+
+
+def check_plausible(values: np.ndarray, name: str, source: str | Path, t0: float,
+                    fs: float, what: str = "run", factor: float = SPIKE_FACTOR) -> None:
+    """Raise DataError when a channel holds an absurd sample: beyond :data:`MAX_RAW_SAMPLE`,
+    or :data:`SPIKE_FACTOR` times the channel's robust span away from its median.
+
+    Parameters
+    ----------
+    values : (n_samples,) array
+        Finite channel values (see :func:`check_finite`).
+    name : str
+        Channel name, for the message.
+    source : str or Path
+        The file, for the message.
+    t0 : float
+        Time stamp of the first sample [s].
+    fs : float
+        Sampling rate [Hz].
+    what : str
+        "run" or "scan", the kind of file in the message.
+    factor : float
+        How many robust spans away from the median a sample may lie.
+
+    Raises
+    ------
+    DataError
+        Naming the file, the channel, the value and when it occurs.
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    if v.size == 0:
+        return
+    big = np.flatnonzero(np.abs(v) > MAX_RAW_SAMPLE)
+    if big.size:
+        k = int(big[0])
+        raise DataError(f"{what} '{source}': channel {name!r} holds {v[k]:.6g} at "
+                        f"t={t0 + k / fs:.6g} s ({big.size} such samples); expected magnitudes "
+                        f"below {MAX_RAW_SAMPLE:g} (a damaged file?)")
+    lo, mid, hi = np.percentile(v, [0.1, 50.0, 99.9])
+    span = hi - lo
+    if span <= 0:
+        return
+    far = np.flatnonzero(np.abs(v - mid) > factor * span)
+    if far.size:
+        k = int(far[0])
+        raise DataError(f"{what} '{source}': channel {name!r} holds {v[k]:.6g} at "
+                        f"t={t0 + k / fs:.6g} s, {abs(v[k] - mid) / span:.3g} times its "
+                        f"robust span {span:.3g} away from its median {mid:.6g}; expected at "
+                        f"most {factor:g} times (a damaged value?)")
+
+
+def check_run_for_rig(rig: Rig, run: Run, f0: float | None = None) -> None:
+    """The checks every estimate needs of a run against its rig, whatever the estimator.
+
+    Every channel the rig names is present, finite and within :data:`PHYSICAL_LIMITS` after
+    its scale, not clipped; at least one of them is driven; the record spans five periods of
+    ``f0`` (default: the rig's nominal frequency).
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig, with its channels' names and scales.
+    run : Run
+        The recording.
+    f0 : float, optional
+        Drive frequency [Hz].
+
+    Raises
+    ------
+    DataError
+        Naming the run, the channel and the rig key at fault.
+    """
+    act = rig.actuator
+    items: list[tuple[str, float, str, str]] = []
+    items += [(g.name, g.scale, "gauge", f"gauges[{k}].scale") for k, g in enumerate(rig.gauges)]
+    items += [(s.name, s.scale, "sensor", f"sensors[{k}].scale")
+              for k, s in enumerate(rig.sensors)]
+    items.append((act.current, act.current_scale, "current", "actuator.current_scale"))
+    if act.flux is not None and act.flux in run.channels:
+        items.append((act.flux, act.flux_scale, "flux", "actuator.flux_scale"))
+    driven = False
+    for name, scale, kind, key in items:
+        raw = run.channel(name)
+        check_finite(raw, name, run.source, run.t0, run.fs)
+        check_plausible(raw, name, run.source, run.t0, run.fs, factor=RIG_SPIKE_FACTOR)
+        si = raw * scale
+        limit, unit = PHYSICAL_LIMITS[kind]
+        peak = float(np.max(np.abs(si))) if si.size else 0.0
+        if not peak <= limit:
+            k = int(np.argmax(np.abs(si)))
+            raise DataError(
+                f"run '{run.source}': channel {name!r} reaches {si[k]:.4g} {unit} at "
+                f"t={run.t0 + k / run.fs:.6g} s (raw {raw[k]:.4g} x {key} = {scale:g}); a "
+                f"{kind} beyond {limit:g} {unit} is not plausible: check the scale and the "
+                "file's unit")
+        if 0 < peak < MIN_SIGNAL:
+            raise DataError(
+                f"run '{run.source}': channel {name!r} peaks at {peak:.3g} {unit} (raw x {key} "
+                f"= {scale:g}); a signal below {MIN_SIGNAL:g} {unit} is not plausible: check "
+                "the scale and the file's unit")
+        check_clipping(si, name, run.source, run.fs)
+        driven = driven or bool(np.std(si) > 1e-9 * (peak + 1e-300))
+    if not driven:
+        raise DataError(f"run '{run.source}': every channel the rig names is constant; "
+                        "nothing is driven")
+    f = f0 if f0 is not None else rig.frequency
+    if f is not None and f > 0:
+        check_record_length(run, f)
 
 
 def check_clipping(values: np.ndarray, name: str, source: str | Path, fs: float) -> None:
@@ -263,6 +398,57 @@ def check_scan_length(scan: Scan, f0: float) -> None:
                         f"{f0:.4g} Hz; at least 5 are needed")
 
 
+SCAN_LIMITS = {"velocity": (1e3, "m/s"), "displacement": (1.0, "m"), "reference": (1e5, "A")}
+"""Largest plausible magnitude of a scan's records: a vibration of 1 km/s or 1 m, a coil
+current of 100 kA; beyond, the file's unit (or its ``fs``) is wrong."""
+
+
+SCAN_FLOORS = {"response": 1e-15, "reference": 1e-12}
+"""Below these peaks (m/s or m; A) a scan's records hold no signal at all."""
+
+
+def check_scan_values(scan: Scan) -> None:
+    """Raise DataError when a scan's sampling or records are not finite or not plausible.
+
+    Parameters
+    ----------
+    scan : Scan
+        The scan as read.
+
+    Raises
+    ------
+    DataError
+        Naming the scan file, the record (point number and coordinates) and the value.
+    """
+    where = f"scan '{scan.source}'"
+    if not (np.isfinite(scan.fs) and 0 < scan.fs <= 1e9):
+        raise DataError(f"{where}: sampling rate {scan.fs:.6g} Hz; expected a positive rate up "
+                        "to 1e9 Hz")
+    if not np.all(np.isfinite(scan.points)):
+        k = int(np.flatnonzero(~np.all(np.isfinite(scan.points), axis=1))[0])
+        raise DataError(f"{where}: point {k + 1} has coordinates {scan.points[k].tolist()}; "
+                        "expected finite numbers (m)")
+    for key, records in (("response", scan.response), ("reference", scan.reference)):
+        kind = "reference" if key == "reference" else scan.quantity
+        limit, unit = SCAN_LIMITS[kind]
+        for k, rec in enumerate(records):
+            at = f"{where}: {key} record of point {k + 1} (x = {scan.points[k, 0]:.4g} m)"
+            bad = ~np.isfinite(rec)
+            if bad.any():
+                raise DataError(f"{at} holds {int(bad.sum())} NaN or infinite samples, the first "
+                                f"at t={int(np.flatnonzero(bad)[0]) / scan.fs:.6g} s")
+            peak = float(np.max(np.abs(rec))) if rec.size else 0.0
+            if peak > limit:
+                raise DataError(f"{at} reaches {peak:.4g} {unit}; a {kind} beyond {limit:g} "
+                                f"{unit} is not plausible (a wrong unit or a damaged file?)")
+        check_plausible(records.ravel(), key, scan.source, 0.0, scan.fs, what="scan")
+        peak = float(np.max(np.abs(records))) if records.size else 0.0
+        floor = SCAN_FLOORS[key]
+        if not peak > floor:
+            raise DataError(f"{where}: every {key} record stays within {peak:.3g} (at most "
+                            f"{floor:g} in SI units); no signal was recorded (a wrong unit?)")
+
+
 def as_records(records: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
     """Records as a list of real, finite, one-dimensional float arrays.
 
@@ -305,5 +491,6 @@ def as_records(records: np.ndarray | Sequence[np.ndarray]) -> list[np.ndarray]:
             raise DimensionError(f"record {i} must be one-dimensional; got shape {rec.shape}")
         bad = ~np.isfinite(rec)
         if bad.any():
-            raise DataError(f"record {i} contains {int(bad.sum())} non-finite samples")
+            raise DataError(f"record {i} holds {int(bad.sum())} NaN or infinite samples, the "
+                            f"first at sample {int(np.flatnonzero(bad)[0])}")
     return out

@@ -7,6 +7,7 @@ names the file, key or channel), 130 when interrupted. Output files are written 
 from __future__ import annotations
 
 import argparse
+import io
 import json
 import os
 import sys
@@ -16,7 +17,9 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from .errors import ForcecalError, InputError
+import numpy as np
+
+from .errors import DataError, ForcecalError, InputError
 
 __all__ = ["main"]
 
@@ -36,6 +39,26 @@ def _say(msg: str) -> None:
     print(msg, file=sys.stderr, flush=True)
 
 
+def _print(msg: object) -> None:
+    """A line on stdout; characters it cannot encode (a file name's undecodable bytes) are
+    replaced, never an error after the outputs are written."""
+    text = str(msg)
+    encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
+    text = text.encode(encoding, "replace").decode(encoding, "replace")
+    print(text, flush=True)
+
+
+STREAM_SUFFIXES = (".csv", ".h5", ".hdf5")
+"""What ``stream -o`` writes: CSV, or HDF5 in the run layout."""
+MAX_FORCE_N = 1e8
+"""Largest force an output may hold [N]; beyond, the inputs were not what they claimed."""
+EXTRAPOLATION = 10.0
+"""``predict`` extrapolates (with a warning) up to this factor beyond the calibrated currents
+and gaps, and refuses beyond."""
+MAX_HARMONICS = 100
+"""Most harmonics ``--harmonics`` may ask for."""
+
+
 def _progress(done: int, total: int, name: str) -> None:
     width = 24
     filled = int(width * done / max(total, 1))
@@ -46,12 +69,16 @@ def _progress(done: int, total: int, name: str) -> None:
 
 
 def _cmd_simulate(args) -> int:
+    from .io.staging import staged_folder
     from .simulate.export import write_simulation
+    from .simulate.presets import get_preset
 
-    out = write_simulation(args.out, args.preset, seed=args.seed,
-                           progress=lambda m: _say(f"  simulating {m}"),
-                           binary_uff=args.binary_uff)
-    print(out)
+    get_preset(args.preset)  # an unknown preset is refused before any folder is made
+    with staged_folder(args.out) as stage:
+        write_simulation(stage, args.preset, seed=args.seed,
+                         progress=lambda m: _say(f"  simulating {m}"),
+                         binary_uff=args.binary_uff)
+    _print(args.out)
     return 0
 
 
@@ -65,8 +92,13 @@ def _read_scan(args, rig):
 def _build_model(rig, scan, args):
     from .spatial import build_spatial_model
 
-    return build_spatial_model(rig, scan, n_harmonics=args.harmonics, criterion=args.criterion,
-                               basis=args.basis)
+    try:
+        return build_spatial_model(rig, scan, n_harmonics=args.harmonics,
+                                   criterion=args.criterion, basis=args.basis)
+    except ForcecalError as exc:
+        if str(scan.source) in str(exc) or str(rig.source) in str(exc):
+            raise
+        raise type(exc)(f"scan '{scan.source}' on rig '{rig.source}': {exc}") from None
 
 
 def _model_for(args, rig):
@@ -78,26 +110,46 @@ def _model_for(args, rig):
     return _build_model(rig, _read_scan(args, rig), args)
 
 
+def _save_model(model, path: str, scan: str) -> None:
+    """Write MODEL.json atomically, strict JSON: a model with NaN or Infinity is refused."""
+    from ._atomic import write_text_atomic
+
+    try:
+        text = json.dumps(model.to_json(), indent=1, allow_nan=False)
+    except ValueError:
+        raise InputError(f"scan '{scan}': the spatial model holds non-finite values (the scan's "
+                         "records do not determine it); nothing written") from None
+    write_text_atomic(path, text)
+
+
 def _cmd_scan(args) -> int:
+    from .io.staging import clean_stale
     from .rig import load_rig
 
     rig = load_rig(args.rig)
     model = _build_model(rig, _read_scan(args, rig), args)
-    model.save(args.output)
+    clean_stale(Path(args.output).parent)
+    _save_model(model, args.output, args.scan)
     mac = model.similarity.min()
-    print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
+    _print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
           f"{', '.join(str(n) for n in model.harmonics)} (orders "
           f"{', '.join(str(s.order) for s in model.shapes)}); lowest MAC between harmonics "
           f"{mac:.5f}: {'one shape serves all' if model.one_shape else 'shapes differ'}")
     for note in model.notes:
-        print(f"note: {note}")
+        _print(f"note: {note}")
     return 0
 
 
-def _read_runs(paths):
+def _read_runs(paths, rig=None):
+    """The run files; each checked against the rig's channels when a rig is given."""
+    from .checks import check_run_for_rig
     from .io.run_files import read_run
 
-    return [read_run(p) for p in paths]
+    runs = [read_run(p) for p in paths]
+    if rig is not None:
+        for run in runs:
+            check_run_for_rig(rig, run)
+    return runs
 
 
 def _check_distinct_names(paths) -> None:
@@ -114,86 +166,136 @@ def _check_distinct_names(paths) -> None:
 def _cmd_reconstruct(args) -> int:
     from .forces import reconstruct
     from .io.results import write_estimate
+    from .io.staging import staged_folder
     from .rig import load_rig
 
     _check_distinct_names(args.runs)
     rig = load_rig(args.rig)
     model = _model_for(args, rig)
-    runs = _read_runs(args.runs)
+    runs = _read_runs(args.runs, rig)
     tare = _read_runs([args.tare])[0] if args.tare else None
     estimates = []
     for k, run in enumerate(runs):
         estimates.append(reconstruct(rig, model, run, tare=tare, ac_coupled=args.ac_coupled))
         if len(runs) > 1:
             _progress(k + 1, len(runs), run.name)
-    for est in estimates:
-        csv, _ = write_estimate(est, args.output)
-        print(f"{csv}: f0 {est.f0:.6g} Hz, total AC uncertainty {est.waveform_std:.3g} N, "
-              f"inertia share {est.inertia_share:.1%}")
+    lines = []
+    with staged_folder(args.output) as stage:
+        for est, run in zip(estimates, runs, strict=True):
+            csv, _ = write_estimate(est, stage, source=run.source)
+            lines.append(f"{Path(args.output) / csv.name}: f0 {est.f0:.6g} Hz, total AC "
+                         f"uncertainty {est.waveform_std:.3g} N, inertia share "
+                         f"{est.inertia_share:.1%}")
+    for line in lines:
+        _print(line)
     return 0
 
 
 def _cmd_calibrate(args) -> int:
     from .campaign import calibrate_campaign, write_calibration
+    from .io.staging import staged_folder
     from .rig import load_rig
 
     rig = load_rig(args.rig)
     model = _model_for(args, rig)
     result = calibrate_campaign(rig, model, args.manifest, progress=_progress,
                                 ac_only=args.ac_coupled)
-    path = write_calibration(result, args.output)
-    if not args.no_report:
-        from .report.pipeline import calibration_report
+    with staged_folder(args.output) as stage:
+        path = write_calibration(result, stage)
+        if not args.no_report:
+            from .report.pipeline import calibration_report
 
-        calibration_report(rig, model, result, args.output)
-    print(path)
+            calibration_report(rig, model, result, stage)
+    _print(Path(args.output) / path.name)
     return 0
 
 
 def _cmd_predict(args) -> int:
     from .actuator import predict
+    from .actuator.prediction import MAX_CURRENT_A, MAX_GAP_M
     from .campaign import load_calibration
 
+    if not (np.isfinite(args.current) and abs(args.current) <= MAX_CURRENT_A):
+        raise _ArgumentError(f"{PROG} predict: argument --current: {args.current!r} A is not a "
+                             f"finite current within {MAX_CURRENT_A:g} A")
+    if not (np.isfinite(args.gap) and 0 < args.gap <= MAX_GAP_M):
+        raise _ArgumentError(f"{PROG} predict: argument --gap: {args.gap!r} m is not an air gap "
+                             f"between 0 and {MAX_GAP_M:g} m (0.0008 for 0.8 mm)")
     cal = load_calibration(args.calibration)
+    top = max(abs(v) for v in cal.current_range)
+    if abs(args.current) > EXTRAPOLATION * top:
+        raise _ArgumentError(f"{PROG} predict: argument --current: {args.current:g} A is more "
+                             f"than {EXTRAPOLATION:g} times the largest calibrated current "
+                             f"{top:.4g} A (calibration '{args.calibration}')")
+    lo, hi = cal.gap_range
+    if not lo / EXTRAPOLATION <= args.gap <= hi * EXTRAPOLATION:
+        raise _ArgumentError(f"{PROG} predict: argument --gap: {args.gap:g} m is more than "
+                             f"{EXTRAPOLATION:g} times outside the calibrated gaps {lo:.4g} to "
+                             f"{hi:.4g} m (calibration '{args.calibration}')")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        pred = predict(cal, [args.current], args.gap)
+        try:
+            pred = predict(cal, [args.current], args.gap)
+        except ForcecalError as exc:
+            raise InputError(f"calibration '{args.calibration}': {exc}") from None
+    values = [float(pred.total[0]), float(pred.std[0]), *map(float, pred.per_pole[0])]
+    if not all(np.isfinite(values)):
+        raise InputError(f"calibration '{args.calibration}': its law gives no finite force at "
+                         f"{args.current:g} A and {args.gap:g} m")
     for w in caught:
         _say(f"{PROG}: warning: {w.message}")
     if args.json:
-        print(json.dumps({"total_n": float(pred.total[0]), "std_n": float(pred.std[0]),
-                          "per_pole_n": [float(v) for v in pred.per_pole[0]],
-                          "law": cal.law}))
+        _print(json.dumps({"total_n": values[0], "std_n": values[1],
+                           "per_pole_n": values[2:], "law": cal.law}, allow_nan=False))
     else:
-        print(f"{pred.total[0]:.6g}")
+        _print(f"{pred.total[0]:.6g}")
     return 0
 
 
 def _cmd_stream(args) -> int:
+    from .checks import check_run_for_rig
     from .io.run_files import read_run
+    from .io.staging import clean_stale
     from .rig import load_rig
     from .stream import replay, write_stream_csv
 
+    suffix = Path(args.output).suffix.lower()
+    if suffix not in STREAM_SUFFIXES:
+        raise _ArgumentError(f"{PROG} stream: argument -o/--output: {args.output!r} ends in "
+                             f"{suffix or 'no suffix'!r}; expected {', '.join(STREAM_SUFFIXES)}")
     rig = load_rig(args.rig)
     model = _model_for(args, rig)
     run = read_run(args.run)
+    check_run_for_rig(rig, run)
     t, forces, static = replay(rig, model, run, block=args.block)
+    for name, values in [*forces.items(), *static.items()]:
+        bad = ~np.isfinite(values)
+        if bad.any() or np.max(np.abs(values)) > MAX_FORCE_N:
+            k = int(np.argmax(bad | (np.abs(values) > MAX_FORCE_N)))
+            raise DataError(f"run '{run.source}': the streamed force {name!r} is "
+                            f"{values[k]:.4g} N at t={t[k]:.6g} s, not finite or beyond "
+                            f"{MAX_FORCE_N:g} N; nothing written")
+    clean_stale(Path(args.output).parent)
     write_stream_csv(args.output, t, forces, static)
-    print(args.output)
+    _print(args.output)
     return 0
 
 
 def _cmd_report(args) -> int:
+    from .io.staging import staged_folder
     from .report.pipeline import run_report
     from .rig import load_rig
 
+    if args.truth is not None and not Path(args.truth).is_dir():
+        raise _ArgumentError(f"{PROG} report: argument --truth: {args.truth!r} is not a folder")
     _check_distinct_names(args.runs)
     rig = load_rig(args.rig)
     scan = _read_scan(args, rig)
-    runs = _read_runs(args.runs)
-    path = run_report(rig, scan, runs, args.output, truth_dir=args.truth,
-                      n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis)
-    print(path)
+    runs = _read_runs(args.runs, rig)
+    with staged_folder(args.output) as stage:
+        path = run_report(rig, scan, runs, stage, truth_dir=args.truth,
+                          n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis)
+    _print(Path(args.output) / Path(path).relative_to(stage))
     return 0
 
 
@@ -343,6 +445,14 @@ def main(argv: Sequence[str] | None = None) -> int:
             return exc.code if isinstance(exc.code, int) else 0
         if not getattr(args, "func", None):
             parser.error("a command is required")
+        _check_arguments(args)
+        for stream in (sys.stdout, sys.stderr):  # a file name's undecodable bytes: replaced
+            reconfigure = getattr(stream, "reconfigure", None)
+            if reconfigure is not None:
+                try:
+                    reconfigure(errors="replace")
+                except (ValueError, OSError, io.UnsupportedOperation):
+                    pass
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _show_warning
@@ -353,11 +463,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     except ForcecalError as exc:
         _say(f"{PROG}: {exc}")
         return 2
+    except RecursionError:
+        _say(f"{PROG}: an input is nested too deeply to be read")
+        return 2
     except KeyboardInterrupt:
         _say(f"{PROG}: interrupted; no output file was left half-written")
         return 130
     except OSError as exc:
-        _say(f"{PROG}: {exc.filename or ''}: {exc.strerror or exc}")
+        _say(f"{PROG}: {exc.filename or ''}: {exc.strerror or exc}".replace("\n", " "))
         return 2
     except Exception as exc:  # a bug: say so in one line; the traceback on demand
         if os.environ.get("FORCECAL_DEBUG"):
@@ -365,6 +478,29 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say(f"{PROG}: internal error ({type(exc).__name__}: {exc}); "
              "set FORCECAL_DEBUG=1 for the traceback and please report it")
         return 1
+
+
+def _check_arguments(args: argparse.Namespace) -> None:
+    """What argparse's types cannot say: ranges, empty paths, missing folders."""
+    prog = f"{PROG} {args.command}"
+    harmonics = getattr(args, "harmonics", None)
+    if harmonics is not None and not 1 <= harmonics <= MAX_HARMONICS:
+        raise _ArgumentError(f"{prog}: argument --harmonics: {harmonics} is not a number of "
+                             f"harmonics from 1 to {MAX_HARMONICS}")
+    for name in ("output", "out"):
+        value = getattr(args, name, None)
+        if isinstance(value, str) and not value.strip():
+            option = "-o/--output" if name == "output" else "OUT"
+            raise _ArgumentError(f"{prog}: argument {option}: an empty path; name the output "
+                                 "(use '.' for the current folder)")
+    seed = getattr(args, "seed", None)
+    if seed is not None and seed < 0:
+        raise _ArgumentError(f"{prog}: argument --seed: {seed} is negative; expected a whole "
+                             "number >= 0")
+    block = getattr(args, "block", None)
+    if block is not None and block < 1:
+        raise _ArgumentError(f"{prog}: argument --block: {block} is not a positive number of "
+                             "samples")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

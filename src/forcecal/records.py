@@ -106,6 +106,36 @@ class Run:
     source: str = "<run>"
     labels: Mapping[str, str] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        where = f"run '{self.source}'"
+        if not isinstance(self.channels, Mapping) or not self.channels:
+            raise DataError(f"{where}: no channels; expected a mapping name -> samples")
+        try:
+            fs = float(self.fs)
+            t0 = float(self.t0)
+        except (TypeError, ValueError):
+            raise DataError(f"{where}: fs = {self.fs!r} Hz and t0 = {self.t0!r} s must be "
+                            "numbers") from None
+        if not (np.isfinite(fs) and fs > 0):
+            raise DataError(f"{where}: sampling rate fs = {self.fs!r} Hz; expected a finite "
+                            "positive number")
+        if not np.isfinite(t0):
+            raise DataError(f"{where}: start time t0 = {self.t0!r} s; expected a finite number")
+        lengths = {}
+        for name, values in self.channels.items():
+            arr = np.asarray(values)
+            if arr.ndim != 1:
+                raise DimensionError(f"{where}: channel {name!r} has shape {arr.shape}; "
+                                     "expected one dimension")
+            lengths[name] = arr.size
+        first = next(iter(lengths))
+        for name, n in lengths.items():
+            if n != lengths[first]:
+                raise DimensionError(f"{where}: channel {name!r} has {n} samples, channel "
+                                     f"{first!r} has {lengths[first]}")
+        object.__setattr__(self, "fs", fs)
+        object.__setattr__(self, "t0", t0)
+
     @property
     def n_samples(self) -> int:
         """Number of samples per channel."""

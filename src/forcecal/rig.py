@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from ._toml import TableReader
+from ._toml import TableReader, check_numbers
 from .errors import RigError
 from .structures import KINDS, UP, LumpedMass, Structure, locations
 
@@ -143,6 +143,9 @@ class Rig:
 # --------------------------------------------------------------------------------------------
 # reading and validation
 
+MAX_RIG_BYTES = 10_000_000
+"""Largest rig file read (a rig of thousands of points is a few hundred kB)."""
+
 _KNOWN_TOP = {"name", "structure", "gauges", "forces", "sensors", "actuator", "acquisition"}
 
 
@@ -167,11 +170,23 @@ def load_rig(path: str | Path) -> Rig:
     path = Path(path)
     if not path.is_file():
         raise RigError(f"rig '{path}': file not found")
+    if path.stat().st_size > MAX_RIG_BYTES:
+        raise RigError(f"rig '{path}': {path.stat().st_size} bytes; a rig file is at most "
+                       f"{MAX_RIG_BYTES} bytes")
     try:
         doc = tomllib.loads(path.read_text(encoding="utf-8"))
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         raise RigError(f"rig '{path}': not a valid TOML file ({exc})") from None
+    except RecursionError:
+        raise RigError(f"rig '{path}': not a valid TOML file (nested too deeply)") from None
+    except ValueError as exc:  # e.g. an integer beyond Python's digit limit
+        raise RigError(f"rig '{path}': not a valid TOML file ({_first_line(exc)})") from None
     return parse_rig(doc, source=str(path))
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip() or type(exc).__name__
+    return text.splitlines()[0]
 
 
 def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
@@ -189,6 +204,9 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     Rig
     """
     r = TableReader(source)
+    if not isinstance(doc, dict):
+        raise RigError(f"rig '{source}': expected a TOML document (a table of keys)")
+    check_numbers(doc, source)
     unknown = set(doc) - _KNOWN_TOP
     if unknown:
         raise r.fail(sorted(unknown)[0], "is not a rig key (expected one of "

@@ -256,6 +256,15 @@ def calibrate_campaign(
         When no candidate law is identifiable (e.g. a single static gap and only laws with
         ``s_fe``); laws that are not identifiable are otherwise skipped, their reason kept in
         ``result.selection.skipped``.
+
+    Notes
+    -----
+    With ``workers`` > 1 and at least ``PARALLEL_MIN_RUNS`` runs, the runs are reconstructed in
+    a ``spawn`` process pool: every worker starts a fresh interpreter that imports the calling
+    script's main module. A script that calls this function must therefore guard its top level
+    with ``if __name__ == "__main__":``, else each worker runs the script again. The workers end
+    with the call (on an error or Ctrl-C they are terminated; each also exits by itself when
+    its parent process dies).
     """
     results = reconstruct_campaign(
         rig,

@@ -11,16 +11,19 @@ from __future__ import annotations
 import contextlib
 import multiprocessing
 import os
+import threading
+import time
 import warnings
 from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+from ..checks import check_run_for_rig
 from ..errors import InputError
 from ..forces import ForceEstimate, reconstruct
 from ..gaps import static_gaps
-from ..io.manifest import ManifestEntry, read_manifest
+from ..io.manifest import GAP_RATIO, ManifestEntry, read_manifest
 from ..io.run_files import read_run
 from ..rig import Rig
 from ..spatial import SpatialModel
@@ -84,7 +87,9 @@ def rig_for_entry(rig: Rig, entry: ManifestEntry, manifest: str | Path = "<manif
     Raises
     ------
     InputError
-        When a ``gap_<name>`` column names no force point of the rig.
+        When a ``gap_<name>`` column names no force point of the rig, or a gap lies more than
+        :data:`forcecal.io.manifest.GAP_RATIO` times off the rig's static gap at that point
+        (a gap in mm, or a typing slip).
     """
     names = {f.name for f in rig.forces}
     unknown = sorted(set(entry.gaps) - names)
@@ -96,6 +101,13 @@ def rig_for_entry(rig: Rig, entry: ManifestEntry, manifest: str | Path = "<manif
     forces = []
     for f in rig.forces:
         gap = entry.gaps.get(f.name, entry.gap if entry.gap is not None else f.gap)
+        if gap is not None and f.gap is not None and not (
+                1.0 / GAP_RATIO < gap / f.gap < GAP_RATIO):
+            column = f"gap_{f.name}" if f.name in entry.gaps else "gap"
+            raise InputError(
+                f"manifest '{manifest}' row {entry.row}: {column} {gap:g} m at force point "
+                f"'{f.name}' is more than {GAP_RATIO:g} times off the rig's static gap "
+                f"{f.gap:g} m (rig '{rig.source}'); probably not in m (0.0008 for 0.8 mm)")
         forces.append(replace(f, gap=gap))
     return replace(rig, forces=tuple(forces))
 
@@ -119,6 +131,7 @@ def _reconstruct_entry(task: _Task) -> tuple[int, RunResult, _Caught]:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         run = read_run(task.entry.run)
+        check_run_for_rig(task.rig, run)
         tare = read_run(task.tare) if task.tare is not None else None
         estimate = reconstruct(task.rig, task.model, run, tare=tare, ac_coupled=task.ac_coupled)
         samples = run_samples(task.rig, task.model, run, estimate, tare, task.samples_per_period)
@@ -204,18 +217,47 @@ def _run_tasks(
             finish(*_reconstruct_entry(task))
         return
     context = multiprocessing.get_context("spawn")
-    with (
-        _single_threaded_workers(),
-        ProcessPoolExecutor(max_workers=min(workers, total), mp_context=context) as pool,
-    ):
+    with _single_threaded_workers():
+        pool = ProcessPoolExecutor(max_workers=min(workers, total), mp_context=context,
+                                   initializer=_watch_parent, initargs=(os.getpid(),))
+    try:
         futures = [pool.submit(_reconstruct_entry, task) for task in tasks]
-        try:
-            for future in as_completed(futures):
-                finish(*future.result())
-        except BaseException:
-            for future in futures:
-                future.cancel()
-            raise
+        for future in as_completed(futures):
+            finish(*future.result())
+    except BaseException:
+        _stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """End a pool now: pending tasks cancelled, running workers terminated (an error or
+    Ctrl-C in the parent must not leave them computing)."""
+    processes = list(getattr(pool, "_processes", {}).values())  # before shutdown clears it
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.terminate()
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.join(timeout=5)
+
+
+_PARENT_POLL_S = 0.5
+"""How often a worker checks that its parent is alive [s]."""
+
+
+def _watch_parent(parent: int) -> None:
+    """Worker initializer: exit when the parent process is gone (killed with SIGKILL, say,
+    when nothing could terminate the workers); a daemon thread polls the parent's pid."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(_PARENT_POLL_S)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="forcecal-parent-watch", daemon=True).start()
 
 
 def reconstruct_campaign(
@@ -260,6 +302,15 @@ def reconstruct_campaign(
     ------
     InputError
         A bad manifest, a run without a static gap, a manifest with no run to reconstruct.
+
+    Notes
+    -----
+    With ``workers`` > 1 and at least ``PARALLEL_MIN_RUNS`` runs, the runs are reconstructed in
+    a ``spawn`` process pool: every worker starts a fresh interpreter that imports the calling
+    script's main module. A script that calls this function must therefore guard its top level
+    with ``if __name__ == "__main__":``, else each worker runs the script again. The workers end
+    with the call (on an error or Ctrl-C they are terminated; each also exits by itself when
+    its parent process dies).
     """
     tasks = _campaign_tasks(rig, model, manifest_path, ac_coupled, samples_per_period)
     if workers is None:

@@ -4,6 +4,7 @@ values checked (see :mod:`forcecal.io.uff` for the layout).
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -23,7 +24,10 @@ from ._uff_sets import (
     type_list,
 )
 
-__all__ = ["read_scan_uff"]
+__all__ = ["MIN_MEASURED_SHARE", "read_scan_uff"]
+
+MIN_MEASURED_SHARE = 0.5
+"""Fewest of the geometry's nodes, as a share, that a scan must measure (else it was cut)."""
 
 
 def read_scan_uff(path: str | Path, reference_label: str = "Ref",
@@ -153,7 +157,28 @@ def _paired_nodes(
                 f"scan '{path}': node {node} has time records but no coordinates "
                 "(dataset 2411 or 15)"
             )
+    _check_no_missing_points(geometry, set(vibrations), path)
     return sorted(vibrations)
+
+
+def _check_no_missing_points(geometry: dict[int, tuple], measured: set[int],
+                             path: str | Path) -> None:
+    """Nodes of the geometry without records: a scan cut short (an export interrupted, a file
+    truncated) would otherwise give a model from its first points only.
+
+    DataError when fewer than :data:`MIN_MEASURED_SHARE` of the geometry's nodes are measured;
+    a warning naming the unmeasured nodes otherwise (a mesh may hold nodes never scanned).
+    """
+    missing = sorted(set(geometry) - measured)
+    if not missing:
+        return
+    shown = ", ".join(str(n) for n in missing[:5]) + (
+        f" and {len(missing) - 5} more" if len(missing) > 5 else "")
+    text = (f"scan '{path}': the geometry lists {len(geometry)} nodes but only {len(measured)} "
+            f"have time records; no records for node {shown}")
+    if len(measured) < MIN_MEASURED_SHARE * len(geometry):
+        raise DataError(f"{text} (a scan cut short?)")
+    warnings.warn(f"{text}; the model uses the measured ones", stacklevel=4)
 
 
 def _check_references_paired(records: tuple[dict, ...], path: str | Path) -> None:
@@ -199,6 +224,7 @@ def _located_rows(records: tuple[dict, ...], geometry: dict[int, tuple], path: s
                                 f"none with the response direction {code} of its vibration "
                                 "record")
             rows.append((node, code, vib, ref))
+    _check_no_missing_points(geometry, set(vibrations), path)
     return rows
 
 

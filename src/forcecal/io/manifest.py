@@ -19,7 +19,13 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..errors import InputError
 
-__all__ = ["ManifestEntry", "read_manifest", "write_manifest"]
+__all__ = ["GAP_RATIO", "MAX_GAP_M", "ManifestEntry", "read_manifest", "write_manifest"]
+
+MAX_GAP_M = 0.1
+"""Largest static gap a manifest may give [m]; a larger one is probably in mm."""
+GAP_RATIO = 10.0
+"""A run's gap must lie within this factor of the rig's static gap either way (see
+:func:`forcecal.campaign.rig_for_entry`)."""
 
 _TRUE = frozenset({"true", "1", "yes", "y", "t"})
 _FALSE = frozenset({"false", "0", "no", "n", "f", ""})
@@ -41,6 +47,8 @@ class ManifestEntry:
         True for a zero-current (tare) record.
     labels : dict column -> str
         Every other column, as written (stripped).
+    row : int
+        Its row number in the manifest file (the header is row 1), for messages.
     """
 
     run: Path
@@ -48,6 +56,7 @@ class ManifestEntry:
     gaps: dict[str, float] = field(default_factory=dict)
     tare: bool = False
     labels: dict[str, str] = field(default_factory=dict)
+    row: int = field(default=0, compare=False)
 
 
 def read_manifest(path: str | Path) -> list[ManifestEntry]:
@@ -166,7 +175,7 @@ def _entry(cells: list[str], number: int, header: list[str], path: Path) -> Mani
     }
     tare = _flag(values.pop("tare", ""), where)
     labels = {k: v for k, v in values.items() if not k.startswith("gap_")}
-    return ManifestEntry(run=run, gap=gap, gaps=gaps, tare=tare, labels=labels)
+    return ManifestEntry(run=run, gap=gap, gaps=gaps, tare=tare, labels=labels, row=number)
 
 
 def _existing_run(candidate: Path) -> Path | None:
@@ -185,6 +194,9 @@ def _positive_gap(text: str, column: str, where: str) -> float:
         value = float("nan")
     if not np.isfinite(value) or value <= 0:
         raise InputError(f"{where}: {column} {text!r} is not a positive number (m)")
+    if value > MAX_GAP_M:
+        raise InputError(f"{where}: {column} {text!r} m is beyond {MAX_GAP_M:g} m, not an air "
+                         "gap: probably not in m (0.0008 for 0.8 mm)")
     return value
 
 

@@ -8,10 +8,11 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import write_text_atomic
+from ..errors import DataError
 from ..forces import SPLIT_CONDITION, ForceEstimate
 from .run_files import write_table_csv
 
-__all__ = ["estimate_summary", "write_estimate"]
+__all__ = ["MAX_FORCE_N", "estimate_summary", "write_estimate"]
 
 
 _HarmonicRows = list[dict[str, int | float | bool]]
@@ -101,8 +102,17 @@ def _resultant_rows(est: ForceEstimate) -> tuple[dict[str, _HarmonicRows],
     return resultant, components
 
 
-def write_estimate(est: ForceEstimate, out_dir: str | Path) -> tuple[Path, Path]:
+MAX_FORCE_N = 1e8
+"""Largest force written [N]; an estimate beyond comes from inputs that are not what they
+claim, and is refused rather than written."""
+
+
+def write_estimate(est: ForceEstimate, out_dir: str | Path,
+                   source: str | None = None) -> tuple[Path, Path]:
     """Write ``OUT/NAME.forces.csv`` and ``OUT/NAME.json`` atomically.
+
+    Nothing is written when a value is not finite or a force exceeds :data:`MAX_FORCE_N`
+    (DataError naming the run and the column); the JSON is strict (no NaN or Infinity).
 
     Parameters
     ----------
@@ -110,6 +120,8 @@ def write_estimate(est: ForceEstimate, out_dir: str | Path) -> tuple[Path, Path]
         The run's estimate.
     out_dir : str or Path
         The output folder OUT, created when missing.
+    source : str, optional
+        The run file, for messages (default: the run's name).
 
     Returns
     -------
@@ -124,7 +136,20 @@ def write_estimate(est: ForceEstimate, out_dir: str | Path) -> tuple[Path, Path]
     for k, name in enumerate(est.force_names):
         cols[f"{name}_static"] = est.static_series[k]
     cols["total_static"] = est.static_series.sum(axis=0)
+    where = f"run '{source or est.run_name}'"
+    for name, values in {"time": est.time, **cols}.items():
+        v = np.asarray(values, dtype=float)
+        bad = ~np.isfinite(v) | ((np.abs(v) > MAX_FORCE_N) if name != "time" else False)
+        if np.any(bad):
+            k = int(np.argmax(bad))
+            raise DataError(f"{where}: the estimate's {name!r} is {v[k]:.4g} at sample {k}, not "
+                            f"a finite force within {MAX_FORCE_N:g} N; nothing written (are the "
+                            "inputs what they claim?)")
+    try:
+        text = json.dumps(estimate_summary(est), indent=1, allow_nan=False)
+    except ValueError:
+        raise DataError(f"{where}: the estimate's summary holds non-finite values; nothing "
+                        "written") from None
     csv = write_table_csv(out_dir / f"{est.run_name}.forces.csv", est.time, cols)
-    js = write_text_atomic(out_dir / f"{est.run_name}.json",
-                           json.dumps(estimate_summary(est), indent=1))
+    js = write_text_atomic(out_dir / f"{est.run_name}.json", text)
     return csv, js

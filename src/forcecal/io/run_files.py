@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import csv
 import io
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Mapping
 from pathlib import Path
 
 import h5py
@@ -27,9 +27,10 @@ import numpy as np
 from nptdms import ChannelObject, TdmsFile, TdmsWriter
 
 from .._atomic import atomic_path, write_text_atomic
-from ..checks import check_equal_lengths, check_finite, check_sample_count
+from ..checks import check_equal_lengths, check_finite, check_plausible, check_sample_count
 from ..errors import DataError, InputError
 from ..records import Run
+from ._run_values import decimal_resolution, finite_number, positive_number, tdms_log
 
 __all__ = [
     "RUN_SUFFIXES",
@@ -45,6 +46,9 @@ __all__ = [
 RUN_SUFFIXES = (".csv", ".tdms", ".h5", ".hdf5")
 _UNIFORM_RTOL = 1e-6  # allowed deviation of a time step from the mean step, relative
 _ROUNDING_CAP = 0.25  # rounded stamps excuse at most this share of a step
+_MIN_RATE = 1e-3  # Hz: one sample in 17 minutes; slower is a damaged increment
+_MAX_RATE = 1e9  # Hz: no DAQ samples faster; a larger rate is a damaged or mis-scaled file
+_MAX_T0 = 1e10  # s: about 300 years; a later start is a damaged stamp
 
 
 # --------------------------------------------------------------------------------------------
@@ -101,36 +105,55 @@ def _read_csv_run(path: Path) -> Run:
     _check_finite_time(time, path, where)
     resolution = np.zeros_like(time)
     if _first_irregular_step(time, resolution) is not None:  # allow for the digits written
-        resolution = _decimal_resolution([row[0] for row in cells], time)
+        resolution = decimal_resolution([row[0] for row in cells], time)
     fs, t0 = _sampling_from_time(time, path, resolution, where)
     channels = {name: values[:, j] for j, name in enumerate(header[1:], start=1)}
     return _finish(path, channels, fs, t0)
 
 
 def _read_tdms_run(path: Path) -> Run:
-    try:
-        tdms = TdmsFile.read(path)
-    except Exception as exc:  # npTDMS raises assorted errors on a malformed file
-        raise InputError(f"run '{path}': not a readable TDMS file ({_first_line(exc)})") from exc
-    groups = [g for g in tdms.groups() if g.channels()]
-    if len(groups) != 1:
-        names = ", ".join(repr(g.name) for g in groups) or "none with channels"
-        raise InputError(f"run '{path}': expected one group of channels, found {names}")
-    raw = {ch.name: ch for ch in groups[0].channels()}
-    time_name = next((n for n in raw if n.strip().lower() == "time"), None)
-    channels = {n: _tdms_values(ch, path) for n, ch in raw.items() if n != time_name}
+    with tdms_log() as messages:
+        try:
+            tdms = TdmsFile.read(path)
+            groups = [g for g in tdms.groups() if g.channels()]
+            if len(groups) != 1:
+                names = ", ".join(repr(g.name) for g in groups) or "none with channels"
+                raise InputError(f"run '{path}': expected one group of channels, found {names}")
+            raw = {ch.name: ch for ch in groups[0].channels()}
+            time_name = next((n for n in raw if n.strip().lower() == "time"), None)
+            channels = {n: _tdms_values(ch, path) for n, ch in raw.items() if n != time_name}
+            time = _tdms_time(raw[time_name], path) if time_name is not None else None
+        except (InputError, DataError):
+            raise
+        except Exception as exc:  # npTDMS raises assorted errors on a malformed file
+            raise InputError(f"run '{path}': not a readable TDMS file ({_first_line(exc)})"
+                             ) from exc
+    if messages:
+        raise InputError(f"run '{path}': a damaged TDMS file (npTDMS: {messages[0]})")
     if not channels:
         raise DataError(f"run '{path}': group {groups[0].name!r} holds no signal channels")
-    first = next(iter(raw[n] for n in channels))
+    first_name = next(iter(channels))
+    first = raw[first_name]
     if "wf_increment" in first.properties:
-        fs = _rate_from_increment(first.properties["wf_increment"], path)
-        return _sampled(path, channels, fs, float(first.properties.get("wf_start_offset", 0.0)))
-    if time_name is None:
+        increment = positive_number(first.properties["wf_increment"],
+                                     f"channel {first_name!r}: property 'wf_increment'", path)
+        for name in channels:
+            other = raw[name].properties.get("wf_increment")
+            value = positive_number(other, f"channel {name!r}: property 'wf_increment'", path)
+            if abs(value - increment) > 1e-9 * increment:
+                raise DataError(
+                    f"run '{path}': channel {name!r} is sampled every {value:.6g} s "
+                    f"('wf_increment'), channel {first_name!r} every {increment:.6g} s; a run's "
+                    "channels share one rate")
+        t0 = finite_number(first.properties.get("wf_start_offset", 0.0),
+                            f"channel {first_name!r}: property 'wf_start_offset'", path)
+        return _sampled(path, channels, 1.0 / increment, t0)
+    if time is None:
         raise InputError(
             f"run '{path}': no 'wf_increment' property and no 'time' channel; "
             "cannot tell the sampling"
         )
-    return _with_time_channel(path, _tdms_time(raw[time_name], path), channels)
+    return _with_time_channel(path, time, channels)
 
 
 def _read_hdf5_run(path: Path) -> Run:
@@ -138,15 +161,16 @@ def _read_hdf5_run(path: Path) -> Run:
         with h5py.File(path, "r") as h5:
             attrs = {key: h5.attrs[key] for key in ("fs", "t0") if key in h5.attrs}
             data = {n: h5[n][()] for n in h5 if isinstance(h5[n], h5py.Dataset)}
-    except OSError as exc:
+    except Exception as exc:  # h5py raises OSError, KeyError, RuntimeError... on damage
         raise InputError(f"run '{path}': not a readable HDF5 file ({_first_line(exc)})") from exc
     time_name = next((n for n in data if n.strip().lower() == "time"), None)
     channels = {n: _hdf5_values(v, n, path) for n, v in data.items() if n != time_name}
     if not channels:
         raise DataError(f"run '{path}': no channel datasets at the file root")
     if "fs" in attrs:
-        fs = _positive_number(attrs["fs"], "root attribute 'fs'", path)
-        return _sampled(path, channels, fs, float(np.asarray(attrs.get("t0", 0.0)).item()))
+        fs = positive_number(attrs["fs"], "root attribute 'fs'", path)
+        t0 = finite_number(attrs.get("t0", 0.0), "root attribute 't0'", path)
+        return _sampled(path, channels, fs, t0)
     if time_name is None:
         raise InputError(
             f"run '{path}': no 'fs' attribute on the file root and no 'time' dataset; "
@@ -172,9 +196,14 @@ def _with_time_channel(path: Path, time: np.ndarray, channels: dict[str, np.ndar
 
 
 def _finish(path: Path, channels: dict[str, np.ndarray], fs: float, t0: float) -> Run:
-    """Check every channel for NaN/inf and build the Run."""
+    """Check every channel for NaN/inf and absurd values, and build the Run."""
+    if not (np.isfinite(fs) and _MIN_RATE <= fs <= _MAX_RATE and abs(t0) <= _MAX_T0):
+        raise DataError(f"run '{path}': sampling rate {fs:.6g} Hz and start time {t0:.6g} s; "
+                        f"expected a rate from {_MIN_RATE:g} to {_MAX_RATE:g} Hz and a start "
+                        f"time within {_MAX_T0:g} s")
     for name, values in channels.items():
         check_finite(values, name, path, t0, fs)
+        check_plausible(values, name, path, t0, fs)
     return Run(channels=channels, fs=fs, t0=t0, name=path.stem, source=str(path))
 
 
@@ -193,6 +222,10 @@ def _check_finite_time(time: np.ndarray, path: Path, where: Callable[[int], str]
             f"run '{path}': time has {bad.size} NaN or infinite values, the first at "
             f"{where(int(bad[0]))}"
         )
+    far = np.flatnonzero(np.abs(time) > _MAX_T0)
+    if far.size:
+        raise DataError(f"run '{path}': time {time[far[0]]:.6g} s at {where(int(far[0]))} is "
+                        f"beyond {_MAX_T0:g} s; expected time stamps in s")
 
 
 def _first_irregular_step(time: np.ndarray, resolution: np.ndarray) -> int | None:
@@ -242,14 +275,18 @@ def _parse_csv(path: Path, what: str) -> tuple[list[str], list[list[str]], list[
     header: list[str] | None = None
     cells: list[list[str]] = []
     rows: list[int] = []
-    for row in reader:
-        if not any(cell.strip() for cell in row):
-            continue
-        if header is None:
-            header = [cell.strip() for cell in row]
-            continue
-        cells.append(row)
-        rows.append(reader.line_num)
+    try:
+        for row in reader:
+            if not any(cell.strip() for cell in row):
+                continue
+            if header is None:
+                header = [cell.strip() for cell in row]
+                continue
+            cells.append(row)
+            rows.append(reader.line_num)
+    except csv.Error as exc:  # e.g. a cell beyond the field size limit, a NUL byte
+        raise DataError(f"{what} '{path}': row {reader.line_num + 1} cannot be read as CSV "
+                        f"({exc})") from None
     if header is None:
         raise DataError(f"{what} '{path}': the file is empty")
     _check_header(header, path, what)
@@ -281,13 +318,16 @@ def _numeric(
     cells: list[list[str]], header: list[str], rows: list[int], path: Path, what: str
 ) -> np.ndarray:
     """(n_rows, n_columns) float array; DataError naming row and column of a bad cell."""
-    try:
-        return np.array(cells, dtype=float)
-    except ValueError:
-        pass
+    if not any("_" in cell for row in cells for cell in row):  # float() takes '1_000'
+        try:
+            return np.array(cells, dtype=float)
+        except ValueError:
+            pass
     for row, number in zip(cells, rows, strict=True):
         for cell, name in zip(row, header, strict=True):
             try:
+                if "_" in cell:
+                    raise ValueError(cell)
                 float(cell)
             except ValueError:
                 raise DataError(
@@ -295,30 +335,6 @@ def _numeric(
                     "a number"
                 ) from None
     raise DataError(f"{what} '{path}': a cell is not a number")  # pragma: no cover
-
-
-def _decimal_resolution(texts: Sequence[str], values: np.ndarray) -> np.ndarray:
-    """(n,) resolution [s] of decimal numbers as the file writes them.
-
-    A writer keeps either a fixed number of decimals ('%.6f': 1e-6 everywhere) or of
-    significant digits ('%.6g', repr: 1e-5 at 9.87654, 1e-7 at 0.0123457); trailing zeros may
-    be dropped. The finest decimal step seen and the most significant digits seen bound the
-    resolution from below in either case; the larger of the two bounds is the resolution.
-    """
-    finest, digits = np.inf, 1
-    for text in texts:
-        mantissa, _, exponent = text.strip().lower().partition("e")
-        whole, _, decimals = mantissa.lstrip("+-").partition(".")
-        try:
-            finest = min(finest, 10.0 ** (int(exponent or 0) - len(decimals)))
-        except ValueError:
-            continue
-        digits = max(digits, len((whole + decimals).lstrip("0")))
-    finest = 0.0 if not np.isfinite(finest) else finest
-    with np.errstate(divide="ignore"):
-        magnitude = np.floor(np.log10(np.abs(values)))
-    relative = np.where(np.isfinite(magnitude), 10.0 ** (magnitude - digits + 1), 0.0)
-    return np.maximum(finest, relative)
 
 
 # --------------------------------------------------------------------------------------------
@@ -351,17 +367,7 @@ def _hdf5_values(value: np.ndarray, name: str, path: Path) -> np.ndarray:
 
 
 def _rate_from_increment(increment: object, path: Path) -> float:
-    return 1.0 / _positive_number(increment, "property 'wf_increment'", path)
-
-
-def _positive_number(value: object, what: str, path: Path) -> float:
-    try:
-        number = float(np.asarray(value, dtype=float).item())
-    except (TypeError, ValueError):
-        number = float("nan")
-    if not np.isfinite(number) or number <= 0:
-        raise InputError(f"run '{path}': {what} is {value!r}; expected a positive number")
-    return number
+    return 1.0 / positive_number(increment, "property 'wf_increment'", path)
 
 
 # --------------------------------------------------------------------------------------------

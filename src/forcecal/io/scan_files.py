@@ -18,7 +18,8 @@ import h5py
 import numpy as np
 
 from .._atomic import atomic_path
-from ..errors import InputError
+from ..checks import check_scan_values
+from ..errors import DataError, InputError
 from ..records import Scan
 from .uff import read_scan_uff
 
@@ -55,12 +56,16 @@ def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = 
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    scan: Scan | None = None
     if suffix in (".uff", ".unv"):
-        return read_scan_uff(path, reference_label=reference_label, locations=locations)
-    if suffix in (".h5", ".hdf5"):
-        return read_scan_hdf5(path, locations)
-    if suffix == ".npz":
-        return read_scan_npz(path, locations)
+        scan = read_scan_uff(path, reference_label=reference_label, locations=locations)
+    elif suffix in (".h5", ".hdf5"):
+        scan = read_scan_hdf5(path, locations)
+    elif suffix == ".npz":
+        scan = read_scan_npz(path, locations)
+    if scan is not None:
+        check_scan_values(scan)
+        return scan
     raise InputError(
         f"scan '{path}': unknown file type '{path.suffix}'; accepted: {', '.join(SCAN_SUFFIXES)}"
     )
@@ -88,17 +93,20 @@ def read_scan_npz(path: str | Path, locations: bool = False) -> Scan:
         A missing or unreadable archive, or a missing or malformed array.
     """
     path = _existing(path)
-    try:
-        loaded = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise InputError(f"scan '{path}': not a readable NPZ archive ({_first_line(exc)})") from exc
-    if not isinstance(loaded, np.lib.npyio.NpzFile):
-        raise InputError(f"scan '{path}': a single array (.npy content), not an NPZ archive")
-    try:
-        with loaded:
-            content = {key: loaded[key] for key in loaded.files if key in _KEYS + _OPTIONAL}
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise InputError(f"scan '{path}': not a readable NPZ archive ({_first_line(exc)})") from exc
+    with open(path, "rb") as fh:  # closed whatever np.load makes of it
+        try:
+            loaded = np.load(fh, allow_pickle=False)
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            raise InputError(f"scan '{path}': not a readable NPZ archive ({_first_line(exc)})"
+                             ) from exc
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            raise InputError(f"scan '{path}': a single array (.npy content), not an NPZ archive")
+        try:
+            with loaded:
+                content = {key: loaded[key] for key in loaded.files if key in _KEYS + _OPTIONAL}
+        except Exception as exc:  # zipfile and numpy raise assorted errors on damage
+            raise InputError(f"scan '{path}': not a readable NPZ archive ({_first_line(exc)})"
+                             ) from exc
     return _scan_from(content, path, locations)
 
 
@@ -130,7 +138,7 @@ def read_scan_hdf5(path: str | Path, locations: bool = False) -> Scan:
                 key: h5[key][()] for key in _KEYS + _OPTIONAL
                 if key in h5 and isinstance(h5[key], h5py.Dataset)
             }
-    except OSError as exc:
+    except Exception as exc:  # h5py raises OSError, KeyError, RuntimeError... on damage
         raise InputError(f"scan '{path}': not a readable HDF5 file ({_first_line(exc)})") from exc
     return _scan_from(content, path, locations)
 
@@ -229,10 +237,16 @@ def _scan_from(content: Mapping[str, np.ndarray], path: Path, locations: bool = 
     fs = _float_array(content["fs"], "fs", path)
     if fs.size != 1 or not np.isfinite(fs.item()) or fs.item() <= 0:
         raise InputError(f"scan '{path}': 'fs' must be one positive number (Hz), found {fs}")
+    response = _float_array(content["response"], "response", path)
+    reference = _float_array(content["reference"], "reference", path)
+    for key, arr in (("response", response), ("reference", reference)):
+        if arr.ndim != 2 or arr.shape[0] != len(x) or arr.shape[1] < 2:
+            raise DataError(f"scan '{path}': '{key}' has shape {arr.shape}; expected "
+                            f"({len(x)}, n_samples), one record per point of 'x'")
     return Scan(
         points=x,
-        response=_float_array(content["response"], "response", path),
-        reference=_float_array(content["reference"], "reference", path),
+        response=response,
+        reference=reference,
         fs=float(fs.item()),
         quantity=_text(content["quantity"], path),
         source=str(path),
@@ -263,7 +277,7 @@ def _float_array(value: np.ndarray, key: str, path: Path) -> np.ndarray:
     """The named array as floats; InputError naming the key when it is not numeric."""
     try:
         return np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
+    except (TypeError, ValueError, OverflowError) as exc:
         raise InputError(f"scan '{path}': '{key}' is not numeric") from exc
 
 
