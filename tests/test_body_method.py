@@ -244,6 +244,9 @@ def test_cli_runs_a_body_end_to_end(tmp_path, capsys):
     rc = main(["reconstruct", str(out / "rig.toml"), str(out / "scan.uff"),
                str(out / "runs" / "body.csv"), "-o", str(tmp_path / "res")])
     assert rc == 0
+    # the estimate's notes are printed where the user looks, not only kept in the JSON
+    printed = capsys.readouterr().out
+    assert "note: harmonic 3: no shape in the scan model" in printed, printed
     import csv
 
     with open(tmp_path / "res" / "body.forces.csv") as fh:

@@ -186,6 +186,7 @@ def _cmd_reconstruct(args) -> int:
             lines.append(f"{Path(args.output) / csv.name}: f0 {est.f0:.6g} Hz, total AC "
                          f"uncertainty {est.waveform_std:.3g} N, inertia share "
                          f"{est.inertia_share:.1%}")
+            lines += [f"note: {note}" for note in est.notes]
     for line in lines:
         _print(line)
     return 0
