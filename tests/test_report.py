@@ -18,6 +18,7 @@ import pytest
 from matplotlib.figure import Figure
 
 from forcecal.actuator import Calibration
+from forcecal.campaign import calibrate_campaign
 from forcecal.errors import DimensionError, InputError
 from forcecal.forces import channels_si, reconstruct
 from forcecal.harmonics import fit_harmonics
@@ -41,6 +42,7 @@ from forcecal.report import (
     save_png,
     write_report,
 )
+from forcecal.report.figures.forces import force_sigma
 from forcecal.rig import load_rig
 from forcecal.scan import harmonic_shapes
 from forcecal.simulate.export import write_simulation
@@ -190,30 +192,54 @@ def test_fig_coordinates_draws_q_per_harmonic_and_the_inertia(case):
 def test_fig_forces_draws_the_estimate_the_baseline_and_the_truth(case):
     est = case.estimate
     fig = fig_forces(est, case.truth)
-    assert len(fig.axes) == 2
-    ax_r, ax_f = fig.axes
+    assert len(fig.axes) == 3
+    ax_j, ax_r, ax_f = fig.axes
     m = window(est.time, est.f0)
-    np.testing.assert_allclose(line(ax_f, "total").get_xdata(), est.time[:m] * 1e3)
+    t = est.time[:m]
+    # (1) the inertia terms and (2) the reactions, each on its own axis
+    for r, g in enumerate(est.gauge_names):
+        np.testing.assert_allclose(line(ax_j, g).get_ydata(), series(est.inertia[r], est.f0, t),
+                                   rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(line(ax_r, g).get_ydata(),
+                                   series(est.reactions[r], est.f0, t), rtol=1e-9, atol=1e-9)
+    assert "$J_r" in ax_j.get_ylabel() and "$R_r" in ax_r.get_ylabel()
+    j_span = np.ptp(ax_j.get_ylim())
+    assert j_span < 0.5 * np.ptp(ax_r.get_ylim())  # the inertia is not flattened by R
+    assert j_span > np.ptp(series(est.inertia, est.f0, t))
+    # (3) the forces, their reactions-only estimate, their +-2 sigma band, the truth on top
+    np.testing.assert_allclose(line(ax_f, "total").get_xdata(), t * 1e3)
     np.testing.assert_array_equal(line(ax_f, "total").get_ydata(), est.total_series[:m])
     np.testing.assert_array_equal(line(ax_f, "total reactions only").get_ydata(),
                                   est.static_series.sum(axis=0)[:m])
     np.testing.assert_array_equal(line(ax_f, "total truth").get_ydata(), case.truth["total"][:m])
-    for k, name in enumerate(est.force_names):
-        np.testing.assert_array_equal(line(ax_f, name).get_ydata(), est.series[k, :m])
-        assert line(ax_f, f"{name} reactions only").get_linestyle() == "--"
-        assert line(ax_f, f"{name} truth").get_linestyle() == ":"
-    for r, g in enumerate(est.gauge_names):
-        t = est.time[:m]
-        np.testing.assert_allclose(line(ax_r, f"R {g}").get_ydata(),
-                                   series(est.reactions[r], est.f0, t), rtol=1e-9, atol=1e-9)
-        np.testing.assert_allclose(line(ax_r, f"J {g}").get_ydata(),
-                                   series(est.inertia[r], est.f0, t), rtol=1e-9, atol=1e-9)
+    sigma = force_sigma(est)
+    np.testing.assert_allclose(sigma, np.sqrt(np.sum(np.vstack([est.force_std, est.total_std])
+                                                     ** 2, axis=1)), rtol=1e-12)
+    truth_z = line(ax_f, "total truth").get_zorder()
+    for k, name in enumerate((*est.force_names, "total")):
+        y = est.series[k, :m] if name != "total" else est.total_series[:m]
+        if name != "total":
+            np.testing.assert_array_equal(line(ax_f, name).get_ydata(), y)
+            assert line(ax_f, f"{name} reactions only").get_linestyle() == "--"
+        truth = line(ax_f, f"{name} truth")
+        assert truth.get_linestyle() == ":" and truth.get_color() == "k"
+        assert truth.get_zorder() >= truth_z > line(ax_f, name).get_zorder()
+        band = [c for c in ax_f.collections if c.get_label() == f"{name} ±2σ"]
+        assert len(band) == 1
+        verts = band[0].get_paths()[0].vertices
+        for j in (0, m // 2, m - 1):
+            at = verts[np.isclose(verts[:, 0], t[j] * 1e3, rtol=0, atol=1e-9), 1]
+            assert at.min() == pytest.approx(y[j] - 2 * sigma[k], abs=1e-12)
+            assert at.max() == pytest.approx(y[j] + 2 * sigma[k], abs=1e-12)
+    # F1 and F2 stay distinguishable: distinct colours and markers
+    styles = {(line(ax_f, n).get_color(), line(ax_f, n).get_marker()) for n in est.force_names}
+    assert len(styles) == len(est.force_names)
     # the reconstruction is much closer to the truth than the reactions-only estimate
     err = np.std(est.total_series - case.truth["total"])
     assert err < 0.1 * np.std(est.static_series.sum(axis=0) - case.truth["total"])
 
     plain = fig_forces(est)
-    assert not [ln for ln in plain.axes[1].get_lines() if "truth" in ln.get_label()]
+    assert not [ln for ln in plain.axes[2].get_lines() if "truth" in ln.get_label()]
     with pytest.raises(DimensionError, match="truth column 'F1'"):
         fig_forces(est, {"F1": case.truth["F1"][:-1]})
 
@@ -268,8 +294,8 @@ def _points() -> CalibrationPoints:
 def test_fig_calibration_draws_points_law_and_residuals():
     pts = _points()
     fig = fig_calibration(pts, _law())
-    assert len(fig.axes) == 4
-    ax0, ax1, rx0, rx1 = fig.axes
+    assert len(fig.axes) == 5
+    ax0, ax1, rx0, rx1, cx = fig.axes
     tag = "gap 1.00 mm, AC 0.2 A"
     sel = (pts.gap == 1.0e-3) & (pts.ac == 0.2)
     np.testing.assert_array_equal(markers(ax0, tag).get_ydata(), pts.force_dc[sel])
@@ -288,6 +314,24 @@ def test_fig_calibration_draws_points_law_and_residuals():
             assert np.all(np.abs(ln.get_ydata()) < 1e-9), ln.get_label()
         assert rx.get_ylabel().endswith("[%]")
     assert ax0.get_xlabel() == "" and rx0.get_xlabel() == "DC current $I_0$ [A]"
+    # the collapse: every run's F_0 against the mean of x = sum_p i^2 / s_p^2 over its cycle
+    # lies on the law's line, total = K x (x summed over the poles, drawn in A^2/mm^2)
+    assert "A²/mm²" in cx.get_xlabel()
+    law = line(cx, "law: total force = K x")
+    np.testing.assert_allclose(law.get_ydata(), K * law.get_xdata() * 1e6, rtol=1e-9)
+    runs = [ln for ln in cx.get_lines() if ln.get_linestyle() == "None"]
+    assert len(runs) == pts.n_runs
+    x_mean = 2 * (pts.dc**2 + pts.ac**2 / 2) / pts.gap**2          # both poles at the gap
+    np.testing.assert_allclose(np.concatenate([ln.get_xdata() for ln in runs]) * 1e6, x_mean,
+                               rtol=1e-9)
+    np.testing.assert_allclose(np.concatenate([ln.get_ydata() for ln in runs]), pts.force_dc)
+    np.testing.assert_allclose(pts.force_dc, K * x_mean, rtol=1e-9)
+    # the +-2 sigma band of the prediction: std of K x is x std(K)
+    band = [c for c in cx.collections if c.get_label() == "law ±2σ of the prediction"]
+    ys = band[0].get_paths()[0].vertices
+    top = ys[:, 1].max()
+    x_top = ys[np.argmax(ys[:, 1]), 0] * 1e6
+    assert top == pytest.approx(K * x_top + 2 * x_top * 1e-9, rel=1e-9)
 
 
 def test_fig_calibration_residuals_against_the_law_at_each_run():
@@ -295,10 +339,13 @@ def test_fig_calibration_residuals_against_the_law_at_each_run():
     law_dc = pts.force_dc * 1.02
     fig = fig_calibration(dataclasses.replace(pts, law_dc=law_dc, law_ac=pts.force_ac),
                           _law())
-    ax0, _, rx0, rx1 = fig.axes
+    ax0, _, rx0, rx1, _ = fig.axes
     sel = (pts.gap == 0.8e-3) & (pts.ac == 0.1)
-    np.testing.assert_allclose(line(ax0, "law gap 0.80 mm, AC 0.1 A").get_ydata(),
+    np.testing.assert_allclose(line(ax0, "law at gap 0.80 mm, AC 0.1 A").get_ydata(),
                                np.sort(law_dc[sel]))
+    # and the smooth law at the static gap beside it
+    smooth = line(ax0, "law gap 0.80 mm, AC 0.1 A")
+    assert len(smooth.get_xdata()) > 20 and smooth.get_marker() == "None"
     np.testing.assert_allclose(line(rx0, "gap 0.80 mm, AC 0.1 A").get_ydata(),
                                100 * (1 / 1.02 - 1))
     np.testing.assert_allclose(line(rx1, "gap 0.80 mm, AC 0.1 A").get_ydata(), 0.0, atol=1e-12)
@@ -321,6 +368,32 @@ def test_law_harmonics_of_a_known_law():
     mean, fund = law_harmonics(_law(), current, np.full(n, 1.0e-3), fs, f0)
     assert mean == pytest.approx(2 * K * (0.36 + 0.02) / 1e-6, rel=1e-9)
     assert fund == pytest.approx(4 * K * 0.6 * 0.2 / 1e-6, rel=1e-9)
+
+
+def test_calibration_points_from_a_campaign_collapse(paper_dir):
+    rig = load_rig(paper_dir / "rig.toml")
+    model = build_spatial_model(rig, read_scan_uff(paper_dir / "scan.uff"))
+    result = calibrate_campaign(rig, model, paper_dir / "manifest.csv", workers=1)
+    pts = CalibrationPoints.from_campaign(result)
+    smp = result.runs[0].samples
+    assert pts.names == ("paper",) and pts.samples is not None
+    np.testing.assert_array_equal(pts.samples.force, smp.force)
+    fig = fig_calibration(pts, result.calibration)
+    cx = fig.axes[4]
+    cal = result.calibration
+    k = cal.params[0]
+    u = smp.gaps + cal.law_object.gap_offset(cal.params)
+    x = np.sum(smp.current[:, None] ** 2 / u**2, axis=1)
+    measured = line(cx, "measured (reactions and inertia)")
+    np.testing.assert_allclose(measured.get_xdata() * 1e6, x, rtol=1e-9)
+    np.testing.assert_array_equal(measured.get_ydata(), smp.force)
+    static = [ln for ln in cx.get_lines() if ln.get_label().startswith("reactions only")]
+    assert len(static) == 1
+    np.testing.assert_array_equal(static[0].get_ydata(), smp.static_force)
+    law = line(cx, "law: total force = K x")
+    np.testing.assert_allclose(law.get_ydata(), k * law.get_xdata() * 1e6, rtol=1e-9)
+    # every sample collapses onto the law's line, the reactions-only ones do not
+    assert np.std(smp.force - k * x) < 0.2 * np.std(smp.static_force - k * x)
 
 
 def test_calibration_points_from_estimates(case):

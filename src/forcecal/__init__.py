@@ -1,7 +1,20 @@
 """forcecal: external forces on a vibrating structure from reactions and inertia.
 
-The public names are re-exported here; internals live in the stage modules.
+The public names are re-exported here; internals live in the stage modules. The method's steps
+(:mod:`forcecal.api`) are imported on first use, so that ``import forcecal`` stays light::
+
+    import forcecal
+
+    rig = forcecal.load_rig("rig.toml")
+    model = forcecal.build_spatial_model(rig, forcecal.read_scan("scan.uff", rig=rig))
+    est = forcecal.reconstruct(rig, model, forcecal.read_run("runs/r01.csv"))
+    print(est)                      # run, f0, the forces' fundamentals, the inertia share
+    est.to_dataframe()              # the force series (pandas)
 """
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
 
 from ._version import __version__
 from .errors import (
@@ -16,6 +29,21 @@ from .errors import (
 from .records import Run, Scan
 from .rig import Rig, load_rig
 
+if TYPE_CHECKING:
+    from .api import (
+        build_spatial_model,
+        calibrate,
+        load_calibration,
+        load_model,
+        read_run,
+        read_scan,
+        reconstruct,
+    )
+
+_LAZY = ("build_spatial_model", "calibrate", "load_calibration", "load_model", "read_run",
+         "read_scan", "reconstruct")
+"""Names of :mod:`forcecal.api` imported on first use (they import SciPy's statistics)."""
+
 __all__ = [
     "ConditioningError",
     "DataError",
@@ -28,5 +56,27 @@ __all__ = [
     "Run",
     "Scan",
     "__version__",
+    "build_spatial_model",
+    "calibrate",
+    "load_calibration",
+    "load_model",
     "load_rig",
+    "read_run",
+    "read_scan",
+    "reconstruct",
 ]
+
+
+def __getattr__(name: str) -> Any:
+    """The method's steps of :mod:`forcecal.api`, imported on first use."""
+    if name in _LAZY:
+        from . import api
+
+        value = getattr(api, name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'forcecal' has no attribute {name!r}")
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

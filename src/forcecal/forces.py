@@ -16,6 +16,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -137,6 +138,68 @@ class ForceEstimate:
         duration = self.time[-1] - self.time[0] if self.time.size > 1 else 0.0
         drift = (2 * np.pi * n * self.f0_std * duration) ** 2 / 12 * np.abs(self.total[1:]) ** 2 / 2
         return float(np.sqrt(np.sum(self.total_std[1:] ** 2) + np.sum(drift)))
+
+    def _fundamentals(self) -> list[tuple[str, float, float, float]]:
+        """(name, |F_1|, its std, reactions-only |F_1|) [N] of every force and the total."""
+        if self.force.shape[1] < 2:
+            return []
+        f, std, st = (np.vstack([a, a.sum(axis=0)]) for a in (self.force, self.force_std,
+                                                              self.static))
+        std[-1] = self.total_std
+        return [(name, float(abs(f[k, 1])), float(std[k, 1]), float(abs(st[k, 1])))
+                for k, name in enumerate((*self.force_names, "total"))]
+
+    def __repr__(self) -> str:
+        """One line: the run, its fundamental, every force's |F_1| with std, the inertia share."""
+        amps = ", ".join(f"{name} {a:.4g} ± {s:.2g}" for name, a, s, _ in self._fundamentals())
+        return (f"ForceEstimate(run '{self.run_name}', f0 = {self.f0:.6g} Hz, "
+                f"|F_1| [N]: {amps or 'none'}; inertia share {self._share()})")
+
+    def _share(self) -> str:
+        return f"{100 * self.inertia_share:.1f} %" if np.any(self.total[1:]) else "n/a"
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: per force, |F_1| with std and the reactions-only one."""
+        from html import escape
+
+        rows = "".join(f"<tr><td>{escape(n)}</td><td>{a:.4g}</td><td>{s:.2g}</td>"
+                       f"<td>{r:.4g}</td></tr>" for n, a, s, r in self._fundamentals())
+        return (f"<p><b>ForceEstimate</b> of run '{escape(self.run_name)}': f<sub>0</sub> = "
+                f"{self.f0:.6g} Hz, inertia share {self._share()}</p><table><tr><th>force</th>"
+                "<th>|F<sub>1</sub>| [N]</th><th>std [N]</th>"
+                f"<th>reactions only [N]</th></tr>{rows}</table>")
+
+    @staticmethod
+    def _pandas() -> Any:
+        import pandas  # type: ignore[import-untyped]  # imported on use only
+
+        return pandas
+
+    def to_dataframe(self) -> Any:
+        """The force series as a pandas DataFrame: index ``time`` [s], one column per force,
+        ``total``, and the reactions-only ones with suffix ``_static`` [N] (the columns of
+        ``NAME.forces.csv``). Example: ``est.to_dataframe()[["total", "total_static"]]``."""
+        pd = self._pandas()
+        names = (*self.force_names, "total")
+        values = np.vstack([self.series, self.total_series, self.static_series,
+                            self.static_series.sum(axis=0)])
+        columns = [*names, *(f"{n}_static" for n in names)]
+        return pd.DataFrame(values.T, columns=columns, index=pd.Index(self.time, name="time"))
+
+    def harmonics_frame(self) -> Any:
+        """Every force's harmonics as a pandas DataFrame, index (``force``, ``harmonic``):
+        ``amplitude`` |F_n| [N], ``phase`` [rad], ``std`` [N] (of Re and of Im),
+        ``static_amplitude`` (reactions only) [N], ``with_inertia``, ``kept`` (bool).
+        Example: ``est.harmonics_frame().loc["F1", "amplitude"]``."""
+        pd = self._pandas()
+        n_f = len(self.force_names)
+        index = pd.MultiIndex.from_product(
+            [list(self.force_names), [int(n) for n in self.harmonics]], names=["force", "harmonic"])
+        return pd.DataFrame({
+            "amplitude": np.abs(self.force).ravel(), "phase": np.angle(self.force).ravel(),
+            "std": self.force_std.ravel(), "static_amplitude": np.abs(self.static).ravel(),
+            "with_inertia": np.tile(self.with_inertia.astype(bool), n_f),
+            "kept": np.tile(self.kept.astype(bool), n_f)}, index=index)
 
 
 def force_solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray) -> np.ndarray:
@@ -361,6 +424,12 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     -------
     ForceEstimate
     """
+    for name, value, kind in (("rig", rig, Rig), ("model", model, SpatialModel),
+                              ("run", run, Run), ("tare", tare, (Run, type(None)))):
+        if not isinstance(value, kind):
+            raise InputError(f"reconstruct: '{name}' must be a {getattr(kind, '__name__', 'Run')}"
+                             f" (from forcecal.load_rig, build_spatial_model or read_run); got "
+                             f"{type(value).__name__}")
     if rig.frequency is None:
         raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing")
     check_model_rig(model, rig)

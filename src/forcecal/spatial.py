@@ -94,6 +94,27 @@ class SpatialModel:
         """phi_n at points, complex (n_points,) [m]."""
         return self.shapes[self.index(n)].evaluate(points)
 
+    def _summary(self) -> list[tuple[str, str]]:
+        """(what, value) rows shown by the reprs."""
+        return [("scan", self.source), ("f0", f"{self.f0:.6g} Hz"),
+                ("harmonics (order)", ", ".join(f"{int(n)} ({s.order})" for n, s in
+                                                zip(self.harmonics, self.shapes, strict=True))),
+                ("dropped", ", ".join(str(n) for n in self.dropped) or "none"),
+                ("points", str(self.n_points)),
+                ("records set aside", str(len(self.set_aside)))]
+
+    def __repr__(self) -> str:
+        """One line: f0, the harmonics with their shapes' orders, the records set aside."""
+        return "SpatialModel(" + ", ".join(f"{k} {v}" for k, v in self._summary()) + ")"
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks."""
+        from html import escape
+
+        rows = "".join(f"<tr><th>{escape(k)}</th><td>{escape(v)}</td></tr>"
+                       for k, v in self._summary())
+        return f"<p><b>SpatialModel</b></p><table>{rows}</table>"
+
     # ----------------------------------------------------------------- JSON
 
     def to_json(self) -> dict:

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._atomic import write_text_atomic
+from .._schema import MAX_DOCUMENT_BYTES, check_calibration_document, reject_constant
 from ..errors import DimensionError, InputError
 from .laws import Law, get_law
 
@@ -29,6 +30,12 @@ __all__ = ["Calibration", "ExtrapolationWarning", "Prediction", "predict", "pred
 
 _CALIBRATION_FORMAT = "forcecal-calibration"
 _CALIBRATION_VERSION = 1
+MAX_CURRENT_A = 1e5
+"""Largest coil current accepted by :func:`predict` [A]."""
+MAX_GAP_M = 0.1
+"""Largest air gap accepted by :func:`predict` [m]; a gap in mm (0.8 for 0.8 mm) is beyond."""
+MAX_FLUX_WB = 10.0
+"""Largest pole flux accepted by :func:`predict_flux` [Wb]."""
 _REQUIRED_KEYS = ("law", "params", "covariance", "n_poles", "current_range", "gap_range")
 
 
@@ -143,6 +150,28 @@ class Calibration:
         """Standard uncertainties of the parameters (n_params,)."""
         return np.sqrt(np.diag(self.covariance))
 
+    def _param_rows(self) -> list[tuple[str, str, str, str]]:
+        """(name, value, standard uncertainty, unit) of every parameter, formatted."""
+        law = self.law_object
+        return [(n, f"{v:.6g}", f"{e:.2g}", u) for n, v, e, u in
+                zip(law.param_names, self.params, self.stderr, law.param_units, strict=True)]
+
+    def __repr__(self) -> str:
+        """One line: the law and its parameters with their standard uncertainties."""
+        params = ", ".join(f"{n} = {v} ± {e} {u}" for n, v, e, u in self._param_rows())
+        return (f"Calibration(law '{self.law}': {self.law_object.formula}; {params}; "
+                f"{self.n_poles} pole(s))")
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: the law and its parameters."""
+        from html import escape
+
+        rows = "".join("<tr>" + "".join(f"<td>{escape(c)}</td>" for c in row) + "</tr>"
+                       for row in self._param_rows())
+        return (f"<p><b>Calibration</b>, law '{escape(self.law)}': "
+                f"{escape(self.law_object.formula)}, {self.n_poles} pole(s)</p><table><tr>"
+                f"<th>parameter</th><th>value</th><th>std</th><th>unit</th></tr>{rows}</table>")
+
     def to_json(self) -> dict[str, Any]:
         """The calibration as a JSON-ready dict.
 
@@ -190,8 +219,7 @@ class Calibration:
         InputError
             Naming ``source`` and the key at fault.
         """
-        if not isinstance(obj, dict):
-            raise InputError(f"calibration '{source}': expected a JSON object")
+        check_calibration_document(obj, source)  # format, version, types, finite numbers
         for key in _REQUIRED_KEYS:
             if key not in obj:
                 raise InputError(f"calibration '{source}': missing key '{key}'")
@@ -248,6 +276,9 @@ class Calibration:
             Naming the file, when it is missing, not JSON, or lacks a key.
         """
         path = Path(path)
+        if path.is_file() and path.stat().st_size > MAX_DOCUMENT_BYTES:
+            raise InputError(f"calibration file '{path}' holds {path.stat().st_size} bytes; "
+                             f"at most {MAX_DOCUMENT_BYTES} are read")
         try:
             text = path.read_text(encoding="utf-8")
         except FileNotFoundError:
@@ -255,11 +286,16 @@ class Calibration:
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"calibration file '{path}' cannot be read: {exc}") from None
         try:
-            obj = json.loads(text)
+            obj = json.loads(text, parse_constant=reject_constant)
         except json.JSONDecodeError as exc:
             raise InputError(
                 f"calibration file '{path}' is not valid JSON: {exc.msg} at line {exc.lineno}"
             ) from None
+        except RecursionError:
+            raise InputError(f"calibration file '{path}' is not a calibration (JSON nested too "
+                             "deeply)") from None
+        except ValueError as exc:  # NaN/Infinity, an integer beyond the digit limit
+            raise InputError(f"calibration file '{path}' is not valid JSON ({exc})") from None
         return cls.from_json(obj, source=str(path))
 
 
@@ -330,6 +366,13 @@ def _current_and_gaps(
         ) from None
     if not (np.all(np.isfinite(i)) and np.all(np.isfinite(s))):
         raise InputError("current and gaps must be finite")
+    if np.any(np.abs(i) > MAX_CURRENT_A):
+        raise InputError(f"current {float(i[np.argmax(np.abs(i))]):.6g} A is beyond "
+                         f"{MAX_CURRENT_A:g} A in magnitude; not a coil's current")
+    if np.any(s < 0) or np.any(s > MAX_GAP_M):
+        bad = float(s.flat[int(np.argmax((s < 0) | (s > MAX_GAP_M)))])
+        raise InputError(f"gap {bad:.6g} m is outside 0 to {MAX_GAP_M:g} m; an air gap in m "
+                         "(0.001 for 1 mm)")
     return i, s
 
 
@@ -371,7 +414,17 @@ def predict(calibration: Calibration, current: Any, gaps: Any) -> Prediction:
     law.check_gap_offset(calibration.params, s)
     _warn_outside(i, calibration.current_range, "current", "A", 1.0)
     _warn_outside(s, calibration.gap_range, "gap", "mm", 1e3)
-    return _propagate(law, calibration, i, s, None)
+    with np.errstate(all="ignore"):
+        pred = _propagate(law, calibration, i, s, None)
+    _check_finite_prediction(pred)
+    return pred
+
+
+def _check_finite_prediction(pred: Prediction) -> None:
+    """InputError when the law gives a non-finite force (a gap at the law's pole)."""
+    if not (np.all(np.isfinite(pred.total)) and np.all(np.isfinite(pred.std))):
+        raise InputError("the calibrated law gives no finite force at these inputs (a gap at "
+                         "or near zero?)")
 
 
 def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
@@ -407,5 +460,10 @@ def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
         raise InputError(f"flux must be finite, a scalar or (n,); got shape {phi.shape}")
     if calibration.flux_range is not None:
         _warn_outside(phi, calibration.flux_range, "flux", "Wb", 1.0)
+    if np.any(np.abs(phi) > MAX_FLUX_WB):
+        raise InputError(f"flux beyond {MAX_FLUX_WB:g} Wb in magnitude; not a pole's flux")
     s = np.ones((phi.size, calibration.n_poles))
-    return _propagate(law, calibration, np.zeros(phi.size), s, phi)
+    with np.errstate(all="ignore"):
+        pred = _propagate(law, calibration, np.zeros(phi.size), s, phi)
+    _check_finite_prediction(pred)
+    return pred

@@ -16,7 +16,6 @@ from matplotlib.figure import Figure
 
 from ..errors import InputError
 from ..forces import ForceEstimate, reconstruct
-from ..harmonics import fit_harmonics
 from ..io.results import write_estimate
 from ..io.run_files import read_table_csv
 from ..records import Run, Scan
@@ -33,7 +32,6 @@ from .figures import (
     fig_shapes_2d,
     fig_shapes_body,
     fig_signals,
-    law_harmonics,
     save_png,
 )
 from .html import Image, Preformatted, Section, Table, estimate_table, write_report
@@ -199,29 +197,6 @@ def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
     return write_report(out / "report.html", f"forcecal: forces of {rig.name}", sections)
 
 
-def _calibration_points(result: CampaignResult) -> CalibrationPoints:
-    """One point per run of a campaign, with the law at each run's own current and gaps."""
-    dc, ac, law_dc, law_ac = [], [], [], []
-    for r in result.runs:
-        smp, f0 = r.samples, r.estimate.f0
-        fs = smp.n * f0                                 # the samples span one period evenly
-        current = fit_harmonics(smp.current, fs, f0, 1, t0=smp.time[0]).phasors
-        dc.append(current[0].real)
-        ac.append(abs(current[1]))
-        # the law at the run's own current and instantaneous gaps (the structure moves)
-        a, b = law_harmonics(result.calibration, smp.current, smp.gaps, fs, f0, t0=smp.time[0])
-        law_dc.append(a)
-        law_ac.append(b)
-    est = [r.estimate for r in result.runs]
-    return CalibrationPoints(
-        gap=np.array([r.samples.static_gap for r in result.runs]), dc=np.array(dc),
-        ac=np.array(ac), force_dc=np.array([e.total[0].real for e in est]),
-        force_ac=np.array([abs(e.total[1]) for e in est]),
-        force_dc_std=np.array([e.total_std[0] for e in est]),
-        force_ac_std=np.array([e.total_std[1] for e in est]),
-        law_dc=np.array(law_dc), law_ac=np.array(law_ac), names=tuple(r.name for r in result.runs))
-
-
 def calibration_report(rig: Rig, model: SpatialModel, result: CampaignResult,
                        out_dir: str | Path) -> Path:
     """Fig. 9 and the calibration tables of a campaign result as ``OUT/report.html``.
@@ -245,7 +220,7 @@ def calibration_report(rig: Rig, model: SpatialModel, result: CampaignResult,
     from ..campaign import report_text
 
     out = Path(out_dir)
-    fig = fig_calibration(_calibration_points(result), result.calibration)
+    fig = fig_calibration(CalibrationPoints.from_campaign(result), result.calibration)
     png = save_png(fig, out / "figures" / "calibration.png")
     sections = [
         Section("Calibration", [

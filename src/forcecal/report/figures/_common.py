@@ -1,4 +1,5 @@
-"""Helpers shared by the figures: readable units, Fourier series over a window, line styles.
+"""Helpers shared by the figures: readable units, Fourier series over a window, line styles,
+a calibrated law over a cycle and in its collapse coordinates (fig. 9).
 
 Nothing here draws a whole figure. Axes show readable units: positions in mm, time in ms,
 forces in N, currents in A and displacements in the engineering prefix that suits their size
@@ -7,11 +8,13 @@ forces in N, currents in A and displacements in the engineering prefix that suit
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 from matplotlib.axes import Axes
 
+from ...actuator import Calibration, ExtrapolationWarning, predict
 from ...errors import DimensionError, InputError
 from ...forces import ForceEstimate, channels_si
 from ...harmonics import HarmonicFit, fit_harmonics
@@ -22,11 +25,15 @@ __all__ = [
     "DEFAULT_PERIODS",
     "check_run",
     "fourier_series",
+    "law_argument",
+    "law_cycle",
+    "law_harmonics",
     "legend_right",
     "measured_width",
     "panel_title",
     "prefixed_unit",
     "quantity",
+    "running_max",
     "sensor_fit",
     "time_window",
 ]
@@ -226,3 +233,82 @@ def check_run(run: Run, estimate: ForceEstimate) -> None:
             f"run '{run.source}' has {run.n_samples} samples but the estimate of run "
             f"'{estimate.run_name}' has {len(estimate.time)}; pass the run it was computed from"
         )
+
+
+# --------------------------------------------------------------------------------------------
+# a calibrated law over a cycle, and in its collapse coordinates
+
+
+def law_harmonics(calibration: Calibration, current: np.ndarray, gaps: np.ndarray, fs: float,
+                  f0: float, t0: float = 0.0) -> tuple[float, float]:
+    """The law's mean and fundamental amplitude of the total force over one run.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        A (current, gap) law.
+    current : numpy.ndarray
+        ``(n_samples,)`` [A] the run's coil current.
+    gaps : numpy.ndarray
+        ``(n_samples, n_poles)`` or ``(n_samples,)`` [m] the instantaneous air gap at each pole.
+    fs : float
+        [Hz] sampling rate.
+    f0 : float
+        [Hz] the run's fundamental.
+    t0 : float
+        [s] time of the first sample.
+
+    Returns
+    -------
+    tuple of (float, float)
+        (F_0, |F_1|) [N] of :func:`forcecal.actuator.predict`'s total force, by a harmonic fit.
+    """
+    current = np.asarray(current, dtype=float)
+    gaps = np.asarray(gaps, dtype=float)
+    if gaps.ndim == 1:
+        gaps = gaps[:, None]
+    with warnings.catch_warnings():
+        # the runs the law was fitted to: samples left out of the fit may reach a little past
+        # the calibrated range, which is no extrapolation worth a warning
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        total = predict(calibration, current, gaps).total
+    fit = fit_harmonics(total, fs, f0, 1, t0=t0)
+    return float(fit.phasors[0].real), float(abs(fit.phasors[1]))
+
+
+def law_cycle(cal: Calibration, dc: np.ndarray, ac: float, gap: float,
+              n_phase: int = 64) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and fundamental amplitude [N] of the law's total force over one cycle.
+
+    The current i = dc + ac cos(theta) at the static gap (the structure's motion neglected);
+    both (len(dc),).
+    """
+    theta = 2 * np.pi * np.arange(n_phase) / n_phase
+    current = (np.asarray(dc, dtype=float)[:, None] + ac * np.cos(theta)).ravel()
+    with warnings.catch_warnings():
+        # a static gap may lie just outside the range of the instantaneous gaps fitted
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        total = predict(cal, current, gap).total.reshape(len(dc), n_phase)
+    mean = total.mean(axis=1)
+    fundamental = 2 * np.abs(np.mean(total * np.exp(-1j * theta), axis=1))
+    return mean, fundamental
+
+
+def law_argument(cal: Calibration, current: np.ndarray, gaps: np.ndarray) -> np.ndarray | None:
+    """x such that the law's total force is K x [per K's unit]: the law's argument summed over
+    the poles (``i^2 / (s + s_fe)^2`` for ``K i^2 / (s + s_fe)^2``); None for a law that is
+    not linear in its first parameter."""
+    law = cal.law_object
+    jac = law.jacobian(cal.params, current, gaps)[..., 0]
+    with np.errstate(all="ignore"):
+        linear = np.allclose(law.per_pole(cal.params, current, gaps), cal.params[0] * jac,
+                             rtol=1e-9, atol=0.0)
+    return jac.sum(axis=1) if linear else None
+
+
+def running_max(values: np.ndarray, width: int) -> np.ndarray:
+    """The largest of ``values`` within ``width`` neighbours each side (a smooth envelope)."""
+    padded = np.pad(values, width, mode="edge")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, 2 * width + 1)
+    out: np.ndarray = windows.max(axis=1)
+    return out

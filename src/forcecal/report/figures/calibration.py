@@ -10,7 +10,7 @@ from __future__ import annotations
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from matplotlib.axes import Axes
@@ -23,9 +23,12 @@ from ...forces import ForceEstimate, channels_si
 from ...harmonics import fit_harmonics
 from ...records import Run
 from ...rig import Rig
-from ._common import panel_title
+from ._common import law_argument, law_cycle, law_harmonics, panel_title, running_max
 
-__all__ = ["CalibrationPoints", "fig_calibration", "law_harmonics"]
+if TYPE_CHECKING:
+    from ...campaign import CampaignResult
+
+__all__ = ["CalibrationPoints", "CampaignSamples", "fig_calibration", "law_harmonics"]
 
 _MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 _DASHES = ("-", "--", "-.", ":")
@@ -33,6 +36,34 @@ _DASHES = ("-", "--", "-.", ":")
 
 # --------------------------------------------------------------------------------------------
 # the data drawn
+
+
+@dataclass(frozen=True)
+class CampaignSamples:
+    """The calibration samples of a campaign's runs, pooled (``n`` samples).
+
+    Attributes
+    ----------
+    current : numpy.ndarray
+        ``(n,)`` [A] coil current.
+    gaps : numpy.ndarray
+        ``(n, n_poles)`` [m] instantaneous air gap at every pole.
+    force : numpy.ndarray
+        ``(n,)`` [N] reconstructed total force (reactions and inertia).
+    static_force : numpy.ndarray
+        ``(n,)`` [N] reactions-only total force.
+    run : numpy.ndarray
+        ``(n,)`` int: the run (index into the points) of every sample.
+    static_label : str
+        The legend of the reactions-only samples.
+    """
+
+    current: np.ndarray
+    gaps: np.ndarray
+    force: np.ndarray
+    static_force: np.ndarray
+    run: np.ndarray
+    static_label: str = "reactions only (inertia ignored)"
 
 
 @dataclass(frozen=True)
@@ -64,6 +95,8 @@ class CalibrationPoints:
         ``(n_runs,)`` [N] the law's fundamental amplitude of the total force, alike.
     names : tuple of str
         Run names (one per run) or empty.
+    samples : CampaignSamples or None
+        The calibration samples of every run (:meth:`from_campaign`), for the collapse panel.
     """
 
     gap: np.ndarray
@@ -76,6 +109,7 @@ class CalibrationPoints:
     law_dc: np.ndarray | None = None
     law_ac: np.ndarray | None = None
     names: tuple[str, ...] = ()
+    samples: CampaignSamples | None = None
 
     def __post_init__(self) -> None:
         n = None
@@ -100,6 +134,54 @@ class CalibrationPoints:
         if names and len(names) != n:
             raise DimensionError(f"calibration points: {len(names)} names for {n} runs")
         object.__setattr__(self, "names", names)
+        if self.samples is not None and int(self.samples.run.max()) >= self.gap.size:
+            raise DimensionError("calibration points: samples of run "
+                                 f"{self.samples.run.max()} but {self.gap.size} runs")
+
+    @classmethod
+    def from_campaign(cls, result: CampaignResult) -> CalibrationPoints:
+        """Points of a campaign's runs, with the law at each run's own current and gaps and
+        every run's calibration samples (for the collapse panel).
+
+        Parameters
+        ----------
+        result : CampaignResult
+            The campaign's calibration.
+
+        Returns
+        -------
+        CalibrationPoints
+            One point per run, in manifest order.
+        """
+        dc, ac, law_dc, law_ac = [], [], [], []
+        for r in result.runs:
+            smp, f0 = r.samples, r.estimate.f0
+            fs = smp.n * f0                             # the samples span one period evenly
+            current = fit_harmonics(smp.current, fs, f0, 1, t0=smp.time[0]).phasors
+            dc.append(current[0].real)
+            ac.append(abs(current[1]))
+            a, b = law_harmonics(result.calibration, smp.current, smp.gaps, fs, f0,
+                                 t0=smp.time[0])
+            law_dc.append(a)
+            law_ac.append(b)
+        est = [r.estimate for r in result.runs]
+        ro, label = result.reactions_only, "reactions only (inertia ignored)"
+        if ro.k_total_error is not None:
+            label += f": K off by {100 * ro.k_total_error:+.1f} %"
+        samples = CampaignSamples(
+            current=np.concatenate([r.samples.current for r in result.runs]),
+            gaps=np.vstack([r.samples.gaps for r in result.runs]),
+            force=np.concatenate([r.samples.force for r in result.runs]),
+            static_force=np.concatenate([r.samples.static_force for r in result.runs]),
+            run=np.concatenate([np.full(r.samples.n, k) for k, r in enumerate(result.runs)]),
+            static_label=label)
+        return cls(
+            gap=np.array([r.samples.static_gap for r in result.runs]), dc=np.array(dc),
+            ac=np.array(ac), force_dc=np.array([e.total[0].real for e in est]),
+            force_ac=np.array([abs(e.total[1]) for e in est]),
+            force_dc_std=np.array([e.total_std[0] for e in est]),
+            force_ac_std=np.array([e.total_std[1] for e in est]), law_dc=np.array(law_dc),
+            law_ac=np.array(law_ac), names=tuple(r.name for r in result.runs), samples=samples)
 
     @property
     def n_runs(self) -> int:
@@ -159,61 +241,6 @@ class CalibrationPoints:
         )
 
 
-def law_harmonics(calibration: Calibration, current: np.ndarray, gaps: np.ndarray, fs: float,
-                  f0: float, t0: float = 0.0) -> tuple[float, float]:
-    """The law's mean and fundamental amplitude of the total force over one run.
-
-    Parameters
-    ----------
-    calibration : Calibration
-        A (current, gap) law.
-    current : numpy.ndarray
-        ``(n_samples,)`` [A] the run's coil current.
-    gaps : numpy.ndarray
-        ``(n_samples, n_poles)`` or ``(n_samples,)`` [m] the instantaneous air gap at each pole.
-    fs : float
-        [Hz] sampling rate.
-    f0 : float
-        [Hz] the run's fundamental.
-    t0 : float
-        [s] time of the first sample.
-
-    Returns
-    -------
-    tuple of (float, float)
-        (F_0, |F_1|) [N] of :func:`forcecal.actuator.predict`'s total force, by a harmonic fit.
-    """
-    current = np.asarray(current, dtype=float)
-    gaps = np.asarray(gaps, dtype=float)
-    if gaps.ndim == 1:
-        gaps = gaps[:, None]
-    with warnings.catch_warnings():
-        # the runs the law was fitted to: samples left out of the fit may reach a little past
-        # the calibrated range, which is no extrapolation worth a warning
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        total = predict(calibration, current, gaps).total
-    fit = fit_harmonics(total, fs, f0, 1, t0=t0)
-    return float(fit.phasors[0].real), float(abs(fit.phasors[1]))
-
-
-def _law_cycle(cal: Calibration, dc: np.ndarray, ac: float, gap: float,
-               n_phase: int = 64) -> tuple[np.ndarray, np.ndarray]:
-    """Mean and fundamental amplitude [N] of the law's total force over one cycle.
-
-    The current i = dc + ac cos(theta) at the static gap (the structure's motion neglected);
-    both (len(dc),).
-    """
-    theta = 2 * np.pi * np.arange(n_phase) / n_phase
-    current = (np.asarray(dc, dtype=float)[:, None] + ac * np.cos(theta)).ravel()
-    with warnings.catch_warnings():
-        # a static gap may lie just outside the range of the instantaneous gaps fitted
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        total = predict(cal, current, gap).total.reshape(len(dc), n_phase)
-    mean = total.mean(axis=1)
-    fundamental = 2 * np.abs(np.mean(total * np.exp(-1j * theta), axis=1))
-    return mean, fundamental
-
-
 @dataclass(frozen=True)
 class _Law:
     """A (current, gap) law as drawn: the calibration and its (F_0, |F_1|) [N] at every run.
@@ -236,7 +263,7 @@ def _drawn_law(cal: Calibration | None, pts: CalibrationPoints) -> _Law | None:
         return _Law(cal, pts.law_dc, pts.law_ac, at_runs=True)
     dc, ac = np.empty(pts.n_runs), np.empty(pts.n_runs)
     for k in range(pts.n_runs):
-        mean, fund = _law_cycle(cal, pts.dc[k:k + 1], float(pts.ac[k]), float(pts.gap[k]))
+        mean, fund = law_cycle(cal, pts.dc[k:k + 1], float(pts.ac[k]), float(pts.gap[k]))
         dc[k], ac[k] = mean[0], fund[0]
     return _Law(cal, dc, ac, at_runs=False)
 
@@ -345,10 +372,15 @@ def fig_calibration(points: CalibrationPoints | Mapping[str, Any],
     cal = law.calibration() if isinstance(law, Selection) else law
     drawn = _drawn_law(cal, pts)
     gap_id, ac_id = _setpoints(pts)
-    fig = Figure(figsize=(12.0, 5.5 if drawn is None else 9.5), layout="constrained")
-    # the F_0 and |F_1| panels, and below them their residuals against a drawn law
-    axes = fig.subplots(1 if drawn is None else 2, 2, sharex=True, squeeze=False,
-                        height_ratios=None if drawn is None else (2.0, 1.0))
+    fig = Figure(figsize=(12.0, 5.5) if drawn is None else (17.0, 9.5), layout="constrained")
+    # the F_0 and |F_1| panels, below them their residuals against a drawn law, and beside
+    # them the collapse panel
+    grid = fig.add_gridspec(1 if drawn is None else 2, 2 if drawn is None else 3,
+                            height_ratios=None if drawn is None else (2.0, 1.0),
+                            width_ratios=None if drawn is None else (1.0, 1.0, 1.25))
+    axes = np.empty((grid.nrows, 2), dtype=object)
+    for r, c in np.ndindex(axes.shape):
+        axes[r, c] = fig.add_subplot(grid[r, c], sharex=None if r == 0 else axes[0, c])
     fig.suptitle(_calibration_title(pts, cal, int(gap_id.max()) + 1))
     for group in _groups(pts, gap_id, ac_id):
         _draw_group(axes[0, 0], axes[0, 1], pts, group, drawn)
@@ -357,6 +389,9 @@ def fig_calibration(points: CalibrationPoints | Mapping[str, Any],
     _label_top(axes[0, 0], axes[0, 1], cal, drawn)
     if drawn is not None:
         _label_residuals(axes[1, 0], axes[1, 1], drawn.at_runs)
+        for ax in axes[0]:
+            ax.tick_params(labelbottom=False)
+        _draw_collapse(fig.add_subplot(grid[:, 2]), pts, drawn.cal, gap_id, ac_id)
     for ax in fig.axes:
         ax.grid(alpha=0.3)
     handles = _legend_handles(pts, gap_id, ac_id, drawn)
@@ -381,19 +416,18 @@ def _draw_group(ax0: Axes, ax1: Axes, pts: CalibrationPoints, group: _Group,
 
 def _draw_group_law(ax0: Axes, ax1: Axes, pts: CalibrationPoints, group: _Group,
                     law: _Law) -> None:
-    """The law at a group's runs (small markers), or its curve at the group's static gap."""
+    """The law's smooth curve at the group's static gap and, when known, its value at each of
+    the group's runs (small filled markers)."""
     if law.at_runs:
         order = np.argsort(pts.dc[group.sel])
         for ax, values in ((ax0, law.dc), (ax1, law.ac)):
-            ax.plot(pts.dc[group.sel][order], values[group.sel][order], group.dash,
-                    color=group.color, lw=1.0, marker=group.marker, ms=3.5,
-                    label=f"law {group.tag}")
-        return
+            ax.plot(pts.dc[group.sel][order], values[group.sel][order], ls="none",
+                    color=group.color, marker=group.marker, ms=3.5, label=f"law at {group.tag}")
     lo = max(law.cal.current_range[0] + group.amp, 0.0)
     hi = law.cal.current_range[1] - group.amp
     if hi > lo:
         grid = np.linspace(lo, hi, 60)
-        mean, fund = _law_cycle(law.cal, grid, group.amp, group.gap)
+        mean, fund = law_cycle(law.cal, grid, group.amp, group.gap)
         ax0.plot(grid, mean, group.dash, color=group.color, lw=1.2, label=f"law {group.tag}")
         ax1.plot(grid, fund, group.dash, color=group.color, lw=1.2, label=f"law {group.tag}")
 
@@ -446,12 +480,12 @@ def _legend_handles(pts: CalibrationPoints, gap_id: np.ndarray, ac_id: np.ndarra
         dash = _DASHES[a % len(_DASHES)] if law is not None else "none"
         handles.append(Line2D([], [], color="0.3", marker=_MARKERS[a % len(_MARKERS)],
                               mfc="none", ls=dash, label=f"AC {amp:.3g} A"))
-    if law is not None and law.at_runs:
-        handles.append(Line2D([], [], color="0.3", marker="o", ms=3.5, ls="-", lw=1.0,
-                              label="law at each run's current and gap"))
-    elif law is not None:
+    if law is not None:
         handles.append(Line2D([], [], color="0.3", ls="-", lw=1.2,
                               label="law at the static gap (motion neglected)"))
+    if law is not None and law.at_runs:
+        handles.append(Line2D([], [], color="0.3", marker="o", ms=3.5, ls="none",
+                              label="law at each run's current and gap"))
     return handles
 
 
@@ -488,3 +522,70 @@ def _mark_repeats(ax: Axes, x: np.ndarray, y: np.ndarray) -> None:
         if sel.sum() > 1:
             ax.annotate(f"×{int(sel.sum())}", (float(np.mean(x[sel])), float(np.mean(y[sel]))),
                         textcoords="offset points", xytext=(7, -3), fontsize="small")
+
+
+# --------------------------------------------------------------------------------------------
+# the collapse panel
+
+
+def _collapse_samples(pts: CalibrationPoints) -> tuple[np.ndarray, np.ndarray, np.ndarray,
+                                                       np.ndarray | None, np.ndarray]:
+    """Current (n,), gaps (n, 1 or n_poles), measured and reactions-only force (n,) [N], and
+    the run of every sample: the campaign's samples, or else each run's cycle
+    i = I_0 + I_1 cos(theta) at its static gap (64 phases) with its F_0."""
+    if pts.samples is not None:
+        smp = pts.samples
+        return smp.current, smp.gaps, smp.force, smp.static_force, smp.run
+    theta = 2 * np.pi * np.arange(64) / 64
+    current = (pts.dc[:, None] + pts.ac[:, None] * np.cos(theta)).ravel()
+    run = np.repeat(np.arange(pts.n_runs), theta.size)
+    return current, pts.gap[run][:, None], pts.force_dc[run], None, run
+
+
+def _draw_collapse(ax: Axes, pts: CalibrationPoints, cal: Calibration, gap_id: np.ndarray,
+                   ac_id: np.ndarray) -> None:
+    """Measured force against the law's argument x: every run on the law's straight line.
+
+    With the campaign's samples, every sample (and its reactions-only force); otherwise each
+    run's F_0 against the mean of x over its cycle: at the run's own current and gaps when
+    ``law_dc`` is given (law_dc / K), else at the static gap."""
+    current, gaps, force, static, run = _collapse_samples(pts)
+    gaps = np.broadcast_to(gaps, (current.size, cal.n_poles))
+    x = law_argument(cal, current, gaps)
+    law = cal.law_object
+    if x is None:
+        ax.text(0.02, 0.98, f"law '{cal.law}' is not linear in {law.param_names[0]}:\nno "
+                "collapse", transform=ax.transAxes, va="top", fontsize="small")
+        return
+    si = law.param_units[0] == "N m^2/A^2"
+    scale, unit = (1e-6, "A²/mm²") if si else (1.0, f"N / ({law.param_units[0]})")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        pred = predict(cal, current, gaps)
+    order = np.argsort(x)
+    half = 2 * running_max(pred.std[order], max(len(x) // 40, 1))
+    ax.fill_between(x[order] * scale, pred.total[order] - half, pred.total[order] + half,
+                    color="0.5", alpha=0.3, lw=0, label="law ±2σ of the prediction")
+    ax.plot(x[order] * scale, pred.total[order], "-", color="k", lw=1.2,
+            label=f"law: total force = {law.param_names[0]} x")
+    if static is not None and pts.samples is not None:
+        ax.plot(x * scale, static, "x", color="0.45", ms=3.5, mew=0.8,
+                label=pts.samples.static_label)
+    for k in range(pts.n_runs):
+        sel = run == k
+        xs, ys = (x[sel], force[sel]) if pts.samples is not None else \
+            (np.mean(x[sel], keepdims=True), pts.force_dc[k:k + 1])
+        if pts.samples is None and pts.law_dc is not None:     # x at the run's own gaps
+            xs = pts.law_dc[k:k + 1] / cal.params[0]
+        ax.plot(xs * scale, ys, _MARKERS[ac_id[k] % len(_MARKERS)], mfc="none",
+                color=f"C{gap_id[k] % 10}", ms=4 if pts.samples is not None else 7, mew=0.9,
+                alpha=0.8, label="measured (reactions and inertia)" if k == 0 else "_nolegend_")
+    arg = law.formula.split("=", 1)[1].strip().removeprefix(law.param_names[0]).strip()
+    arg = arg.replace("^2", "²").replace("s + s_fe", "s_p + s_fe").replace(" s²", " s_p²")
+    ax.set_xlabel(f"law argument x = Σ over the poles p of {arg} [{unit}]")
+    ax.set_ylabel("total force [N]")
+    what = "samples" if pts.samples is not None else "mean force $F_0$ of every run (x: mean)"
+    if pts.samples is None and pts.law_dc is None:
+        what += ",\nat the static gap (motion neglected)"
+    panel_title(ax, f"Collapse: the {what} against the law's argument")
+    ax.legend(loc="upper left", fontsize="small")

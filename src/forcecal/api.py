@@ -1,0 +1,168 @@
+"""The method's steps as a Python API: thin wrappers re-exported at the package's top level.
+
+Each function is one step of the command line (INTERFACES.md section 5) and takes or returns
+the stage objects (SI units); none writes a file. The chain, on a rig file, a scan, a run and a
+campaign manifest::
+
+    import forcecal
+
+    rig = forcecal.load_rig("rig.toml")
+    scan = forcecal.read_scan("scan.uff", rig=rig)
+    model = forcecal.build_spatial_model(rig, scan)
+    est = forcecal.reconstruct(rig, model, forcecal.read_run("runs/r01.csv"))
+    result = forcecal.calibrate(rig, model, "manifest.csv")
+    cal = forcecal.load_calibration("out/calibration.json")
+
+Like the command line, this module sits outside the core: it reads files (:mod:`forcecal.io`).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from .actuator import Calibration, Law
+from .campaign import CampaignResult, calibrate_campaign
+from .campaign import load_calibration as _load_calibration
+from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
+from .forces import reconstruct
+from .io.run_files import read_run
+from .io.scan_files import read_scan as _read_scan
+from .records import Scan
+from .rig import Rig, load_rig
+from .spatial import SpatialModel, build_spatial_model, load_model
+
+# load_rig, read_run, build_spatial_model, load_model and reconstruct are re-exported unchanged.
+__all__ = [
+    "build_spatial_model",
+    "calibrate",
+    "load_calibration",
+    "load_model",
+    "load_rig",
+    "read_run",
+    "read_scan",
+    "reconstruct",
+]
+
+
+def read_scan(path: str | Path, rig: Rig | None = None, reference_label: str = "Ref") -> Scan:
+    """Read an SLDV scan, choosing the reader from the file suffix.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.uff``/``.unv`` (Universal File), ``.h5``/``.hdf5`` or ``.npz``.
+    rig : Rig, optional
+        The rig the scan was measured on. On a rig whose gauges, forces and sensors carry a
+        measuring direction (a 3-D body), every record's point is read with its direction,
+        ``(n, 6)``; without a rig, points only.
+    reference_label : str
+        For a Universal File: the text in id line 2 of the reference records.
+
+    Returns
+    -------
+    Scan
+        The records in SI units, ``source`` = ``str(path)``.
+
+    Raises
+    ------
+    InputError
+        An unknown suffix, a missing or unreadable file, or a missing or malformed array.
+    DataError
+        Records that do not pair up or disagree.
+
+    Examples
+    --------
+    >>> rig = forcecal.load_rig("rig.toml")                      # doctest: +SKIP
+    >>> scan = forcecal.read_scan("scan.uff", rig=rig)           # doctest: +SKIP
+    >>> scan.n_points                                            # doctest: +SKIP
+    """
+    locations = bool(rig is not None and rig.structure.directed)
+    return _read_scan(path, reference_label=reference_label, locations=locations)
+
+
+def calibrate(
+    rig: Rig,
+    scan_or_model: Scan | SpatialModel,
+    manifest_path: str | Path,
+    progress: Callable[[int, int, str], None] | None = None,
+    workers: int | None = None,
+    laws: Sequence[Law] | None = None,
+    ac_only: bool = False,
+    samples_per_period: int = DEFAULT_SAMPLES_PER_PERIOD,
+) -> CampaignResult:
+    """Reconstruct every run of a campaign and calibrate the actuator law on them.
+
+    A thin wrapper over :func:`forcecal.campaign.calibrate_campaign` that also takes a scan,
+    from which the spatial model is built first (:func:`forcecal.spatial.build_spatial_model`
+    with its defaults). Write the result with :func:`forcecal.campaign.write_calibration`.
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig; ``rig.actuator`` names the current (and flux) channels.
+    scan_or_model : Scan or SpatialModel
+        The SLDV scan, or the spatial model already built from it.
+    manifest_path : str or Path
+        The campaign manifest CSV (runs, static gaps, tares).
+    progress : callable, optional
+        Called as ``progress(done, total, run_name)`` after each run.
+    workers : int, optional
+        Processes reconstructing the runs (default: by the number of runs and cores). With
+        more than one, a calling script must guard its top level with
+        ``if __name__ == "__main__":``.
+    laws : sequence of Law, optional
+        Candidate laws (default: the (current, gap) laws,
+        :data:`forcecal.campaign.CURRENT_GAP_LAWS`).
+    ac_only : bool
+        The gauges are AC-coupled: the laws are fitted to the harmonics alone.
+    samples_per_period : int
+        Calibration samples taken from each run.
+
+    Returns
+    -------
+    CampaignResult
+        The runs, the chosen law's ``calibration``, the candidate laws' scores and the
+        reactions-only comparison.
+
+    Raises
+    ------
+    FitError
+        When no candidate law is identifiable from the campaign.
+
+    Examples
+    --------
+    >>> result = forcecal.calibrate(rig, scan, "manifest.csv")   # doctest: +SKIP
+    >>> result.calibration                                       # doctest: +SKIP
+    """
+    model = (scan_or_model if isinstance(scan_or_model, SpatialModel)
+             else build_spatial_model(rig, scan_or_model))
+    return calibrate_campaign(rig, model, manifest_path, progress=progress, workers=workers,
+                              laws=laws, ac_only=ac_only, samples_per_period=samples_per_period)
+
+
+def load_calibration(path: str | Path) -> Calibration:
+    """Read the calibration of a ``calibration.json``.
+
+    Parameters
+    ----------
+    path : str or Path
+        A file written by ``forcecal calibrate`` (or by :meth:`Calibration.save`).
+
+    Returns
+    -------
+    Calibration
+        The chosen law with its parameters and covariance; predict with
+        :func:`forcecal.actuator.predict`.
+
+    Raises
+    ------
+    InputError
+        Naming the file, when it is missing, not JSON, or lacks a key.
+
+    Examples
+    --------
+    >>> cal = forcecal.load_calibration("out/calibration.json")  # doctest: +SKIP
+    >>> forcecal.actuator.predict(cal, 1.5, 1e-3).total          # doctest: +SKIP
+    """
+    return _load_calibration(path)

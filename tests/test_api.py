@@ -1,0 +1,175 @@
+"""Tests of the top-level Python API: the whole chain through ``forcecal.NAME`` on the simulated
+'paper' rig, the results' short reprs and notebook tables, and their pandas frames."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import forcecal
+from forcecal import forces, spatial
+from forcecal.campaign import calibrate_campaign, write_calibration
+
+STEPS = ("load_rig", "read_scan", "read_run", "build_spatial_model", "load_model",
+         "reconstruct", "calibrate", "load_calibration")
+MAX_REPR = 400
+"""A repr longer than this is a dump, not a summary."""
+
+
+@pytest.fixture(scope="module")
+def chain(paper_dir, tmp_path_factory):
+    """Rig, scan, model (saved and loaded again), run, estimate and calibration, by the API."""
+    out = tmp_path_factory.mktemp("api")
+    rig = forcecal.load_rig(paper_dir / "rig.toml")
+    scan = forcecal.read_scan(paper_dir / "scan.uff", rig=rig)
+    built = forcecal.build_spatial_model(rig, scan)
+    model = forcecal.load_model(built.save(out / "model.json"))
+    run = forcecal.read_run(paper_dir / "runs" / "paper.csv")
+    est = forcecal.reconstruct(rig, model, run)
+    result = forcecal.calibrate(rig, model, paper_dir / "manifest.csv", workers=1)
+    write_calibration(result, out)
+    cal = forcecal.load_calibration(out / "calibration.json")
+    return SimpleNamespace(rig=rig, scan=scan, built=built, model=model, run=run, est=est,
+                           result=result, cal=cal, out=out, paper_dir=paper_dir)
+
+
+def test_every_step_is_a_documented_top_level_name():
+    for name in STEPS:
+        assert name in forcecal.__all__
+        func = getattr(forcecal, name)
+        assert callable(func) and func.__doc__ and "Parameters" in func.__doc__, name
+    for name in ("read_scan", "calibrate", "load_calibration"):
+        doc = getattr(forcecal, name).__doc__
+        assert "Examples" in doc and "Returns" in doc, name
+    with pytest.raises(AttributeError, match="no attribute 'nonsense'"):
+        _ = forcecal.nonsense
+
+
+def test_import_forcecal_stays_light():
+    code = ("import sys, forcecal; heavy = [m for m in ('matplotlib', 'pandas', 'scipy.stats') "
+            "if m in sys.modules]; print(','.join(heavy))")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          check=True)
+    assert done.stdout.strip() == ""
+
+
+def test_the_chain_gives_what_the_stage_functions_give(chain):
+    direct = forces.reconstruct(chain.rig, spatial.build_spatial_model(chain.rig, chain.scan),
+                                chain.run)
+    np.testing.assert_allclose(chain.est.series, direct.series, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(chain.est.force, direct.force, rtol=1e-9, atol=1e-12)
+    assert chain.est.run_name == "paper"
+    np.testing.assert_array_equal(chain.model.harmonics, chain.built.harmonics)
+    reference = calibrate_campaign(chain.rig, chain.model, chain.paper_dir / "manifest.csv",
+                                   workers=1)
+    np.testing.assert_allclose(chain.result.calibration.params, reference.calibration.params,
+                               rtol=1e-12)
+    assert chain.cal.law == chain.result.calibration.law
+    np.testing.assert_allclose(chain.cal.params, chain.result.calibration.params, rtol=1e-12)
+    np.testing.assert_allclose(chain.cal.covariance, chain.result.calibration.covariance,
+                               rtol=1e-12)
+
+
+def test_calibrate_builds_the_model_from_a_scan(chain):
+    from_scan = forcecal.calibrate(chain.rig, chain.scan, chain.paper_dir / "manifest.csv",
+                                   workers=1)
+    assert from_scan.calibration.law == chain.result.calibration.law
+    np.testing.assert_allclose(from_scan.calibration.params, chain.result.calibration.params,
+                               rtol=1e-9)
+
+
+@pytest.mark.parametrize("directed", [False, True])
+def test_read_scan_reads_locations_on_a_directed_rig(monkeypatch, directed):
+    from forcecal import api
+
+    seen = {}
+
+    def fake(path, reference_label="Ref", locations=False):
+        seen.update(path=path, reference_label=reference_label, locations=locations)
+        return "scan"
+
+    monkeypatch.setattr(api, "_read_scan", fake)
+    rig = SimpleNamespace(structure=SimpleNamespace(directed=directed))
+    assert forcecal.read_scan("s.uff", rig=rig, reference_label="R") == "scan"
+    assert seen == {"path": "s.uff", "reference_label": "R", "locations": directed}
+    forcecal.read_scan("s.uff")
+    assert seen["locations"] is False
+
+
+def _check_short(text: str) -> None:
+    assert len(text) < MAX_REPR, text
+    assert "array(" not in text and "\n" not in text, text
+
+
+def test_force_estimate_prints_a_summary(chain):
+    est = chain.est
+    text = repr(est)
+    _check_short(text)
+    assert "'paper'" in text and f"f0 = {est.f0:.6g} Hz" in text
+    for k, name in enumerate(est.force_names):
+        assert f"{name} {abs(est.force[k, 1]):.4g} ± {est.force_std[k, 1]:.2g}" in text
+    assert f"total {abs(est.total[1]):.4g} ± {est.total_std[1]:.2g}" in text
+    assert f"inertia share {100 * est.inertia_share:.1f} %" in text
+    html = est._repr_html_()
+    assert html.count("<tr>") == len(est.force_names) + 2 and "paper" in html
+    assert f"{abs(est.static[0, 1]):.4g}" in html
+
+
+def test_force_estimate_to_dataframe(chain):
+    est = chain.est
+    df = est.to_dataframe()
+    names = list(est.force_names)
+    assert list(df.columns) == [*names, "total", *(f"{n}_static" for n in names),
+                                "total_static"]
+    assert df.index.name == "time"
+    np.testing.assert_array_equal(df.index.to_numpy(), est.time)
+    np.testing.assert_array_equal(df[names].to_numpy().T, est.series)
+    np.testing.assert_array_equal(df[[f"{n}_static" for n in names]].to_numpy().T,
+                                  est.static_series)
+    np.testing.assert_allclose(df["total"].to_numpy(), est.series.sum(axis=0), rtol=1e-12)
+    np.testing.assert_allclose(df["total_static"].to_numpy(), est.static_series.sum(axis=0),
+                               rtol=1e-12)
+
+
+def test_force_estimate_harmonics_frame(chain):
+    est = chain.est
+    frame = est.harmonics_frame()
+    assert frame.index.names == ["force", "harmonic"]
+    assert len(frame) == est.force.size
+    for k, name in enumerate(est.force_names):
+        rows = frame.loc[name]
+        np.testing.assert_array_equal(rows.index.to_numpy(), est.harmonics)
+        np.testing.assert_array_equal(rows["amplitude"].to_numpy(), np.abs(est.force[k]))
+        np.testing.assert_array_equal(rows["phase"].to_numpy(), np.angle(est.force[k]))
+        np.testing.assert_array_equal(rows["std"].to_numpy(), est.force_std[k])
+        np.testing.assert_array_equal(rows["static_amplitude"].to_numpy(),
+                                      np.abs(est.static[k]))
+        np.testing.assert_array_equal(rows["with_inertia"].to_numpy(), est.with_inertia)
+
+
+def test_spatial_model_prints_a_summary(chain):
+    model = chain.model
+    text = repr(model)
+    _check_short(text)
+    assert f"f0 {model.f0:.6g} Hz" in text
+    orders = ", ".join(f"{int(n)} ({s.order})" for n, s in
+                       zip(model.harmonics, model.shapes, strict=True))
+    assert orders in text
+    assert f"records set aside {len(model.set_aside)}" in text
+    assert "<table>" in model._repr_html_()
+
+
+def test_calibration_prints_its_law(chain):
+    cal = chain.cal
+    text = repr(cal)
+    _check_short(text)
+    assert f"'{cal.law}'" in text and cal.law_object.formula in text
+    for name, value, std in zip(cal.law_object.param_names, cal.params, cal.stderr,
+                                strict=True):
+        assert f"{name} = {value:.6g} ± {std:.2g}" in text
+    html = cal._repr_html_()
+    assert html.count("<tr>") == len(cal.params) + 1
