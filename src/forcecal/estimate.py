@@ -1,0 +1,157 @@
+"""The result of a force reconstruction: :class:`ForceEstimate`, the forces of one run with
+their uncertainties, the inertia term, the reactions-only baseline and the notes, and the
+views a user reads them through (a short repr, an HTML table, pandas frames)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .coordinates import Coordinates
+
+__all__ = ["ForceEstimate"]
+
+
+@dataclass(frozen=True)
+class ForceEstimate:
+    """The forces of one run.
+
+    Attributes
+    ----------
+    f0 : [Hz] refined fundamental of the run; f0_std : [Hz] its standard uncertainty
+    harmonics : (H+1,) int 0..H; phasors follow the convention of :mod:`forcecal.harmonics`
+    force : (n_forces, H+1) complex [N]; force_std : (n_forces, H+1) [N] (Re and Im each)
+    total : (H+1,) complex [N]; total_std : (H+1,) [N]
+    static : (n_forces, H+1) complex [N]: reactions-only phasors
+    inertia : (n_gauges, H+1) complex [N]: J_{r,n}
+    reactions : (n_gauges, H+1) complex [N]
+    with_inertia : (H+1,) bool: harmonics whose inertia came from the scan model
+    kept : (H+1,) bool: harmonics the data support (a shape in the model, or reactions above
+        five times their noise); the others are set to zero
+    time : (n_samples,) [s]; series : (n_forces, n_samples) [N];
+    static_series : (n_forces, n_samples) [N] -Psi^+ R(t) sample by sample
+    combination_names, combination, combination_std : every force, the total and the
+        resultant's first moments (:func:`forcecal.uncertainty.combinations`), phasors
+        (n_c, H+1) [N, N m] with their standard uncertainties
+    """
+
+    run_name: str
+    force_names: tuple[str, ...]
+    gauge_names: tuple[str, ...]
+    f0: float
+    harmonics: np.ndarray
+    force: np.ndarray
+    force_std: np.ndarray
+    total: np.ndarray
+    total_std: np.ndarray
+    static: np.ndarray
+    inertia: np.ndarray
+    reactions: np.ndarray
+    with_inertia: np.ndarray
+    kept: np.ndarray
+    coordinates: Coordinates
+    time: np.ndarray
+    series: np.ndarray
+    static_series: np.ndarray
+    psi_condition: float
+    consistency: np.ndarray
+    f0_std: float = 0.0
+    combination_names: tuple[str, ...] = ()
+    combination: np.ndarray | None = None
+    combination_std: np.ndarray | None = None
+    dc_observed: bool = True
+    notes: tuple[str, ...] = field(default=())
+
+    @property
+    def total_series(self) -> np.ndarray:
+        """(n_samples,) [N]"""
+        return self.series.sum(axis=0)
+
+    @property
+    def inertia_share(self) -> float:
+        """RMS of the inertia's contribution to the total AC force over the RMS of that force."""
+        inertia_total = np.sum(self.inertia_force[:, 1:], axis=0)
+        return float(np.sqrt(np.sum(np.abs(inertia_total) ** 2))
+                     / np.sqrt(np.sum(np.abs(self.total[1:]) ** 2)))
+
+    @property
+    def inertia_force(self) -> np.ndarray:
+        """(n_forces, H+1) complex [N]: the inertia's contribution Psi^+ J_n to each force."""
+        return self.force - self.static
+
+    @property
+    def waveform_std(self) -> float:
+        """Standard uncertainty [N] of the total force waveform (RMS over the record, AC part).
+
+        The phasors' uncertainties, plus the fundamental's: an error df in f0 turns harmonic n
+        by 2 pi n df (t - t_mid), whose mean square over a record of duration T is
+        (2 pi n df)^2 T^2 / 12.
+        """
+        n = self.harmonics[1:]
+        duration = self.time[-1] - self.time[0] if self.time.size > 1 else 0.0
+        drift = (2 * np.pi * n * self.f0_std * duration) ** 2 / 12 * np.abs(self.total[1:]) ** 2 / 2
+        return float(np.sqrt(np.sum(self.total_std[1:] ** 2) + np.sum(drift)))
+
+    def _fundamentals(self) -> list[tuple[str, float, float, float]]:
+        """(name, |F_1|, its std, reactions-only |F_1|) [N] of every force and the total."""
+        if self.force.shape[1] < 2:
+            return []
+        f, std, st = (np.vstack([a, a.sum(axis=0)]) for a in (self.force, self.force_std,
+                                                              self.static))
+        std[-1] = self.total_std
+        return [(name, float(abs(f[k, 1])), float(std[k, 1]), float(abs(st[k, 1])))
+                for k, name in enumerate((*self.force_names, "total"))]
+
+    def __repr__(self) -> str:
+        """One line: the run, its fundamental, every force's |F_1| with std, the inertia share."""
+        amps = ", ".join(f"{name} {a:.4g} ± {s:.2g}" for name, a, s, _ in self._fundamentals())
+        return (f"ForceEstimate(run '{self.run_name}', f0 = {self.f0:.6g} Hz, "
+                f"|F_1| [N]: {amps or 'none'}; inertia share {self._share()})")
+
+    def _share(self) -> str:
+        return f"{100 * self.inertia_share:.1f} %" if np.any(self.total[1:]) else "n/a"
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: per force, |F_1| with std and the reactions-only one."""
+        from html import escape
+
+        rows = "".join(f"<tr><td>{escape(n)}</td><td>{a:.4g}</td><td>{s:.2g}</td>"
+                       f"<td>{r:.4g}</td></tr>" for n, a, s, r in self._fundamentals())
+        return (f"<p><b>ForceEstimate</b> of run '{escape(self.run_name)}': f<sub>0</sub> = "
+                f"{self.f0:.6g} Hz, inertia share {self._share()}</p><table><tr><th>force</th>"
+                "<th>|F<sub>1</sub>| [N]</th><th>std [N]</th>"
+                f"<th>reactions only [N]</th></tr>{rows}</table>")
+
+    @staticmethod
+    def _pandas() -> Any:
+        import pandas  # type: ignore[import-untyped]  # imported on use only
+
+        return pandas
+
+    def to_dataframe(self) -> Any:
+        """The force series as a pandas DataFrame: index ``time`` [s], one column per force,
+        ``total``, and the reactions-only ones with suffix ``_static`` [N] (the columns of
+        ``NAME.forces.csv``). Example: ``est.to_dataframe()[["total", "total_static"]]``."""
+        pd = self._pandas()
+        names = (*self.force_names, "total")
+        values = np.vstack([self.series, self.total_series, self.static_series,
+                            self.static_series.sum(axis=0)])
+        columns = [*names, *(f"{n}_static" for n in names)]
+        return pd.DataFrame(values.T, columns=columns, index=pd.Index(self.time, name="time"))
+
+    def harmonics_frame(self) -> Any:
+        """Every force's harmonics as a pandas DataFrame, index (``force``, ``harmonic``):
+        ``amplitude`` |F_n| [N], ``phase`` [rad], ``std`` [N] (of Re and of Im),
+        ``static_amplitude`` (reactions only) [N], ``with_inertia``, ``kept`` (bool).
+        Example: ``est.harmonics_frame().loc["F1", "amplitude"]``."""
+        pd = self._pandas()
+        n_f = len(self.force_names)
+        index = pd.MultiIndex.from_product(
+            [list(self.force_names), [int(n) for n in self.harmonics]], names=["force", "harmonic"])
+        return pd.DataFrame({
+            "amplitude": np.abs(self.force).ravel(), "phase": np.angle(self.force).ravel(),
+            "std": self.force_std.ravel(), "static_amplitude": np.abs(self.static).ravel(),
+            "with_inertia": np.tile(self.with_inertia.astype(bool), n_f),
+            "kept": np.tile(self.kept.astype(bool), n_f)}, index=index)
