@@ -290,12 +290,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     -------
     ForceEstimate
     """
-    for name, value, kind in (("rig", rig, Rig), ("model", model, SpatialModel),
-                              ("run", run, Run), ("tare", tare, (Run, type(None)))):
-        if not isinstance(value, kind):
-            raise InputError(f"reconstruct: '{name}' must be a {getattr(kind, '__name__', 'Run')}"
-                             f" (from forcecal.load_rig, build_spatial_model or read_run); got "
-                             f"{type(value).__name__}")
+    _check_arguments(rig, model, run, tare)
     if rig.frequency is None:
         raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing")
     check_model_rig(model, rig)
@@ -339,6 +334,16 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
         dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std,
     )
+
+
+def _check_arguments(rig: object, model: object, run: object, tare: object) -> None:
+    """InputError, not an AttributeError, when a library caller passes the wrong objects."""
+    for name, value, kind in (("rig", rig, Rig), ("model", model, SpatialModel),
+                              ("run", run, Run), ("tare", tare, (Run, type(None)))):
+        if not isinstance(value, kind):
+            raise InputError(f"reconstruct: '{name}' must be a {getattr(kind, '__name__', 'Run')}"
+                             f" (from forcecal.load_rig, build_spatial_model or read_run); got "
+                             f"{type(value).__name__}")
 
 
 def _self_checks(rig: Rig, run: Run, rec: _Records, coords: Coordinates, force: np.ndarray,
