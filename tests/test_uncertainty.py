@@ -278,10 +278,11 @@ def test_coverage_shape_dominated(draws, c, n):
     check_two_sided(draws.noisy_scan.cell(c, n), f"noisy scan {c} at n = {n}")
 
 
-# Achieved (80 draws: RMS <= 1.27, fraction >= 86.2 %): F1 0.23/100 %, F2 0.23/100 %,
-# moment_x 0.72/100 %, total 0.72/100 % (the total was at 1.36 while the bound was the whole
-# mass moving with the probes' RMS motion; it is now the nearest shape's inertia from the
-# probes' own phasors)
+# Achieved (80 draws: RMS <= 1.27, fraction >= 86.2 %): F1 0.23/100 %, F2 0.23/100 % (the
+# floor, the whole mass at the probes' noise, dominates the single forces), moment_x
+# 0.97/100 %, total 1.01/100 % (the total was at 1.36 while the bound was the whole mass moving
+# with the probes' RMS motion; it is now the nearest shape's inertia from the probes' own
+# phasors)
 @pytest.mark.parametrize("c", ["F1", "F2", "moment_x", "total"])
 def test_unresolved_harmonic_is_covered(draws, c):
     """n = 3 shows in the reactions but the noisy scan does not resolve it: its inertia is left

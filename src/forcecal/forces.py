@@ -249,9 +249,9 @@ def _unresolved(rig: Rig, model: SpatialModel, s_fit: HarmonicFit, a_r: np.ndarr
                 with_inertia: np.ndarray, kept: np.ndarray, w0: float,
                 var: np.ndarray) -> list[str]:
     """Harmonics kept without a shape: their uncompensated inertia enters the variance ``var``
-    (updated in place) as a standard uncertainty of each part (Re, Im) equal to the inertia
-    that the nearest harmonic's shape would give it from the probes, and never below the whole
-    mass moving at the probes' noise; returns a note per harmonic."""
+    (updated in place): the inertia that the nearest harmonic's shape would give it from the
+    probes, as the standard uncertainty of the complex phasor, and never below the whole mass
+    moving at the probes' noise; returns a note per harmonic."""
     notes = []
     n_g = len(rig.gauges)
     for n in np.flatnonzero(kept & ~with_inertia):
@@ -259,7 +259,9 @@ def _unresolved(rig: Rig, model: SpatialModel, s_fit: HarmonicFit, a_r: np.ndarr
             continue
         bound = unresolved_inertia_bound(rig, s_fit, int(n), w0)
         floor = bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1)
-        proxy = np.abs(a_r @ unresolved_inertia(model, rig, s_fit, int(n), w0)) ** 2
+        # the proxy's magnitude is the complex phasor's standard uncertainty: half its
+        # square on each of Re and Im
+        proxy = np.abs(a_r @ unresolved_inertia(model, rig, s_fit, int(n), w0)) ** 2 / 2
         var[:, n, :] += np.maximum(proxy, floor)[:, None]
         notes.append(f"harmonic {n}: no shape in the scan model "
                      f"({model.dropped.get(int(n), 'not scanned')}); its inertia, up to "

@@ -42,6 +42,7 @@ from .vector_basis import VectorShapeFit
 __all__ = [
     "MAX_SET_ASIDE",
     "MIN_RELATIVE",
+    "MODEL_ERROR_SHARE",
     "NOISE_FLOOR",
     "OUTLIER",
     "Screening",
@@ -63,6 +64,10 @@ scan's polynomial shapes miss a record by a few % of it where the shape bends sh
 dropout by about 100 %."""
 MAX_SET_ASIDE = 0.2
 """Largest fraction of the records that may be set aside."""
+MODEL_ERROR_SHARE = 0.05
+"""When more than this fraction of the records (and more than 3) contradict the shapes one
+after another, the basis misses the shape (model error, e.g. a mode-shape basis on a plate),
+not a few bad records: none is set aside for it, and a note says so."""
 _RAYLEIGH_MEDIAN = float(np.sqrt(2.0 * np.log(2.0)))
 """Median of a Rayleigh variable of unit scale: |Re + j Im| with Re, Im ~ N(0, 1)."""
 
@@ -79,10 +84,13 @@ class Screening:
         Records used for the shapes.
     reasons : dict
         Record index (0-based) -> why it was set aside.
+    note : str
+        Why no record was set aside for contradicting the shapes, when many did ("" else).
     """
 
     keep: np.ndarray
     reasons: dict[int, str]
+    note: str = ""
 
 
 def record_weights(std: np.ndarray) -> np.ndarray:
@@ -203,7 +211,17 @@ def screen_records(points: np.ndarray, values: np.ndarray, std: np.ndarray,
     budget = int(MAX_SET_ASIDE * n)
     keep = np.ones(n, dtype=bool)
     keep[list(reasons)] = False
+    given = dict(reasons)
+    limit = max(3, int(MODEL_ERROR_SHARE * n))
     while len(reasons) < budget:
+        if len(reasons) - len(given) > limit:
+            keep = np.ones(n, dtype=bool)
+            keep[list(given)] = False
+            return Screening(keep=keep, reasons=given, note=(
+                f"more than {limit} of {n} records miss the fitted shapes by more than "
+                f"{OUTLIER:g} robust scales and {MIN_RELATIVE:.0%} of their amplitude, one "
+                "after another: the basis cannot follow the shape (model error, not bad "
+                "records); none is set aside for it (try the polynomial basis)"))
         idx = np.flatnonzero(keep)
         worst, where, score, share = -1, -1, OUTLIER, 0.0
         for row, harmonic in resolved:

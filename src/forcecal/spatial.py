@@ -285,6 +285,8 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
     vals = [f.evaluate(points[keep]) for f in chosen]
     mac = np.array([[shape_similarity(a, b) for b in vals] for a in vals])
     notes = st.model_notes(chosen) + _set_aside_notes(scan, screening.reasons)
+    if screening.note:
+        notes += (f"scan '{scan.source}': {screening.note}",)
     return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(chosen),
                         couplings=couplings, similarity=mac, snr=snr,
                         gauge_names=tuple(rig.gauge_names), dropped=dropped,
