@@ -196,15 +196,14 @@ def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
                  h: int) -> tuple[float, float, list[str]]:
     """Step 1: the run's refined fundamental, its uncertainty, and a note when it differs from
     the scan model's."""
-    assert rig.frequency is not None
-    check_record_length(run, rig.frequency)
+    check_record_length(run, rig.drive_frequency)
     records = _driven(rec)
     try:
         f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
     except DataError:
         # a drive that drifts within the record defeats one fundamental: say so, not that the
         # nominal frequency is wrong
-        drift = drift_notes(rec.current, run.fs, rig.frequency, f"run '{run.source}'",
+        drift = drift_notes(rec.current, run.fs, rig.drive_frequency, f"run '{run.source}'",
                             t0=run.t0)
         if drift:
             raise DataError(drift[0]) from None
@@ -293,8 +292,6 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     ForceEstimate
     """
     _check_arguments(rig, model, run, tare)
-    if rig.frequency is None:
-        raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing")
     check_model_rig(model, rig)
     h = n_harmonics or len(model.snr)
     rec = _records(rig, run)
@@ -446,9 +443,9 @@ def refined_fundamental(records: list[np.ndarray], fs: float, rig: Rig, n_harmon
     -------
     float [Hz]
     """
-    assert rig.frequency is not None
+    nominal = rig.drive_frequency
     try:
-        return refine_fundamental(records, fs, rig.frequency, n_harmonics, t0=t0)
+        return refine_fundamental(records, fs, nominal, n_harmonics, t0=t0)
     except DataError as exc:
         raise DataError(f"{what}: {exc} (rig '{rig.source}', key 'acquisition.frequency' = "
-                        f"{rig.frequency:g} Hz)") from None
+                        f"{nominal:g} Hz)") from None

@@ -124,6 +124,21 @@ class Rig:
         return [s.name for s in self.sensors]
 
     @property
+    def drive_frequency(self) -> float:
+        """[Hz] the nominal drive frequency (``acquisition.frequency``), which every stage
+        that refines a fundamental starts from.
+
+        Raises
+        ------
+        RigError
+            When the rig does not give it.
+        """
+        if self.frequency is None:
+            raise RigError(f"rig '{self.source}': key 'acquisition.frequency' is missing "
+                           "(the nominal drive frequency)")
+        return self.frequency
+
+    @property
     def gauge_points(self) -> np.ndarray:
         """Rig points of the gauges: (n_gauges, 2) (x, y) [m]; on a body (n_gauges, 6)
         locations (see :func:`forcecal.structures.locations`)."""

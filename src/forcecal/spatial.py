@@ -259,10 +259,8 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
     -------
     SpatialModel
     """
-    if rig.frequency is None:
-        raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing "
-                         "(the nominal drive frequency)")
-    hs = shapes if shapes is not None else harmonic_shapes(scan, rig.frequency, n_harmonics)
+    hs = shapes if shapes is not None else harmonic_shapes(scan, rig.drive_frequency,
+                                                           n_harmonics)
     st = rig.structure
     if basis not in ("polynomial", "modes"):
         raise InputError(f"basis '{basis}' is unknown (choose 'polynomial' or 'modes')")
@@ -309,6 +307,8 @@ def _screened_fits(rig: Rig, scan: Scan, hs: HarmonicShapes, points: np.ndarray,
     cache: dict[tuple[bytes, int], Fit] = {}
 
     def fit(idx: np.ndarray, weights: np.ndarray, row: int) -> Fit:
+        # the weights are record_weights(hs.std[row, idx]) on every call, so the records and
+        # the harmonic identify a fit: the screening's last fits serve as the final ones
         key = (idx.tobytes(), row)
         if key not in cache:
             try:

@@ -14,7 +14,6 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..errors import InputError
 from ..forces import ForceEstimate, reconstruct
 from ..io.results import write_estimate
 from ..io.run_files import read_table_csv
@@ -53,10 +52,7 @@ def _pct(x: float) -> str:
 
 def _scan_shapes(rig: Rig, scan: Scan, n_harmonics: int) -> HarmonicShapes:
     """The scan's harmonic shapes at the rig's nominal drive frequency."""
-    if rig.frequency is None:
-        raise InputError(f"rig '{rig.source}': key 'acquisition.frequency' is missing "
-                         "(the nominal drive frequency)")
-    return harmonic_shapes(scan, rig.frequency, n_harmonics)
+    return harmonic_shapes(scan, rig.drive_frequency, n_harmonics)
 
 
 def _model_section(model: SpatialModel, shapes_png: Path, fig: Figure) -> Section:

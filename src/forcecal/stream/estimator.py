@@ -337,20 +337,6 @@ class StreamEstimator:
         rot = np.exp(-2j * np.pi * self._state.phase * np.arange(self.n_harmonics + 1))
         return to_complex(u[..., None])[..., 0] * rot
 
-    @property
-    def channel_std(self) -> np.ndarray:
-        """(n_channels,) [SI] residual std of every channel over the window (NaN before the
-        window holds more samples than regressors)."""
-        st = self._state
-        u = last_coefficients(st, self.lam, self.prior)
-        h = self.n_harmonics
-        rot = np.exp(-2j * np.pi * st.phase * np.arange(h + 1))
-        beta = to_real((st.demod * rot.conj())[..., None])[..., 0]
-        rss = np.maximum(st.energy - np.sum(beta * u, axis=1), 0.0)
-        weight = (1.0 - self.lam**st.count) / (1.0 - self.lam)
-        dof = weight - (2 * h + 1)
-        return np.sqrt(rss / dof) if dof > 0 else np.full(len(self.channel_names), np.nan)
-
     def force_phasors(self, phasors: np.ndarray) -> np.ndarray:
         """The force phasors that the readout assigns to given channel phasors: the linear map
         the estimator applies at every sample, F_n = Psi^+ (J_n - R_n) with J_n from the probes.
@@ -378,7 +364,7 @@ class StreamEstimator:
 
         Parameters
         ----------
-        channel_std : (n_channels,) [SI] noise std of each channel (:attr:`channel_std`)
+        channel_std : (n_channels,) [SI] noise std of each channel (:attr:`noise_level`)
         """
         sigma = np.asarray(channel_std, dtype=float)
         cov = stationary(self.lam, self._state.step, self.n_harmonics)[2]
