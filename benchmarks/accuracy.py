@@ -7,6 +7,9 @@ the ratio of the observed error to the stated standard uncertainty.
 
 The `body` case is the 3-D block on six gauges (the mode-shape basis is not offered there).
 
+Load changes since the scan (`two-coil`: a coil changed; `tilt`: pole gaps changed unequally):
+each run's per-force error with a model from the first scan and from all the preset's scans.
+
 Usage: python benchmarks/accuracy.py [--seeds 50] [--cases paper body ...] [--out NAME.json]
 (prints a table, writes benchmarks/results/accuracy.json or NAME.json)
 """
@@ -167,6 +170,127 @@ def study(preset_name: str, run_name: str, seeds: int, basis: str = "polynomial"
     }
 
 
+def load_study(preset_name: str, seeds: int) -> dict:
+    """Runs whose load pattern differs from the scan's: each run's per-force error with a
+    model from the first scan alone and with a model from all the preset's scans (a span of
+    shapes per harmonic), over noise seeds (physics simulated once), and the observed / stated
+    ratio of the fundamental's error with all scans."""
+    preset = get_preset(preset_name)
+    fe = build_model(preset)
+    rig = public_rig(preset)
+    scan_r = [scan_response(preset, fe, which=i) for i in range(len(preset.scans))]
+    specs = [r for r in preset.runs if not r.tare]
+    resp = {r.name: simulate_response(preset, r.drives, r.gap, r.duration, fe, gaps=r.gaps)
+            for r in specs}
+    truth = {r.name: run_truth(preset, fe, resp[r.name]) for r in specs}
+    err: dict[tuple[str, str], list] = {}
+    z: dict[str, list] = {}
+    members: dict[str, dict[str, int]] = {}
+    for seed in range(seeds):
+        rng = np.random.default_rng(2000 + seed)
+        scans = [measure_scan(preset, fe, r, rng, which=i) for i, r in enumerate(scan_r)]
+        models = {"one": build_spatial_model(rig, scans[0]),
+                  "all": build_spatial_model(rig, scans)}
+        for spec in specs:
+            run = measure_run(preset, spec, fe, resp[spec.name], rng)
+            tf_all = truth[spec.name].pole_force
+            total = tf_all.sum(axis=0)
+            for label, model in models.items():
+                est = reconstruct(rig, model, run)
+                row = []
+                for k, tf in enumerate(tf_all):
+                    e = est.series[k] - tf
+                    row.append((100 * rms(e - e.mean()) / rms(tf - tf.mean()),
+                                100 * rms(e - e.mean()) / rms(total - total.mean())))
+                err.setdefault((spec.name, label), []).append(row)
+                if label == "all":
+                    true_ph = fit_harmonics(tf_all, preset.fs, est.f0, 6).phasors
+                    d = (est.force[:, 1] - true_ph[:, 1]) / est.force_std[:, 1]
+                    z.setdefault(spec.name, []).extend([*d.real, *d.imag])
+                    chosen = str(est.coordinates.members[0])
+                    counts = members.setdefault(spec.name, {})
+                    counts[chosen] = counts.get(chosen, 0) + 1
+    runs = []
+    for spec in specs:
+        one = np.mean(err[(spec.name, "one")], axis=0)
+        every = np.mean(err[(spec.name, "all")], axis=0)
+        runs.append({"run": spec.name, "gaps": spec.gaps,
+                     "members_n1": members[spec.name],
+                     "one_scan_pct_own": one[:, 0].tolist(),
+                     "one_scan_pct_total": one[:, 1].tolist(),
+                     "all_scans_pct_own": every[:, 0].tolist(),
+                     "all_scans_pct_total": every[:, 1].tolist(),
+                     "n1_observed_to_stated": rms(z[spec.name])})
+    return {"preset": preset_name, "seeds": seeds, "scans": len(preset.scans),
+            "forces": list(rig.force_names), "runs": runs}
+
+
+def stream_study(seconds: float) -> dict:
+    """The streaming estimator on a long `paper` run: stationary, then with the drive drifting
+    0.2 % in frequency and 0.2 % in level over a minute; each force's and the total's error
+    over the record's second half, as % of the total's true AC RMS, for the default memory (2
+    periods), the steady mode (100 periods) and the batch estimate of the whole record."""
+    import dataclasses
+
+    from forcecal.stream.estimator import StreamEstimator
+    from forcecal.stream.replay import stream_forces
+
+    preset = get_preset("paper")
+    fe = build_model(preset)
+    rig = public_rig(preset)
+    rng = np.random.default_rng(3)
+    model = build_spatial_model(rig, measure_scan(preset, fe, scan_response(preset, fe), rng))
+    out = {"seconds": seconds}
+    base = preset.runs[0]
+    drift = 0.002 / 60.0
+    for label, drives in (("stationary", base.drives),
+                          ("drifting", tuple(dataclasses.replace(d, chirp=drift, drift=drift)
+                                             for d in base.drives))):
+        spec = dataclasses.replace(base, duration=seconds, drives=drives)
+        r = simulate_response(preset, spec.drives, spec.gap, spec.duration, fe)
+        run, truth = measure_run(preset, spec, fe, r, rng), run_truth(preset, fe, r)
+        tot = truth.pole_force.sum(axis=0)
+        ac = rms(tot - tot.mean())
+        half = run.time > seconds / 2
+
+        def err(x: np.ndarray, ac: float = ac, tot: np.ndarray = tot,
+                half: np.ndarray = half) -> float:
+            e = (x - tot)[half]
+            return 100 * rms(e - e.mean()) / ac
+
+        row = {}
+        try:
+            row["batch"] = err(reconstruct(rig, model, run).total_series)
+        except Exception as exc:                        # a drifting record may be refused
+            row["batch"] = f"refused: {exc}"[:120]
+        for name, periods in (("stream, 2 periods", 2.0), ("stream steady, 100 periods", 100.0)):
+            est = StreamEstimator(rig, model, model.f0, run.fs, t0=run.t0,
+                                  forgetting=1 - model.f0 / (run.fs * periods))
+            raw = np.stack([run.channel(n) for n in est.channel_names])
+            _, force, _, std = next(stream_forces(est, [raw], 1024, run.t0))
+            row[name] = err(force.sum(axis=0))
+            row[name + " stated noise std"] = 100 * float(np.mean(std[-1, half])) / ac
+        out[label] = row
+    return out
+
+
+def print_load_study(r: dict) -> None:
+    names = r["forces"]
+    print(f"\n{r['preset']}: one scan vs {r['scans']} scans ({r['seeds']} seeds; per-force "
+          "error in % of its own true AC RMS, [% of the total's], mean)")
+    hdr = (f"{'run':<22}" + "".join(f"{'1 scan ' + n:>18}{'all ' + n:>18}" for n in names)
+           + f"{'obs/stated':>11}  n=1 shapes used (seeds)")
+    print(hdr)
+    print("-" * len(hdr))
+    for run in r["runs"]:
+        cells = "".join(
+            f"{run['one_scan_pct_own'][k]:8.3f} [{run['one_scan_pct_total'][k]:6.3f}]"
+            f"{run['all_scans_pct_own'][k]:9.3f} [{run['all_scans_pct_total'][k]:6.3f}]"
+            for k in range(len(names)))
+        used = ", ".join(f"{m}: {c}" for m, c in run["members_n1"].items())
+        print(f"{run['run']:<22}{cells}{run['n1_observed_to_stated']:11.2f}  {used}")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__)
     ap.add_argument("--seeds", type=int, default=50)
@@ -174,6 +298,10 @@ def main() -> None:
                     help="noise seeds of the mode-shape basis comparison")
     ap.add_argument("--robust-seeds", type=int, default=10,
                     help="noise seeds of the clean vs damaged scan comparison")
+    ap.add_argument("--load-seeds", type=int, default=5,
+                    help="noise seeds of the load-change study (two-coil, tilt presets)")
+    ap.add_argument("--stream-seconds", type=float, default=40.0,
+                    help="length of the stream study's runs (0: skip it)")
     ap.add_argument("--cases", nargs="*", default=[c[0] for c in CASES])
     ap.add_argument("--out", default="accuracy.json", help="file name in benchmarks/results")
     args = ap.parse_args()
@@ -202,6 +330,9 @@ def main() -> None:
         bad = study(preset, run, args.robust_seeds, damaged=True)
         robust.append({"preset": preset, "seeds": args.robust_seeds,
                        "clean": clean["over_seeds"], "damaged": bad["over_seeds"]})
+    loads = [load_study(name, args.load_seeds) for name in ("two-coil", "tilt")
+             if args.load_seeds]
+    streams = stream_study(args.stream_seconds) if args.stream_seconds else None
     print(f"\nforce reconstruction vs truth ({args.seeds} noise seeds; errors in % of true AC RMS)")
     hdr = (f"{'case':<22}{'total %':>9}{'max %':>8}{'F1 %':>8}{'F2 %':>8}{'static %':>10}"
            f"{'target':>8}{'obs/stated':>11}{'inertia':>9}{'s/run':>7}")
@@ -235,10 +366,38 @@ def main() -> None:
             e2 = d["per_force_error_pct_mean"][name]
             print(f"{r['preset']:<12}{name:<8}{e:9.4f}{e2:11.4f}{e2 / e:8.2f}"
                   f"{d['records_set_aside_mean']:11.1f}")
+    for r in loads:
+        print_load_study(r)
+    for r in loads:
+        if r["preset"] != "tilt":
+            continue
+        matched = [x for x in r["runs"] if len(set(x["gaps"].values())) == 1]
+        changed = [x for x in r["runs"] if len(set(x["gaps"].values())) > 1]
+        base = np.mean([x["all_scans_pct_own"] for x in matched])
+        for label, key in (("one scan", "one_scan_pct_own"), ("all scans", "all_scans_pct_own")):
+            mean = np.mean([x[key] for x in changed])
+            print(f"tilt, unequal gaps, {label}: mean per-force error {mean:.3f} % = "
+                  f"{mean / base:.2f} x the equal-gap runs' {base:.3f} % (target <= 1.5 x)")
+            r[f"unequal_to_matched_{label.replace(' ', '_')}"] = float(mean / base)
+    if streams is not None:
+        print(f"\nstream vs batch on a {streams['seconds']:g} s paper run (total-force error over "
+              "the second half, % of the true AC RMS; the stream's stated std is its noise "
+              "part only)")
+        for label in ("stationary", "drifting"):
+            row = streams[label]
+            print(f"  {label:<11}" + "; ".join(
+                f"{k} {v:.4f}" if isinstance(v, float) else f"{k} {v}" for k, v in row.items()))
+        b = streams["stationary"]["batch"]
+        if isinstance(b, float):
+            ratio = streams["stationary"]["stream steady, 100 periods"] / b
+            streams["steady_to_batch"] = ratio
+            print(f"  steady mode / batch on the stationary run: {ratio:.2f} (target <= 1.5)")
     out = Path(__file__).resolve().parent / "results" / args.out
     out.parent.mkdir(exist_ok=True)
     out.write_text(json.dumps({"studies": results, "basis_comparison": comparison,
-                              "robust_scan": robust}, indent=1, default=float))
+                              "robust_scan": robust, "load_change": loads,
+                              "stream_steady": streams}, indent=1,
+                              default=float))
     print(f"\nwritten {out}")
 
 

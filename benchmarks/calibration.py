@@ -14,12 +14,27 @@ calibration and of the AC-only calibration:
 Also reports the recovered s_fe against l_fe / (2 mu_r) and K_total against the ideal, and the
 time taken. Targets: chosen law within 0.1 % at every held-out point; s_fe within 5 um.
 
-Run:  .venv/bin/python benchmarks/calibration.py
+Parameter uncertainties: K_total and s_fe with their combined, statistical and expanded (k = 2)
+uncertainties and their budget, for the rig as simulated (no type-B uncertainty: the virtual
+rig's sensors and geometry are exact) and again with the default type-B uncertainties declared
+(``forcecal.rig.TypeB()``: gauges 0.5 %, probes 1 %, current 0.2 %, positions 0.5 mm, masses
+1 %, gaps 10 um).
+
+Seed repeat: the campaign is simulated once and its measurement noise redrawn over N seeds (the
+scan and every run, tare included, re-measured with ``measure_scan`` / ``measure_run``); each
+seed is calibrated like ``forcecal calibrate``, and the scatter of K_total and s_fe over the
+seeds is set against their mean stated statistical standard uncertainty (target ratio 0.8 to
+1.25). The ratio is given for the propagated uncertainty and for the fit's residual one (every
+sample taken as independent), with its own sampling uncertainty, about ratio / sqrt(2 (N - 1)).
+
+Run:  .venv/bin/python benchmarks/calibration.py [--seeds 10]
 Writes benchmarks/results/calibration.json.
 """
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import json
 import sys
 import tempfile
@@ -31,12 +46,22 @@ import numpy as np
 
 from forcecal.actuator import Calibration, ExtrapolationWarning, Selection, predict
 from forcecal.campaign import CampaignResult, calibrate_campaign, calibrate_runs
+from forcecal.io.manifest import write_manifest
+from forcecal.io.run_files import write_run_csv
 from forcecal.io.uff import read_scan_uff
-from forcecal.rig import load_rig
+from forcecal.rig import TypeB, load_rig
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.magnet import Drive
 from forcecal.simulate.presets import RunSpec, get_preset
-from forcecal.simulate.virtual_rig import build_model, record_run
+from forcecal.simulate.virtual_rig import (
+    build_model,
+    measure_run,
+    measure_scan,
+    public_rig,
+    record_run,
+    scan_response,
+    simulate_response,
+)
 from forcecal.spatial import build_spatial_model
 
 HELD_OUT_GAPS = (0.9e-3, 1.1e-3)  # [m]
@@ -45,6 +70,9 @@ HELD_OUT_AC = 0.15  # [A]
 HELD_OUT_DURATION = 0.5  # [s]
 TARGET_CHOSEN = 0.001  # relative error of the chosen law at every held-out point
 TARGET_SFE = 5e-6  # [m]
+
+TARGET_RATIO = (0.8, 1.25)  # seed scatter / mean stated statistical standard uncertainty
+SEEDS = 10
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -101,7 +129,7 @@ def candidate_rows(label: str, selection: Selection, points: list[dict]) -> list
 
 
 def summary(result: CampaignResult, sfe_true: float) -> dict:
-    return {
+    out = {
         "law": result.law,
         "k_total": result.k_total, "k_total_std": result.k_total_std,
         "ideal_k": result.ideal_k,
@@ -109,9 +137,113 @@ def summary(result: CampaignResult, sfe_true: float) -> dict:
         "s_fe": result.s_fe, "s_fe_true": sfe_true,
         "s_fe_error": None if result.s_fe is None else result.s_fe - sfe_true,
     }
+    if result.uncertainty is not None:
+        out["uncertainty"] = result.uncertainty.to_json(result.n_poles)
+    return out
+
+
+def print_uncertainty(label: str, result: CampaignResult) -> None:
+    """K_total and s_fe with their uncertainties and budget."""
+    unc = result.uncertainty
+    assert unc is not None
+    names = unc.param_names
+    scale = {"K": result.n_poles, "s_fe": 1e6}
+    units = {"K": "N m^2/A^2 (K_total)", "s_fe": "um"}
+    print(f"{label}: {unc.type_b_used.describe()}")
+    for j, name in enumerate(names):
+        f = scale.get(name, 1.0)
+        stat = np.sqrt(unc.statistical[j, j])
+        tb = np.sqrt(unc.type_b[j, j])
+        value = result.calibration.params[j]
+        print(f"  {name}: {f * value:.6g} {units.get(name, '')}; u = {f * unc.stderr[j]:.3g} "
+              f"({100 * unc.stderr[j] / abs(value):.3f} %): statistical {f * stat:.3g}, type B "
+              f"{f * tb:.3g}; U (k=2) = {f * unc.expanded[j]:.3g}; residual-covariance "
+              f"stderr {f * np.sqrt(unc.residual[j, j]):.3g}")
+    for source, std in unc.budget.items():
+        cells = ", ".join(f"{n} {scale.get(n, 1.0) * v:.3g}" for n, v in zip(names, std,
+                                                                            strict=True))
+        print(f"    {source:<20} ({unc.kinds[source]}): {cells}")
+    if len(names) > 1:
+        print(f"  correlation K-s_fe {unc.correlation[0, 1]:+.4f}")
+
+
+def _seed_campaign(folder: Path, preset, fe, responses, scan_r, rng) -> tuple:
+    """One seed: the scan and every run re-measured, written with a manifest."""
+    scan = measure_scan(preset, fe, scan_r, rng)
+    rows = []
+    for spec in preset.runs:
+        run = measure_run(preset, spec, fe, responses[spec.name], rng)
+        write_run_csv(run, folder / "runs" / f"{spec.name}.csv")
+        rows.append({"run": f"runs/{spec.name}.csv", "gap": spec.gap,
+                     "tare": "true" if spec.tare else "false", **spec.labels})
+    return scan, write_manifest(folder / "manifest.csv", rows)
+
+
+def seed_repeat(n_seeds: int) -> dict:
+    """The campaign simulated once, its noise redrawn over seeds, each seed calibrated: the
+    scatter of K_total and s_fe against their stated standard uncertainties."""
+    preset = get_preset("campaign")
+    fe = build_model(preset)
+    rig = public_rig(preset)
+    t = time.perf_counter()
+    scan_r = scan_response(preset, fe)
+    responses = {spec.name: simulate_response(preset, spec.drives, spec.gap, spec.duration, fe,
+                                              spec.gaps) for spec in preset.runs}
+    t_sim = time.perf_counter() - t
+    rows = []
+    for seed in range(n_seeds):
+        rng = np.random.default_rng(1000 + seed)
+        with tempfile.TemporaryDirectory(prefix="forcecal-seed-") as tmp:
+            scan, manifest = _seed_campaign(Path(tmp), preset, fe, responses, scan_r, rng)
+            model = build_spatial_model(rig, scan)
+            res = calibrate_campaign(rig, model, manifest)
+        unc = res.uncertainty
+        assert unc is not None and res.law == "k_i2_sfe2", res.law
+        n = res.n_poles
+        stat = np.sqrt(np.diag(unc.statistical))
+        resid = np.sqrt(np.diag(unc.residual))
+        scatter = np.sqrt(np.diag(unc.run_scatter))
+        rows.append({"seed": 1000 + seed, "k_total": res.k_total, "s_fe": res.s_fe,
+                     "k_total_stat": n * stat[0], "s_fe_stat": stat[1],
+                     "k_total_residual": n * resid[0], "s_fe_residual": resid[1],
+                     "k_total_run_scatter": n * scatter[0], "s_fe_run_scatter": scatter[1]})
+        print(f"  seed {seed + 1}/{n_seeds}: K_total {res.k_total:.7g} +/- {n * stat[0]:.2g}, "
+              f"s_fe {1e6 * res.s_fe:.3f} +/- {1e6 * stat[1]:.3f} um", file=sys.stderr)
+    out: dict = {"n_seeds": n_seeds, "seconds_simulation": t_sim, "target": TARGET_RATIO,
+                 "seeds": rows}
+    for name in ("k_total", "s_fe"):
+        values = np.array([r[name] for r in rows])
+        scatter = float(np.std(values, ddof=1))
+        entry = {"scatter": scatter, "mean": float(values.mean())}
+        for kind in ("stat", "residual", "run_scatter"):
+            stated = float(np.mean([r[f"{name}_{kind}"] for r in rows]))
+            entry[f"stated_{kind}"] = stated
+            entry[f"ratio_{kind}"] = scatter / stated
+        entry["ratio_sampling_1sigma"] = entry["ratio_stat"] / np.sqrt(2 * (n_seeds - 1))
+        entry["within_target"] = TARGET_RATIO[0] <= entry["ratio_stat"] <= TARGET_RATIO[1]
+        out[name] = entry
+    return out
+
+
+def print_seed_repeat(sr: dict) -> None:
+    print(f"\nseed repeat ({sr['n_seeds']} noise seeds, physics simulated once): scatter over "
+          "the seeds / mean stated standard uncertainty (target "
+          f"{TARGET_RATIO[0]}-{TARGET_RATIO[1]})")
+    for name, unit, f in (("k_total", "N m^2/A^2", 1.0), ("s_fe", "um", 1e6)):
+        e = sr[name]
+        print(f"  {name:<8} scatter {f * e['scatter']:.3g} {unit}; propagated (statistical) "
+              f"{f * e['stated_stat']:.3g} -> ratio {e['ratio_stat']:.2f} +/- "
+              f"{e['ratio_sampling_1sigma']:.2f}; residual covariance "
+              f"{f * e['stated_residual']:.3g} -> {e['ratio_residual']:.2f}; run-clustered "
+              f"{f * e['stated_run_scatter']:.3g} -> {e['ratio_run_scatter']:.2f}")
 
 
 def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__,
+                                 formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--seeds", type=int, default=SEEDS,
+                    help="noise seeds of the seed-repeat check (0 skips it)")
+    args = ap.parse_args()
     t_start = time.perf_counter()
     timings = {}
     with tempfile.TemporaryDirectory(prefix="forcecal-calibration-") as tmp:
@@ -138,6 +270,10 @@ def main() -> int:
         t = time.perf_counter()
         ac_only = calibrate_runs(rig, result.runs, ac_only=True, manifest="campaign (AC only)")
         timings["ac_only_calibrate_s"] = time.perf_counter() - t
+        t = time.perf_counter()
+        rig_tb = dataclasses.replace(rig, type_b=TypeB(declared=True))
+        with_type_b = calibrate_campaign(rig_tb, model, folder / "manifest.csv")
+        timings["type_b_calibrate_s"] = time.perf_counter() - t
 
     t = time.perf_counter()
     points = held_out_points()
@@ -176,9 +312,19 @@ def main() -> int:
         print(f"reactions-only chooses '{ro.selection.chosen}'; with '{result.law}': K_total "
               f"{100 * ro.k_total_error:+.2f} % vs corrected, s_fe = {1e6 * ro.s_fe:.2f} um, "
               f"force off by {100 * ro.force_error:.2f} % RMS over the campaign")
+    print()
+    print_uncertainty("corrected, rig as simulated", result)
+    print_uncertainty("corrected, default type-B uncertainties declared", with_type_b)
+    print_uncertainty("ac-only, rig as simulated", ac_only)
     rep = result.repeatability
     print(f"repeatability (repeated setpoint): K {100 * rep.k_total_rel_std:.4f} %, "
           f"mean force {100 * rep.mean_force_rel_std:.4f} %")
+    sr = None
+    if args.seeds > 1:
+        t = time.perf_counter()
+        sr = seed_repeat(args.seeds)
+        timings["seed_repeat_s"] = time.perf_counter() - t
+        print_seed_repeat(sr)
     print("time: " + ", ".join(f"{k} {v:.1f}" for k, v in timings.items()))
 
     chosen = next(r for r in rows if r["calibration"] == "corrected" and r["chosen"])
@@ -186,6 +332,9 @@ def main() -> int:
         "chosen_within_0.1pct": chosen["max_abs_error"] < TARGET_CHOSEN,
         "s_fe_within_5um": abs(result.s_fe - sfe_true) < TARGET_SFE,
     }
+    if sr is not None:
+        checks["seed_repeat_k_total_ratio_0.8_1.25"] = sr["k_total"]["within_target"]
+        checks["seed_repeat_s_fe_ratio_0.8_1.25"] = sr["s_fe"]["within_target"]
     print("targets: " + ", ".join(f"{k} {'met' if v else 'MISSED'}" for k, v in checks.items()))
 
     RESULTS.mkdir(parents=True, exist_ok=True)
@@ -197,6 +346,8 @@ def main() -> int:
         "rows": rows,
         "corrected": summary(result, sfe_true),
         "ac_only": summary(ac_only, sfe_true),
+        "corrected_with_type_b": summary(with_type_b, sfe_true),
+        "seed_repeat": sr,
         "reactions_only": {
             "chosen": None if ro.selection is None else ro.selection.chosen,
             "k_total_error_vs_corrected": ro.k_total_error, "s_fe": ro.s_fe,
@@ -207,7 +358,7 @@ def main() -> int:
         "targets": checks,
         "timings_s": timings,
     }
-    (RESULTS / "calibration.json").write_text(json.dumps(doc, indent=2) + "\n")
+    (RESULTS / "calibration.json").write_text(json.dumps(doc, indent=2, default=float) + "\n")
     return 0
 
 

@@ -13,7 +13,10 @@ time and as CPU time of this process; on a loaded machine the CPU time is the fa
 Signals: the 'paper' preset is simulated once (seed 0) and its batch estimate supplies channel
 phasors (gauges, probes consistent with the scan model's shapes, coil current); synthetic
 records are those phasors plus the preset's white noise, at any rate and length, with a whole
-number of periods so that repeating them continues the drive without a phase jump.
+number of periods so that repeating them continues the drive without a phase jump. The long
+batch runs (``forcecal reconstruct`` end to end on 1, 2 and, in full mode, 10 minutes at
+10 kHz) are every channel of the simulated run as a Fourier series plus its noise, written to
+HDF5 a block at a time.
 """
 
 from __future__ import annotations
@@ -37,6 +40,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from forcecal.forces import ForceEstimate, implied_phasors, reconstruct  # noqa: E402
+from forcecal.harmonics import fit_harmonics  # noqa: E402
 from forcecal.io.run_files import read_run, write_run_hdf5  # noqa: E402
 from forcecal.io.uff import read_scan_uff  # noqa: E402
 from forcecal.records import Run, Scan  # noqa: E402
@@ -44,7 +48,7 @@ from forcecal.rig import Rig, load_rig  # noqa: E402
 from forcecal.simulate.export import write_simulation  # noqa: E402
 from forcecal.simulate.presets import NoiseSpec  # noqa: E402
 from forcecal.spatial import SpatialModel, build_spatial_model  # noqa: E402
-from forcecal.stream import StreamEstimator, steady_count  # noqa: E402
+from forcecal.stream import StreamEstimator, harmonic_update, steady_count  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "speed.json"
 FS_STREAM = 51_200.0          # [Hz] streaming rate of the benchmark
@@ -53,6 +57,9 @@ BASE_SAMPLES = 131_072        # 2.56 s at 51.2 kS/s ...
 BASE_PERIODS = 51             # ... holding 51 whole periods of the synthetic drive
 F_STREAM = BASE_PERIODS * FS_STREAM / BASE_SAMPLES     # 19.921875 Hz
 TARGET_RATE = 1_000_000       # [samples/s] streaming target on one core
+LONG_TARGET_S = 20.0          # [s] wall time of `forcecal reconstruct` on 10 min at 10 kHz
+LONG_TARGET_MB = 1000.0       # [MB] its peak RSS (1 GB)
+KERNEL_TARGET = 10_000_000    # [samples/s] the compiled kernel alone, 5 channels, H = 6
 
 
 @dataclass
@@ -199,6 +206,41 @@ def bench_stream(ctx: Context, n_harmonics: int, n_samples: int, repeats: int = 
             "startup_rate_wall": warm * BLOCK / startup.wall}
 
 
+def bench_kernel(ctx: Context, n_samples: int, repeats: int = 5) -> dict:
+    """The RLS kernel alone in steady state (demodulation, cumulative sums and the force
+    readout, as :func:`harmonic_update` runs it in pieces of ``chunk_limit`` samples): compiled
+    and NumPy, beside a plain copy of the same input array (np.copyto), best of ``repeats``."""
+    est = _estimator(ctx, 6)
+    data = synthetic_channels(ctx, est.channel_names, FS_STREAM, n_samples, F_STREAM)
+    data *= est._scale
+    warm = steady_count(est.lam) + 1
+    state, _ = harmonic_update(est.state, data[:, :warm], est.lam, est._readout)
+    y = np.ascontiguousarray(data[:, warm:])
+    harmonic_update(state, y[:, :4096], est.lam, est._readout)        # compiled (or loaded)
+    copy = np.empty_like(y)
+
+    def best(run, count: int) -> tuple[float, float]:
+        wall = cpu = np.inf
+        for _ in range(count):
+            with Clock() as c:
+                run()
+            wall, cpu = min(wall, c.wall), min(cpu, c.cpu)
+        return wall, cpu
+
+    wall, cpu = best(lambda: harmonic_update(state, y, est.lam, est._readout), repeats)
+    copy_wall, copy_cpu = best(lambda: np.copyto(copy, y), 3 * repeats)
+    numpy_cpu = best(lambda: harmonic_update(state, y[:, :y.shape[1] // 8], est.lam,
+                                             est._readout, compiled=False), 1)[1] * 8
+    n = y.shape[1]
+    return {"channels": y.shape[0], "harmonics": est.n_harmonics, "samples": n,
+            "seconds_wall": wall, "seconds_cpu": cpu, "rate_wall": n / wall,
+            "rate_cpu": n / cpu, "numpy_rate_cpu": n / numpy_cpu,
+            "copy_seconds_cpu": copy_cpu, "copy_seconds_wall": copy_wall,
+            "copy_bytes": y.nbytes, "copy_gb_per_s": y.nbytes / copy_wall / 1e9,
+            "times_memcpy_cpu": cpu / copy_cpu, "times_memcpy_wall": wall / copy_wall,
+            "target_rate": KERNEL_TARGET}
+
+
 def bench_latency(ctx: Context, n_blocks: int = 4000) -> dict:
     """Time of one process() call per block, in steady state; the estimate's own delay."""
     est = _estimator(ctx)
@@ -290,16 +332,117 @@ def bench_scan(ctx: Context, n_points: int, n_samples: int) -> float:
     return c.cpu
 
 
-# ------------------------------------------------------------------------------ CLI (later)
+def bench_scan_per_record(ctx: Context, lengths: list[int], n_points: int = 125) -> dict:
+    """Scan model CPU time against the samples per record (fixed points): the fitted order of
+    growth, target about 1 (linear)."""
+    seconds = [bench_scan(ctx, n_points, n) for n in lengths]
+    return {"points": n_points, "samples": lengths, "seconds_cpu": seconds,
+            "order_in_samples": fitted_order(lengths, seconds), "target_order": 1.0}
 
 
-def time_cli_stream(ctx: Context) -> dict:
-    """CLI STREAMING TIMING, to be completed when ``forcecal stream`` exists.
+def long_run_file(ctx: Context, path: Path, seconds: float, fs: float = 10_000.0,
+                  seed: int = 31) -> Path:
+    """An HDF5 run of every channel of the simulated paper run (gauges, probes, current, flux,
+    voltage: the raw file a DAQ writes), ``seconds`` long at ``fs``: each channel's Fourier
+    series at the batch estimate's fundamental, fitted to the simulated run, plus white noise
+    of its residual standard deviation. Written a block at a time (memory flat in the
+    length); the same seed gives the same file."""
+    import h5py
 
-    Measures ``python -m forcecal stream RIG MODEL RUN -o OUT.csv`` on a 60 s, 10.24 kHz HDF5
-    run built from the simulated paper run's phasors. Skips (prints 'n/a') while the command
-    is not there.
-    """
+    run, f0 = ctx.run, ctx.batch.f0
+    h = len(ctx.batch.harmonics) - 1
+    fits = {name: fit_harmonics(run.channel(name), run.fs, f0, h, t0=run.t0)
+            for name in run.channels}
+    rng = np.random.default_rng(seed)
+    n = round(seconds * fs)
+    block = 1 << 18
+    with h5py.File(path, "w", track_order=True) as h5:
+        h5.attrs["fs"], h5.attrs["t0"] = fs, 0.0
+        data = {name: h5.create_dataset(name, shape=(n,), dtype=float) for name in fits}
+        for start in range(0, n, block):
+            t = np.arange(start, min(n, start + block)) / fs
+            for name, fit in fits.items():
+                data[name][start:start + t.size] = (fit.evaluate(t) + float(fit.residual_std)
+                                                    * rng.standard_normal(t.size))
+    return path
+
+
+def time_cli_reconstruct(ctx: Context, minutes: list[float], csv_minutes: float = 0.0) -> dict:
+    """``python -m forcecal reconstruct RIG SCAN RUN -o OUT --format hdf5`` end to end on runs of
+    ``minutes`` at 10 kHz (:func:`long_run_file`: 7 channels, 4.8 MB per channel-minute):
+    wall time and the child's peak RSS (VmHWM), each run beside the targets for 10 minutes;
+    the time and peak extrapolated linearly to 10 minutes from the shorter runs (an upper
+    estimate of the peak: reading dominates short runs and grows faster than the rest); with
+    ``csv_minutes``, the same with the default CSV output."""
+    work = ctx.work / "long"
+    work.mkdir(exist_ok=True)
+    rig_path, scan_path = ctx.work / "paper" / "rig.toml", ctx.work / "paper" / "scan.uff"
+    rows = []
+
+    def measure(m: float, fmt: str) -> dict:
+        path = long_run_file(ctx, work / f"run{m:g}min.h5", 60.0 * m)
+        out = work / f"out-{fmt}-{m:g}"
+        code, err, wall, peak = _run_measured(["reconstruct", str(rig_path), str(scan_path),
+                                               str(path), "-o", str(out), "--format", fmt])
+        if code != 0:
+            print(f"forcecal reconstruct, {m:g} min: failed (exit {code}): "
+                  f"{err.strip().splitlines()[-1:] or ''}")
+        row = {"minutes": m, "format": fmt, "ok": code == 0, "seconds_wall": wall,
+               "peak_rss_mb": peak, "input_mb": path.stat().st_size / 2**20,
+               "samples": round(60.0 * m * 10_000.0)}
+        path.unlink()
+        return row
+
+    for m in minutes:
+        rows.append(measure(m, "hdf5"))
+    short = [r for r in rows if r["minutes"] < 10.0]
+    result: dict = {"runs": rows, "target_seconds": LONG_TARGET_S, "target_mb": LONG_TARGET_MB}
+    if len(short) >= 2:
+        x = [r["minutes"] for r in short]
+        result["extrapolated_10min"] = {
+            "seconds_wall": float(np.polyval(np.polyfit(x, [r["seconds_wall"] for r in short],
+                                                        1), 10.0)),
+            "peak_rss_mb": float(np.polyval(np.polyfit(x, [r["peak_rss_mb"] for r in short],
+                                                       1), 10.0)),
+            "from_minutes": x}
+    if csv_minutes:
+        result["csv"] = measure(csv_minutes, "csv")
+    return result
+
+
+# ------------------------------------------------------------------------------ CLI
+
+
+_PEAK = ("import atexit, runpy, sys\n"
+         "def peak():\n"
+         "    for line in open('/proc/self/status'):\n"
+         "        if line.startswith('VmHWM:'):\n"
+         "            print('peak-rss-kb', line.split()[1], file=sys.stderr)\n"
+         "atexit.register(peak)\n"
+         "sys.argv = ['forcecal', *sys.argv[1:]]\n"
+         "runpy.run_module('forcecal', run_name='__main__', alter_sys=True)\n")
+"""Runs ``python -m forcecal ARGS`` and prints its own peak RSS (VmHWM) on leaving: the
+high-water mark of the process after exec, which a fork of this (large) process does not
+inflate."""
+
+
+def _run_measured(argv: list[str]) -> tuple[int, str, float, float]:
+    """(exit code, stderr, wall seconds, peak RSS in MB) of ``python -m forcecal ARGV``."""
+    start = time.perf_counter()
+    done = subprocess.run([sys.executable, "-c", _PEAK, *argv], stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True, check=False)
+    wall = time.perf_counter() - start
+    peak = [float(line.split()[1]) / 1024 for line in done.stderr.splitlines()
+            if line.startswith("peak-rss-kb")]
+    return done.returncode, done.stderr, wall, peak[-1] if peak else float("nan")
+
+
+def time_cli_stream(ctx: Context, long_minutes: float = 0.0) -> dict:
+    """``python -m forcecal stream RIG MODEL RUN -o OUT`` end to end on a 60 s, 10.24 kHz HDF5
+    run built from the simulated paper run's phasors: HDF5 and CSV output, wall time and the
+    child's peak RSS; with ``long_minutes``, the peak RSS of a run that long (memory flat in
+    the record's length). The first call of the command compiles (or loads) the compiled
+    code: one unmeasured call comes first."""
     probe = subprocess.run([sys.executable, "-m", "forcecal", "stream", "--help"],
                            capture_output=True, text=True, check=False)
     if probe.returncode != 0:
@@ -309,25 +452,35 @@ def time_cli_stream(ctx: Context) -> dict:
     work = ctx.work / "cli"
     work.mkdir(exist_ok=True)
     names = [*ctx.rig.gauge_names, *ctx.rig.sensor_names, ctx.rig.actuator.current]
-    n = round(fs * duration)
-    data = synthetic_channels(ctx, names, fs, n, ctx.batch.f0, seed=21)
-    run_path = write_run_hdf5(Run(channels=dict(zip(names, data, strict=True)), fs=fs,
-                                  name="cli"), work / "cli.h5")
+
+    def run_file(seconds: float, name: str) -> Path:
+        n = round(fs * seconds)
+        data = synthetic_channels(ctx, names, fs, n, ctx.batch.f0, seed=21)
+        return write_run_hdf5(Run(channels=dict(zip(names, data, strict=True)), fs=fs,
+                                  name=name), work / f"{name}.h5")
+
+    run_path = run_file(duration, "cli")
     model_path = ctx.model.save(work / "model.json")
     rig_path = ctx.work / "paper" / "rig.toml"
-    result: dict = {"available": True, "samples": n, "duration_s": duration}
+    base = ["stream", str(rig_path), str(model_path)]
+    _run_measured([*base, str(run_path), "-o", str(work / "warm.csv")])
+    result: dict = {"available": True, "samples": round(fs * duration), "duration_s": duration}
     for label, out in (("hdf5", work / "cli.forces.h5"), ("csv", work / "cli.forces.csv")):
-        cmd = [sys.executable, "-m", "forcecal", "stream", str(rig_path), str(model_path),
-               str(run_path), "-o", str(out)]
-        with Clock() as c:
-            done = subprocess.run(cmd, capture_output=True, text=True, check=False)
-        ok = done.returncode == 0 and out.is_file()
+        code, err, wall, peak = _run_measured([*base, str(run_path), "-o", str(out)])
+        ok = code == 0 and out.is_file()
         if not ok:
-            print(f"forcecal stream CLI ({label} output): failed (exit {done.returncode}): "
-                  f"{done.stderr.strip().splitlines()[-1:] or ''}")
-        result[label] = {"ok": ok, "seconds_wall": c.wall, "rate_wall": n / c.wall,
-                         "realtime_factor": duration / c.wall}
-    # the headline figure: HDF5 in, HDF5 out (text output is bound by float formatting)
+            print(f"forcecal stream CLI ({label} output): failed (exit {code}): "
+                  f"{err.strip().splitlines()[-1:] or ''}")
+        result[label] = {"ok": ok, "seconds_wall": wall, "rate_wall": result["samples"] / wall,
+                         "realtime_factor": duration / wall, "peak_rss_mb": peak}
+    if long_minutes:
+        long_path = run_file(60.0 * long_minutes, "long")
+        code, err, wall, peak = _run_measured([*base, str(long_path), "-o",
+                                               str(work / "long.forces.h5")])
+        result["long"] = {"ok": code == 0, "minutes": long_minutes, "seconds_wall": wall,
+                          "peak_rss_mb": peak, "input_mb": long_path.stat().st_size / 2**20}
+        long_path.unlink()
+    # the headline figure: HDF5 in, HDF5 out
     result.update({k: result["hdf5"][k] for k in ("ok", "seconds_wall", "rate_wall",
                                                    "realtime_factor")})
     return result
@@ -348,6 +501,8 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="forcecal-bench-") as tmp:
         say("simulating the paper preset")
         ctx = setup(Path(tmp))
+        say("streaming kernel (compiled and NumPy) against a memory copy")
+        res["kernel"] = bench_kernel(ctx, 2**20 if quick else 2**22)
         say("streaming throughput")
         n_main = 2**19 if quick else 2**21
         res["stream"] = bench_stream(ctx, 6, n_main)
@@ -386,8 +541,15 @@ def main(argv=None) -> int:
                                "order_in_points": fitted_order(pts, by_p),
                                "samples": lens, "seconds_cpu_by_samples": by_s,
                                "order_in_samples": fitted_order(lens, by_s)}
+        say("scan model against the samples per record")
+        res["scan_per_record"] = bench_scan_per_record(
+            ctx, [4096, 8192, 16384] if quick else [4096, 8192, 16384, 32768])
+        say("forcecal reconstruct on long runs (1, 2" + ("" if quick else ", 10") + " min)")
+        res["cli_reconstruct"] = time_cli_reconstruct(ctx, [1.0, 2.0] if quick
+                                                      else [1.0, 2.0, 10.0],
+                                                      csv_minutes=0.0 if quick else 1.0)
         say("CLI stream")
-        res["cli_stream"] = time_cli_stream(ctx)
+        res["cli_stream"] = time_cli_stream(ctx, 0.0 if quick else 10.0)
     RESULTS.parent.mkdir(parents=True, exist_ok=True)
     RESULTS.write_text(json.dumps(res, indent=2, default=float) + "\n")
     print(table(res))
@@ -404,7 +566,14 @@ def table(res: dict) -> str:
     sc, camp, rs = res["stream_scaling"], res["campaign"], res["reconstruct_scaling"]
     scan, ss, cli = res["scan"], res["scan_scaling"], res["cli_stream"]
     ok = "meets" if s["rate_cpu"] >= TARGET_RATE else "MISSES"
+    k = res["kernel"]
+    k_ok = "meets" if k["rate_cpu"] >= KERNEL_TARGET else "MISSES"
     rows = [
+        (f"stream kernel, {k['channels']} ch, H={k['harmonics']} (steady, compiled)",
+         f"{k['rate_cpu'] / 1e6:.1f} MS/s CPU, {k['rate_wall'] / 1e6:.1f} MS/s wall ({k_ok} "
+         f"the {KERNEL_TARGET / 1e6:.0f} MS/s target); {k['times_memcpy_cpu']:.0f}x the time "
+         f"of np.copyto of the same input ({k['copy_gb_per_s']:.1f} GB/s); NumPy form "
+         f"{k['numpy_rate_cpu'] / 1e6:.2f} MS/s"),
         ("stream, 5 ch, H=6, block 256 (steady)",
          f"{s['rate_cpu'] / 1e6:.2f} MS/s CPU, {s['rate_wall'] / 1e6:.2f} MS/s wall "
          f"({ok} the 1 MS/s target)"),
@@ -452,11 +621,58 @@ def table(res: dict) -> str:
         ("forcecal stream CLI, 60 s at 10.24 kHz, HDF5 in",
          "n/a" if not cli["available"] else
          f"HDF5 out {cli['hdf5']['seconds_wall']:.2f} s wall = "
-         f"{cli['hdf5']['realtime_factor']:.0f}x real time (target 20x); CSV out "
-         f"{cli['csv']['seconds_wall']:.2f} s = {cli['csv']['realtime_factor']:.0f}x"),
+         f"{cli['hdf5']['realtime_factor']:.0f}x real time (target 20x), peak "
+         f"{cli['hdf5']['peak_rss_mb']:.0f} MB; CSV out {cli['csv']['seconds_wall']:.2f} s = "
+         f"{cli['csv']['realtime_factor']:.0f}x (target 3 s), peak "
+         f"{cli['csv']['peak_rss_mb']:.0f} MB"),
     ]
+    rows += long_rows(res)
+    if cli.get("long"):
+        rows.append((f"forcecal stream CLI, {cli['long']['minutes']:g} min at 10.24 kHz, HDF5",
+                     f"{cli['long']['seconds_wall']:.1f} s wall, peak "
+                     f"{cli['long']['peak_rss_mb']:.0f} MB (input "
+                     f"{cli['long']['input_mb']:.0f} MB; target 200 MB)"))
     width = max(len(r[0]) for r in rows)
     return "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
+
+
+def long_rows(res: dict) -> list[tuple[str, str]]:
+    """The rows of the long batch runs and of the scan model against its record length."""
+    rows = []
+    spr = res.get("scan_per_record")
+    if spr:
+        rows.append((f"scan model vs samples per record ({spr['points']} points)", ", ".join(
+            f"{n}: {t:.2f} s" for n, t in zip(spr["samples"], spr["seconds_cpu"], strict=True))
+            + f"  -> order {spr['order_in_samples']:.2f} (target ~{spr['target_order']:g})"))
+    rec = res.get("cli_reconstruct")
+    if not rec:
+        return rows
+
+    def verdict(seconds: float, mb: float) -> str:
+        ok_t = "meets" if seconds <= rec["target_seconds"] else "MISSES"
+        ok_m = "meets" if mb <= rec["target_mb"] else "MISSES"
+        return (f"{ok_t} <= {rec['target_seconds']:g} s, {ok_m} <= "
+                f"{rec['target_mb'] / 1000:g} GB")
+
+    for r in rec["runs"]:
+        label = f"batch reconstruct, {r['minutes']:g} min at 10 kHz"
+        value = (f"HDF5 out: {r['seconds_wall']:.1f} s wall, peak {r['peak_rss_mb']:.0f} MB "
+                 f"(input {r['input_mb']:.0f} MB)" if r["ok"] else "failed")
+        if r["minutes"] == 10.0 and r["ok"]:
+            value += f"; {verdict(r['seconds_wall'], r['peak_rss_mb'])}"
+        rows.append((label, value))
+    ext = rec.get("extrapolated_10min")
+    if ext:
+        rows.append(("batch reconstruct, 10 min extrapolated (linear) from "
+                     + ", ".join(f"{m:g}" for m in ext["from_minutes"]) + " min",
+                     f"{ext['seconds_wall']:.1f} s wall, peak {ext['peak_rss_mb']:.0f} MB; "
+                     + verdict(ext["seconds_wall"], ext["peak_rss_mb"])))
+    csv = rec.get("csv")
+    if csv:
+        rows.append((f"batch reconstruct, {csv['minutes']:g} min, CSV out",
+                     f"{csv['seconds_wall']:.1f} s wall, peak {csv['peak_rss_mb']:.0f} MB"
+                     if csv["ok"] else "failed"))
+    return rows
 
 
 if __name__ == "__main__":

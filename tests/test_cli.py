@@ -32,7 +32,8 @@ from forcecal.io.run_files import (
 )
 
 THIRD_PARTY_UFF58 = Path("/work/shared/data/third-party-uff/Sample_UFF58_ascii.uff")
-FORCE_COLUMNS = ["time", "F1", "F2", "total", "F1_static", "F2_static", "total_static"]
+FORCE_COLUMNS = ["time", "F1", "F2", "total", "F1_static", "F2_static", "total_static",
+                 "F1_std", "F2_std", "total_std"]
 SHORT_SECONDS = 0.4
 COMMANDS = ["demo", "simulate", "scan", "reconstruct", "calibrate", "predict", "stream", "report"]
 
@@ -573,3 +574,49 @@ def test_leftovers_of_a_killed_command_are_cleaned_or_finished(tmp_path):
     clean_stale(out)
     assert sorted(p.name for p in out.iterdir()) == ["a.csv", "b.json"]
     assert (out / "b.json").read_text() == "new b"
+
+
+def test_outputs_say_where_they_come_from(paper_dir, tmp_path):
+    """MODEL.json and every NAME.json carry the provenance: version, date, command line and
+    the SHA-256 of each input file, as the files are."""
+    import hashlib
+
+    from forcecal import __version__
+    from forcecal.spatial import load_model
+
+    model = tmp_path / "model.json"
+    run = paper_dir / "runs" / "paper.csv"
+    assert main(["scan", str(paper_dir / "rig.toml"), str(paper_dir / "scan.uff"),
+                 "-o", str(model)]) == 0
+    assert main(["reconstruct", str(paper_dir / "rig.toml"), str(model), str(run),
+                 "-o", str(tmp_path / "out")]) == 0
+    for doc in (json.loads(model.read_text()),
+                json.loads((tmp_path / "out" / "paper.json").read_text())):
+        prov = doc["provenance"]
+        assert prov["forcecal_version"] == __version__ and prov["created_utc"].endswith("+00:00")
+        files = {f["path"]: f["sha256"] for f in prov["inputs"]}
+        for path in (paper_dir / "rig.toml", *([run, model] if "series" in doc else
+                                                [paper_dir / "scan.uff"])):
+            assert files[str(path)] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert "reconstruct" in prov["command"]
+    load_model(model)                                    # the provenance is not in the way
+
+
+def test_quiet_and_verbose(paper_dir, tmp_path, capsys, monkeypatch):
+    """-q: no progress on stderr; by default progress on a terminal only; -v: every force's
+    uncertainty budget on stdout."""
+    rig, scan, run = (str(paper_dir / "rig.toml"), str(paper_dir / "scan.uff"),
+                      str(paper_dir / "runs" / "paper.csv"))
+    copy = tmp_path / "again.csv"
+    copy.write_bytes(Path(run).read_bytes())
+    assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "a"), "-q"]) == 0
+    out = capsys.readouterr()
+    assert out.err == "" and "uncertainty budget" not in out.out
+    assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "b")]) == 0
+    assert capsys.readouterr().err == ""              # stderr is not a terminal: no progress
+    monkeypatch.setattr(sys.modules["forcecal.cli"], "_interactive", lambda: True)
+    assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "d")]) == 0
+    assert "left)" in capsys.readouterr().err                      # progress with the time left
+    assert main(["reconstruct", rig, scan, run, "-o", str(tmp_path / "c"), "-v"]) == 0
+    text = capsys.readouterr().out
+    assert "uncertainty budget" in text and "gauge noise" in text and "expanded k = 2" in text

@@ -12,7 +12,7 @@ from forcecal.errors import DataError, DimensionError, InputError
 from forcecal.forces import channels_si, force_solve, implied_phasors, reconstruct
 from forcecal.harmonics import design_matrix, fit_harmonics
 from forcecal.inertia import inertia_term
-from forcecal.io.run_files import read_table_csv
+from forcecal.io.run_files import read_run, read_table_csv
 from forcecal.records import Run
 from forcecal.relaxation import force_matrix
 from forcecal.simulate.presets import NoiseSpec
@@ -383,3 +383,196 @@ def test_stream_csv_has_the_reconstruct_columns(paper, tmp_path):
     np.testing.assert_array_equal(t, time)
     np.testing.assert_array_equal(cols["F2"], force["F2"])
     np.testing.assert_allclose(cols["total_static"], static["F1"] + static["F2"], rtol=1e-15)
+
+
+# ------------------------------------------------------------------------------ compiled, files
+
+
+def _stream_file(paper, source, target, block=256, **kwargs):
+    """``forcecal stream``'s path: the run opened in blocks, checked, streamed to a table."""
+    from forcecal.io.blocks import check_run_blocks, open_run_blocks
+    from forcecal.stream.replay import stream_table
+
+    rig, _, model, _ = paper
+    blocks = check_run_blocks(rig, open_run_blocks(source, rig, **kwargs))
+    with blocks:
+        stream_table(rig, model, blocks, target, block=block)
+    return blocks
+
+
+@pytest.mark.parametrize("block", [1, 37, 500, 4096])
+def test_compiled_kernel_equals_the_numpy_reference(block):
+    """Random channels, a random readout: the compiled loops give NumPy's results to rounding,
+    through the start-up (per-sample solve) and the stationary fast path, for any split."""
+    rng = np.random.default_rng(11)
+    fs, f0, h, lam, n_ch = 3000.0, 17.3, 4, 0.985, 3
+    n = steady_count(lam) + 900
+    y = rng.standard_normal((n_ch, n)) + np.sin(2 * np.pi * f0 * np.arange(n) / fs)
+    readout = rng.standard_normal((2, n_ch, 2 * h + 1))
+    for out in (readout, None):
+        results = []
+        for compiled in (True, False):
+            state, pieces = harmonic_start(n_ch, h, f0, fs, 0.2), []
+            for s in range(0, n, block):
+                state, x = harmonic_update(state, y[:, s:s + block], lam, out,
+                                           compiled=compiled)
+                pieces.append(x)
+            results.append((state, np.concatenate(pieces, axis=-1)))
+        (fast_state, fast), (ref_state, ref) = results
+        scale = np.abs(ref).max()
+        np.testing.assert_allclose(fast, ref, rtol=0, atol=1e-12 * scale)
+        np.testing.assert_allclose(fast_state.demod, ref_state.demod, rtol=1e-13)
+        np.testing.assert_allclose(fast_state.energy, ref_state.energy, rtol=1e-13)
+        assert fast_state.count == ref_state.count == n
+
+
+def test_csv_numbers_are_printf_g():
+    """The compiled formatter writes what C's '%.{P}g' writes; 17 digits, or P = 0 (15 when
+    they suffice), read back exactly."""
+    from forcecal.io.text_format import format_rows
+
+    rng = np.random.default_rng(5)
+    values = np.concatenate([
+        rng.standard_normal(3000) * 10.0 ** rng.integers(-30, 30, 3000),
+        [0.0, -0.0, 0.5, 0.125, 2.5, 1e-5, 9.99999999995e-5, 999999999.5, 1e16, 1e22, 0.1,
+         1 / 3, 5e-324, 1.7976931348623157e308, -1e-300, 123456789.0]])
+    for digits in (1, 6, 9, 17):
+        lines = format_rows(values[:, None], [digits]).decode().splitlines()
+        assert lines == [f"{v:.{digits}g}" for v in values]
+    lines = format_rows(values.reshape(-1, 4), [17, 9, 0, 3]).decode().splitlines()
+    assert [float(c) for c in lines[5].split(",")[::2]] == list(values.reshape(-1, 4)[5, ::2])
+    stamps = np.concatenate([np.arange(3000) / 10240.0, 0.37 + np.arange(3000) / 1e4, values])
+    short = format_rows(stamps[:, None], [0]).decode().splitlines()
+    assert [float(text) for text in short] == list(stamps)               # exact, and short:
+    assert all(text in (f"{v:.15g}", f"{v:.17g}") for text, v in zip(short, stamps, strict=True))
+    assert short[1] == "9.765625e-05"
+
+
+@pytest.mark.parametrize("fmt", ["csv", "h5"])
+def test_chunked_reading_gives_the_forces_of_a_whole_read(paper, paper_dir, tmp_path,
+                                                          monkeypatch, fmt):
+    """The run read in small blocks (and checked in windows) streams to the very table a whole
+    read streams to; and to replay's forces."""
+    import forcecal.io.blocks as blocks_module
+    from forcecal.io.run_files import write_run_hdf5
+
+    source = paper_dir / "runs" / "paper.csv"
+    if fmt == "h5":
+        source = write_run_hdf5(read_run(source), tmp_path / "paper.h5")
+    whole = _stream_file(paper, source, tmp_path / "whole.csv", whole=True)
+    assert whole.run is not None
+    monkeypatch.setattr(blocks_module, "READ_BLOCK", 1000)
+    monkeypatch.setattr(blocks_module, "CHECK_WINDOW", 3000)
+    chunked = _stream_file(paper, source, tmp_path / "chunked.csv")
+    assert chunked.run is None                                   # really read in blocks
+    assert (tmp_path / "chunked.csv").read_bytes() == (tmp_path / "whole.csv").read_bytes()
+    rig, _, model, run = paper
+    time, force, _ = replay(rig, model, run, 256)
+    t, cols = read_table_csv(tmp_path / "chunked.csv")
+    np.testing.assert_array_equal(t, time)
+    np.testing.assert_allclose(cols["F1"], force["F1"], rtol=1e-8, atol=1e-9)
+
+
+def test_streamed_table_is_the_same_whatever_the_block(paper, paper_dir, tmp_path):
+    """Blocks of 7, 256 and 1024 samples: the same table (CSV to 9 digits, HDF5 to 1e-12)."""
+    source = paper_dir / "runs" / "paper.csv"
+    tables = {}
+    for block in (1024, 256, 7):
+        _stream_file(paper, source, tmp_path / f"b{block}.csv", block)
+        _stream_file(paper, source, tmp_path / f"b{block}.h5", block)
+        tables[block] = read_table_csv(tmp_path / f"b{block}.csv")
+        h5 = read_run(tmp_path / f"b{block}.h5")
+        assert h5.fs == read_run(source).fs
+        np.testing.assert_allclose(h5.channels["F2"], tables[block][1]["F2"], rtol=1e-8)
+        if block != 1024:
+            ref = read_run(tmp_path / "b1024.h5")
+            for name, values in h5.channels.items():
+                np.testing.assert_allclose(values, ref.channels[name], rtol=0, atol=1e-11)
+    for block in (256, 7):
+        np.testing.assert_array_equal(tables[block][0], tables[1024][0])
+        for name, values in tables[block][1].items():
+            np.testing.assert_allclose(values, tables[1024][1][name], rtol=2e-9, atol=1e-12)
+
+
+def test_stream_writes_csv_to_stdout_and_nothing_on_error(paper, paper_dir, tmp_path,
+                                                          capsysbinary, monkeypatch):
+    """``-o -`` writes the CSV table to stdout; an error in the middle of a stream to a file
+    leaves no file and no temporary beside it."""
+    from forcecal.cli import main
+    from forcecal.io.blocks import check_run_blocks, open_run_blocks
+    from forcecal.stream.replay import stream_table
+
+    rig, _, model, _ = paper
+    path = tmp_path / "model.json"
+    model.save(path)
+    run = paper_dir / "runs" / "paper.csv"
+    args = ["stream", str(paper_dir / "rig.toml"), str(path), str(run)]
+    assert main([*args, "-o", "-"]) == 0
+    out = capsysbinary.readouterr().out.decode()
+    assert out.splitlines()[0] == ("time,F1,F2,total,F1_static,F2_static,total_static,"
+                                   "F1_std,F2_std,total_std")
+    assert len(out.splitlines()) == 1 + read_run(run).n_samples
+    assert main([*args, "-o", str(tmp_path / "s.csv")]) == 0
+    capsysbinary.readouterr()
+    assert (tmp_path / "s.csv").read_text() == out
+
+    calls = []
+
+    def failing(time, forces, static):
+        calls.append(time.size)
+        if len(calls) == 2:
+            raise DataError("stop")
+
+    import forcecal.io.blocks as blocks_module
+
+    monkeypatch.setattr(blocks_module, "READ_BLOCK", 2000)
+    blocks = check_run_blocks(rig, open_run_blocks(run, rig))
+    with blocks, pytest.raises(DataError, match="stop"):
+        stream_table(rig, model, blocks, tmp_path / "half.csv", block=64, check=failing)
+    assert len(calls) == 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["model.json", "s.csv"]
+
+
+# seed 0 paper run, after 0.3 s: RMS(error / stated std) F1 1.09, F2 1.07, total 1.24 on a
+# 3 s run of seed 5; here on the 1 s file run (bounds 0.7-1.6: the short-memory window's own
+# scatter over 0.7 s is few independent draws)
+def test_the_streamed_std_describes_the_streamed_error(paper, paper_dir):
+    """The stream's per-sample standard uncertainty against its error from the truth."""
+    from forcecal.io.run_files import read_table_csv
+    from forcecal.stream.replay import stream_forces
+
+    rig, _, model, run = paper
+    _, truth = read_table_csv(paper_dir / "truth" / "paper.forces.csv")
+    est = StreamEstimator(rig, model, model.f0, run.fs, t0=run.t0)
+    raw = np.stack([run.channel(n) for n in est.channel_names])
+    t, force, _, std = next(stream_forces(est, [raw], 256, run.t0))
+    assert np.all(np.isfinite(std)) and np.all(std > 0)
+    settled = t > 0.3
+    for k, name in enumerate([*est.force_names, "total"]):
+        f = force[k] if k < len(est.force_names) else force.sum(axis=0)
+        z = ((f - truth[name]) / std[k])[settled]
+        assert 0.7 < np.sqrt(np.mean(z**2)) < 1.6, (name, np.sqrt(np.mean(z**2)))
+    # the window's start is far less certain than its steady state
+    assert np.all(std[:, 0] > 100 * np.median(std[:, settled], axis=1))
+
+
+def test_memory_and_steady_mode_options(paper, paper_dir, tmp_path):
+    """--memory PERIODS sets the estimator's memory; --steady is 100 periods; nonsense is
+    refused with exit status 2 and nothing written."""
+    from forcecal.cli import STEADY_MEMORY_PERIODS, _forgetting, main
+
+    rig, _, model, run = paper
+    args = [str(paper_dir / "rig.toml"), str(paper_dir / "scan.uff"),
+            str(paper_dir / "runs" / "paper.csv")]
+    out = tmp_path / "steady.csv"
+    assert main(["stream", *args, "-o", str(out), "--steady"]) == 0
+    assert out.read_text().splitlines()[0].endswith("total_std")
+    assert main(["stream", *args, "-o", str(tmp_path / "x.csv"), "--memory", "0.5"]) == 2
+    assert not (tmp_path / "x.csv").exists()
+
+    class Args:
+        steady, memory = True, None
+
+    lam = _forgetting(Args, model, run.fs)
+    est = StreamEstimator(rig, model, model.f0, run.fs, forgetting=lam)
+    assert est.memory == pytest.approx(STEADY_MEMORY_PERIODS * run.fs / model.f0)

@@ -386,8 +386,8 @@ def monte_carlo(rig: Rig, model: SpatialModel, run: Run, est: ForceEstimate, n_d
         w = sensor_weights(sensors.phasor_std[:, n])
         assert s.shape == (n_draws + 1, n_s) and r.shape == (n_draws + 1, n_g)
         for d in range(n_draws + 1):
-            gain, _ = coordinate_map(ops.at_sensors[k] @ p[d], w)
-            j = inertia_term(ops.couplings[k] @ p[d], complex(gain @ s[d]), n * w0)
+            gain, _ = coordinate_map(ops.at_sensors[k][0] @ p[d], w)
+            j = inertia_term(ops.couplings[k][0] @ p[d], complex(gain @ s[d]), n * w0)
             out[d, :, n] = combo @ force_solve(pinv, j, r[d])
     return out
 

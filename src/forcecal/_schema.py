@@ -198,6 +198,36 @@ def check_model_document(doc: Any, source: str) -> None:
                 d.number(v, f"rig.keys.{k}")
     for k, s in enumerate(shapes):
         _check_shape(d, s, f"shapes[{k}]")
+    if "span" in doc:
+        _check_span(d, doc, hs, n_g)
+
+
+def _check_span(d: _Doc, doc: dict, hs: list[int], n_g: int) -> None:
+    """A multi-scan model's span: per harmonic the other scans' shapes and couplings."""
+    scans = d.strings(d.get(doc, "scans", "", list), "scans")
+    span = d.get(doc, "span", "", list)
+    if len(span) != len(hs):
+        raise d.fail("span", f"has {len(span)} entries for {len(hs)} harmonics; expected one "
+                     "per harmonic")
+    for k, m in enumerate(span):
+        key = f"span[{k}]"
+        if not isinstance(m, dict):
+            raise d.fail(key, f"must be an object, found {_short(m)}")
+        if d.get(m, "harmonic", key, int) != hs[k]:
+            raise d.fail(f"{key}.harmonic", f"= {m['harmonic']}; expected {hs[k]}, the "
+                         f"harmonic of shapes[{k}]")
+        extra = d.get(m, "shapes", key, list)
+        idx = d.get(m, "scans", key, list)
+        if len(idx) != len(extra) + 1:
+            raise d.fail(f"{key}.scans", f"has {len(idx)} entries for {len(extra) + 1} shapes; "
+                         "expected the scan of shapes[k] then of each shape of the span")
+        for j, i in enumerate(idx):
+            d.integer(i, f"{key}.scans[{j}]", 0, len(scans) - 1)
+        for j, s in enumerate(extra):
+            _check_shape(d, s, f"{key}.shapes[{j}]")
+        for part in ("couplings_re", "couplings_im"):
+            d.matrix(d.get(m, part, key, list), f"{key}.{part}", n_g, len(extra),
+                     -MAX_COUPLING, MAX_COUPLING)
 
 
 def _check_shape(d: _Doc, s: Any, key: str) -> None:
@@ -319,6 +349,34 @@ def check_calibration_document(doc: Any, source: str) -> None:
     for k, row in enumerate(cands):
         if not isinstance(row, dict):
             raise d.fail(f"candidates[{k}]", f"must be an object, found {_short(row)}")
+    unc = d.get(doc, "uncertainty", "", dict, required=False)
+    if unc is None:
+        return
+    # the parameters' uncertainty budget a campaign's calibration carries (optional)
+    names = d.strings(d.get(unc, "param_names", "uncertainty", list), "uncertainty.param_names")
+    if names != list(law.param_names):
+        raise d.fail("uncertainty.param_names", f"= {names!r}; expected "
+                     f"{list(law.param_names)!r} for law {law.name!r}")
+    d.number(d.get(unc, "coverage_factor", "uncertainty", (int, float)),
+             "uncertainty.coverage_factor", 0.0, 10.0, open_lo=True)
+    for key in ("stderr", "expanded"):
+        values = d.get(unc, key, "uncertainty", dict)
+        for n in names:
+            d.number(values.get(n), f"uncertainty.{key}.{n}", 0.0)
+    d.matrix(d.get(unc, "correlation", "uncertainty", list), "uncertainty.correlation", p, p,
+             -1.0 - 1e-9, 1.0 + 1e-9)
+    for part in ("statistical", "type_b"):
+        block = d.get(unc, part, "uncertainty", dict)
+        _covariance(d, d.matrix(d.get(block, "covariance", f"uncertainty.{part}", list),
+                                f"uncertainty.{part}.covariance", p, p, -1e24, 1e24),
+                    f"uncertainty.{part}.covariance")
+    budget = d.get(unc, "budget", "uncertainty", dict)
+    for source, row in budget.items():
+        if not isinstance(row, dict):
+            raise d.fail(f"uncertainty.budget.{source}", f"must be an object, found "
+                         f"{_short(row)}")
+        for n in names:
+            d.number(row.get(n), f"uncertainty.budget.{source}.{n}", 0.0)
 
 
 def _covariance(d: _Doc, cov: list[list[float]], key: str) -> None:

@@ -15,28 +15,44 @@ import time
 import warnings
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from .cli_parser import PROG, build_parser
+from .cli_parser import ArgumentError as _ArgumentError
 from .errors import DataError, ForcecalError, InputError
 
 __all__ = ["main"]
 
-PROG = "forcecal"
-
-
-class _ArgumentError(Exception):
-    """Bad command-line arguments (reported in one line, exit status 2)."""
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str):  # one line instead of usage + message
-        raise _ArgumentError(f"{self.prog}: {message} (see '{self.prog} --help')")
-
-
 def _say(msg: str) -> None:
+    """A line on stderr: errors and warnings, whatever the verbosity."""
     print(msg, file=sys.stderr, flush=True)
+
+
+_VERBOSITY = [1]
+"""0 with -q (errors and warnings only), 1 by default (progress on a terminal), 2 with -v
+(progress everywhere and details)."""
+
+
+def _info(msg: str, level: int = 1) -> None:
+    """A progress or detail line on stderr, shown at verbosity ``level`` and above.
+
+    Progress (level 1) is shown on a terminal, or everywhere with ``-v``: a script or a pipe
+    reading stderr sees only errors and warnings, one line each."""
+    if _VERBOSITY[0] < level:
+        return
+    if level == 1 and _VERBOSITY[0] == 1 and not _interactive():
+        return
+    _say(msg)
+
+
+def _interactive() -> bool:
+    """Whether stderr is a terminal."""
+    isatty = getattr(sys.stderr, "isatty", None)
+    try:
+        return bool(isatty and isatty())
+    except (ValueError, OSError):
+        return False
 
 
 def _print(msg: object) -> None:
@@ -59,10 +75,17 @@ MAX_HARMONICS = 100
 """Most harmonics ``--harmonics`` may ask for."""
 
 
+_STARTED = [time.perf_counter()]
+
+
 def _progress(done: int, total: int, name: str) -> None:
+    """A progress bar line with the time spent and, from the pace so far, the time left."""
     width = 24
     filled = int(width * done / max(total, 1))
-    _say(f"  [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name}")
+    spent = time.perf_counter() - _STARTED[0]
+    left = spent / max(done, 1) * (total - done)
+    _info(f"  [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name}  "
+          f"({spent:.0f} s, about {left:.0f} s left)")
 
 
 # --------------------------------------------------------------------------------- commands
@@ -73,25 +96,30 @@ def _cmd_simulate(args) -> int:
     from .simulate.export import write_simulation
     from .simulate.presets import get_preset
 
-    get_preset(args.preset)  # an unknown preset is refused before any folder is made
+    realism = getattr(args, "realism", "ideal")
+    get_preset(args.preset, realism)  # an unknown preset is refused before any folder is made
     with staged_folder(args.out) as stage:
         write_simulation(stage, args.preset, seed=args.seed,
-                         progress=lambda m: _say(f"  simulating {m}"),
-                         binary_uff=args.binary_uff)
+                         progress=lambda m: _info(f"  simulating {m}"),
+                         binary_uff=args.binary_uff, realism=realism)
     _print(args.out)
     return 0
 
 
-def _read_scan(args, rig):
+def _read_scan(args, rig, path=None):
     from .io.scan_files import read_scan
 
-    return read_scan(args.scan, reference_label=args.reference_label,
-                     locations=rig.structure.directed)
+    return read_scan(args.scan if path is None else path,
+                     reference_label=args.reference_label, locations=rig.structure.directed)
 
 
 def _build_model(rig, scan, args):
+    """The spatial model of one scan, or of several (a span of shapes per harmonic)."""
+    from .span import merge_models
     from .spatial import build_spatial_model
 
+    if isinstance(scan, list):
+        return merge_models(rig, [_build_model(rig, s, args) for s in scan])
     try:
         return build_spatial_model(rig, scan, n_harmonics=args.harmonics,
                                    criterion=args.criterion, basis=args.basis)
@@ -110,12 +138,30 @@ def _model_for(args, rig):
     return _build_model(rig, _read_scan(args, rig), args)
 
 
-def _save_model(model, path: str, scan: str) -> None:
+def _inputs(args) -> list[str]:
+    """The input files a command read: the rig, the scans or model, the runs, the tare, the
+    manifest (for the provenance of what it writes)."""
+    files = [args.rig, *getattr(args, "scans", []), getattr(args, "scan", None),
+             *getattr(args, "runs", []), getattr(args, "run", None), getattr(args, "tare", None),
+             getattr(args, "manifest", None)]
+    return [str(f) for f in files if f]
+
+
+def _provenance(args) -> dict:
+    from .provenance import provenance
+
+    return provenance(_inputs(args), argv=[PROG, *args.argv])
+
+
+def _save_model(model, path: str, scan: str, provenance: dict | None = None) -> None:
     """Write MODEL.json atomically, strict JSON: a model with NaN or Infinity is refused."""
     from ._atomic import write_text_atomic
 
     try:
-        text = json.dumps(model.to_json(), indent=1, allow_nan=False)
+        doc = model.to_json()
+        if provenance is not None:
+            doc["provenance"] = provenance
+        text = json.dumps(doc, indent=1, allow_nan=False)
     except ValueError:
         raise InputError(f"scan '{scan}': the spatial model holds non-finite values (the scan's "
                          "records do not determine it); nothing written") from None
@@ -127,29 +173,48 @@ def _cmd_scan(args) -> int:
     from .rig import load_rig
 
     rig = load_rig(args.rig)
-    model = _build_model(rig, _read_scan(args, rig), args)
+    _info(f"  reading {len(args.scans)} scan{'s' if len(args.scans) > 1 else ''}")
+    scans = [_read_scan(args, rig, path) for path in args.scans]
+    _info("  fitting the harmonic shapes and their mass couplings")
+    model = _build_model(rig, scans if len(scans) > 1 else scans[0], args)
     clean_stale(Path(args.output).parent)
-    _save_model(model, args.output, args.scan)
+    _save_model(model, args.output, ", ".join(args.scans), _provenance(args))
     mac = model.similarity.min()
     _print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
           f"{', '.join(str(n) for n in model.harmonics)} (orders "
           f"{', '.join(str(s.order) for s in model.shapes)}); lowest MAC between harmonics "
           f"{mac:.5f}: {'one shape serves all' if model.one_shape else 'shapes differ'}")
+    if len(scans) > 1:
+        _print(f"{len(scans)} scans: shapes per harmonic "
+              + ", ".join(f"{int(n)}: {len(model.members(k))}"
+                          for k, n in enumerate(model.harmonics)))
     for note in model.notes:
         _print(f"note: {note}")
     return 0
 
 
-def _read_runs(paths, rig=None):
-    """The run files; each checked against the rig's channels when a rig is given."""
+def _read_runs(paths, rig=None, check=True):
+    """The run files, under the rig's channel names when a rig is given (its ``[channels]``
+    and group); each checked against the rig's channels unless ``check`` is false."""
     from .checks import check_run_for_rig
     from .io.run_files import read_run
 
-    runs = [read_run(p) for p in paths]
-    if rig is not None:
+    runs = [read_run(p, rig) for p in paths]
+    if rig is not None and check:
         for run in runs:
             check_run_for_rig(rig, run)
     return runs
+
+
+def _load_rig(args):
+    """The rig file, with the TDMS group of ``--group`` when given."""
+    from dataclasses import replace
+
+    from .rig import load_rig
+
+    rig = load_rig(args.rig)
+    group = getattr(args, "group", None)
+    return replace(rig, run_group=group) if group is not None else rig
 
 
 def _check_distinct_names(paths) -> None:
@@ -167,37 +232,80 @@ def _cmd_reconstruct(args) -> int:
     from .forces import reconstruct
     from .io.results import write_estimate
     from .io.staging import staged_folder
-    from .rig import load_rig
 
+    if args.monte_carlo != 0 and not 10 <= args.monte_carlo <= 100_000:
+        raise _ArgumentError(f"{PROG} reconstruct: argument --monte-carlo: {args.monte_carlo} "
+                             "draws; give 0 (none) or 10 to 100000")
     _check_distinct_names(args.runs)
-    rig = load_rig(args.rig)
+    rig = _load_rig(args)
     model = _model_for(args, rig)
     runs = _read_runs(args.runs, rig)
-    tare = _read_runs([args.tare])[0] if args.tare else None
+    tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
     estimates = []
     for k, run in enumerate(runs):
-        estimates.append(reconstruct(rig, model, run, tare=tare, ac_coupled=args.ac_coupled))
+        est = reconstruct(rig, model, run, tare=tare, ac_coupled=args.ac_coupled)
+        if args.monte_carlo:
+            est = _with_monte_carlo(rig, model, run, est, tare, args.monte_carlo)
+        estimates.append(est)
         if len(runs) > 1:
             _progress(k + 1, len(runs), run.name)
     lines = []
+    origin = _provenance(args)
     with staged_folder(args.output) as stage:
         for est, run in zip(estimates, runs, strict=True):
-            csv, _ = write_estimate(est, stage, source=run.source)
-            lines.append(f"{Path(args.output) / csv.name}: f0 {est.f0:.6g} Hz, total AC "
-                         f"uncertainty {est.waveform_std:.3g} N, inertia share "
-                         f"{est.inertia_share:.1%}")
+            series, _ = write_estimate(est, stage, source=run.source, fmt=args.format,
+                                       provenance=origin)
+            lines.append(f"{Path(args.output) / series.name}: f0 {est.f0:.6g} Hz, total AC "
+                         f"uncertainty {est.waveform_std:.3g} N (k = 2: "
+                         f"{2 * est.waveform_std:.3g} N; largest source {_largest(est)}), "
+                         f"inertia share {est.inertia_share:.1%}")
             lines += [f"note: {note}" for note in est.notes]
+            if _VERBOSITY[0] >= 2:
+                lines += _budget_lines(est)
     for line in lines:
         _print(line)
     return 0
 
 
+def _budget_lines(est) -> list[str]:
+    """-v: every force's and the total's standard uncertainty at the DC and the fundamental,
+    source by source."""
+    names = [*est.force_names, "total"]
+    lines = ["  uncertainty budget [N] " + "  ".join(f"{n} DC, n=1" for n in names)]
+    rows = [*est.budget.items(), ("combined", est.combination_std),
+            ("expanded k = 2", est.expanded())]
+    for src, std in rows:
+        cells = "  ".join(f"{std[est.combination_names.index(n), 0]:.3g}, "
+                          f"{std[est.combination_names.index(n), 1]:.3g}" for n in names)
+        lines.append(f"    {src:<22} {cells}")
+    return lines
+
+
+def _largest(est) -> str:
+    """The budget source with the largest part in the total's AC harmonics."""
+    k = est.combination_names.index("total")
+    return max(est.budget, key=lambda src: float(np.sum(est.budget[src][k, 1:] ** 2)))
+
+
+def _with_monte_carlo(rig, model, run, est, tare, n_draws: int):
+    """The estimate with the standard deviations of a Monte Carlo of its inputs (GUM S1)."""
+    import dataclasses
+
+    import numpy as np
+
+    from .budget import draw_std, monte_carlo
+    from .forces import solve_inputs
+
+    rng = np.random.default_rng(20260101)
+    draws = monte_carlo(rig, model, solve_inputs(rig, model, run, est, tare), n_draws, rng)
+    return dataclasses.replace(est, monte_carlo_std=draw_std(draws), monte_carlo_draws=n_draws)
+
+
 def _cmd_calibrate(args) -> int:
     from .campaign import calibrate_campaign, write_calibration
     from .io.staging import staged_folder
-    from .rig import load_rig
 
-    rig = load_rig(args.rig)
+    rig = _load_rig(args)
     model = _model_for(args, rig)
     result = calibrate_campaign(rig, model, args.manifest, progress=_progress,
                                 ac_only=args.ac_coupled)
@@ -254,48 +362,75 @@ def _cmd_predict(args) -> int:
 
 
 def _cmd_stream(args) -> int:
-    from .checks import check_run_for_rig
-    from .io.run_files import read_run
+    """The run read, streamed and written block by block (memory flat in its length); a file
+    output appears whole or not at all, ``-o -`` writes CSV to stdout as it goes."""
+    from .io.blocks import check_run_blocks, open_run_blocks
     from .io.staging import clean_stale
-    from .rig import load_rig
-    from .stream import replay, write_stream_csv
+    from .stream.replay import stream_table
 
+    to_stdout = args.output == "-"
     suffix = Path(args.output).suffix.lower()
-    if suffix not in STREAM_SUFFIXES:
+    if not to_stdout and suffix not in STREAM_SUFFIXES:
         raise _ArgumentError(f"{PROG} stream: argument -o/--output: {args.output!r} ends in "
-                             f"{suffix or 'no suffix'!r}; expected {', '.join(STREAM_SUFFIXES)}")
-    rig = load_rig(args.rig)
+                             f"{suffix or 'no suffix'!r}; expected {', '.join(STREAM_SUFFIXES)}"
+                             " or - (CSV on stdout)")
+    rig = _load_rig(args)
     model = _model_for(args, rig)
-    run = read_run(args.run)
-    check_run_for_rig(rig, run)
-    t, forces, static = replay(rig, model, run, block=args.block)
-    for name, values in [*forces.items(), *static.items()]:
-        bad = ~np.isfinite(values)
-        if bad.any() or np.max(np.abs(values)) > MAX_FORCE_N:
-            k = int(np.argmax(bad | (np.abs(values) > MAX_FORCE_N)))
-            raise DataError(f"run '{run.source}': the streamed force {name!r} is "
-                            f"{values[k]:.4g} N at t={t[k]:.6g} s, not finite or beyond "
-                            f"{MAX_FORCE_N:g} N; nothing written")
-    clean_stale(Path(args.output).parent)
-    write_stream_csv(args.output, t, forces, static)
-    _print(args.output)
+    blocks = check_run_blocks(rig, open_run_blocks(args.run, rig))
+
+    def check(t, forces, static) -> None:
+        for name, values in [*forces.items(), *static.items()]:
+            bad = ~np.isfinite(values)
+            if bad.any() or np.max(np.abs(values)) > MAX_FORCE_N:
+                k = int(np.argmax(bad | (np.abs(values) > MAX_FORCE_N)))
+                raise DataError(f"run '{blocks.source}': the streamed force {name!r} is "
+                                f"{values[k]:.4g} N at t={t[k]:.6g} s, not finite or beyond "
+                                f"{MAX_FORCE_N:g} N; nothing written")
+
+    with blocks:
+        if not to_stdout:
+            clean_stale(Path(args.output).parent)
+        stream_table(rig, model, blocks, args.output, block=args.block, check=check,
+                     forgetting=_forgetting(args, model, blocks.fs))
+    if not to_stdout:
+        _print(args.output)
     return 0
+
+
+STEADY_MEMORY_PERIODS = 100.0
+"""``stream --steady``: the memory, in drive periods, of the steady mode."""
+
+
+def _forgetting(args, model, fs: float) -> float | None:
+    """The forgetting factor of ``--memory PERIODS`` or ``--steady`` (None: the default)."""
+    periods = STEADY_MEMORY_PERIODS if args.steady else args.memory
+    if periods is None:
+        return None
+    if not 1.0 <= periods <= 1e5:
+        raise _ArgumentError(f"{PROG} stream: argument --memory: {periods:g} periods; give 1 "
+                             "to 100000")
+    return 1.0 - model.f0 / (fs * periods)
 
 
 def _cmd_report(args) -> int:
     from .io.staging import staged_folder
     from .report.pipeline import run_report
-    from .rig import load_rig
 
     if args.truth is not None and not Path(args.truth).is_dir():
         raise _ArgumentError(f"{PROG} report: argument --truth: {args.truth!r} is not a folder")
     _check_distinct_names(args.runs)
-    rig = load_rig(args.rig)
-    scan = _read_scan(args, rig)
+    rig = _load_rig(args)
+    if str(args.scan).endswith(".json"):
+        from .spatial import load_model
+
+        scan = load_model(args.scan)
+    else:
+        scan = _read_scan(args, rig)
     runs = _read_runs(args.runs, rig)
     with staged_folder(args.output) as stage:
         path = run_report(rig, scan, runs, stage, truth_dir=args.truth,
-                          n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis)
+                          n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis,
+                          provenance=_provenance(args), progress=_info)
     _print(Path(args.output) / Path(path).relative_to(stage))
     return 0
 
@@ -304,136 +439,20 @@ def _cmd_demo(args) -> int:
     from .demo import run_demo
 
     start = time.perf_counter()
-    report = run_demo(Path(args.out), progress=_say)
-    _say(f"  done in {time.perf_counter() - start:.1f} s")
+    report = run_demo(Path(args.out), progress=_info)
+    _info(f"  done in {time.perf_counter() - start:.1f} s")
     print(f"report: {report}")
+    calibration = Path(args.out) / "calibration" / "report.html"
+    if calibration.is_file():
+        print(f"calibration report (the actuator law, its uncertainty, the campaign): "
+              f"{calibration}")
     return 0
 
 
-# --------------------------------------------------------------------------------- parser
-
-
-def _model_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--harmonics", type=int, default=6, metavar="H",
-                   help="harmonics 1..H considered (default 6)")
-    p.add_argument("--criterion", choices=("gcv", "bic"), default="gcv",
-                   help="how each shape's order is chosen (default gcv)")
-    p.add_argument("--basis", choices=("polynomial", "modes"), default="polynomial",
-                   help="shape basis: orthonormal polynomials (default) or mode shapes")
-    p.add_argument("--reference-label", default="Ref",
-                   help="text in id line 2 of the scan's reference records (default 'Ref')")
-
-
-def _demo_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("demo", help="simulate the built-in rig and run every stage",
-                       formatter_class=fmt, epilog="example:\n  forcecal demo demo-output")
-    p.add_argument("out", nargs="?", default="forcecal-demo", help="output folder")
-    p.set_defaults(func=_cmd_demo)
-
-def _simulate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("simulate", help="write a virtual rig's files", formatter_class=fmt,
-                       epilog="example:\n  forcecal simulate lab --preset campaign --seed 1")
-    p.add_argument("out", help="output folder")
-    p.add_argument("--preset", default="paper", help="paper, resonance, campaign, plate or body")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
-    p.add_argument("--binary-uff", action="store_true", help="write the scan as dataset 58b")
-    p.set_defaults(func=_cmd_simulate)
-
-def _scan_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("scan", help="build the spatial model from an SLDV scan",
-                       formatter_class=fmt,
-                       epilog="example:\n  forcecal scan lab/rig.toml lab/scan.uff -o model.json")
-    p.add_argument("rig")
-    p.add_argument("scan", help="UFF (.uff/.unv), HDF5 (.h5) or NPZ scan")
-    p.add_argument("-o", "--output", required=True, help="MODEL.json")
-    _model_options(p)
-    p.set_defaults(func=_cmd_scan)
-
-def _reconstruct_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("reconstruct", help="forces of each run", formatter_class=fmt,
-                       epilog="example:\n  forcecal reconstruct lab/rig.toml lab/scan.uff "
-                              "lab/runs/paper.csv -o forces")
-    p.add_argument("rig")
-    p.add_argument("scan", help="scan file, or a MODEL.json written by 'forcecal scan'")
-    p.add_argument("runs", nargs="+", metavar="RUN", help="CSV, TDMS or HDF5 recordings")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--tare", help="zero-current record whose gauge DC is subtracted")
-    p.add_argument("--ac-coupled", action="store_true",
-                   help="gauges without DC (piezoelectric): estimate the harmonics only")
-    _model_options(p)
-    p.set_defaults(func=_cmd_reconstruct)
-
-def _calibrate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("calibrate", help="fit the actuator law over a campaign",
-                       formatter_class=fmt,
-                       epilog="example:\n  forcecal calibrate lab/rig.toml lab/scan.uff "
-                              "--manifest lab/manifest.csv -o calibration")
-    p.add_argument("rig")
-    p.add_argument("scan", help="scan file, or a MODEL.json")
-    p.add_argument("--manifest", required=True, help="campaign manifest CSV")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--ac-coupled", action="store_true",
-                   help="fit the law on the harmonics alone (gauges without DC)")
-    p.add_argument("--no-report", action="store_true", help="skip the figures and HTML")
-    _model_options(p)
-    p.set_defaults(func=_cmd_calibrate)
-
-def _predict_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("predict", help="actuator force from a calibration",
-                       formatter_class=fmt,
-                       epilog="example:\n  forcecal predict calibration/calibration.json "
-                              "--current 0.6 --gap 0.001")
-    p.add_argument("calibration")
-    p.add_argument("--current", type=float, required=True, help="coil current, A")
-    p.add_argument("--gap", type=float, required=True, help="air gap at every pole, m")
-    p.add_argument("--json", action="store_true", help="uncertainty and per-pole split")
-    p.set_defaults(func=_cmd_predict)
-
-def _stream_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("stream", help="replay a run through the real-time estimator",
-                       formatter_class=fmt,
-                       epilog="example:\n  forcecal stream lab/rig.toml model.json "
-                              "lab/runs/paper.csv -o paper.stream.csv --block 256")
-    p.add_argument("rig")
-    p.add_argument("scan", metavar="MODEL", help="MODEL.json (or a scan file)")
-    p.add_argument("run")
-    p.add_argument("-o", "--output", required=True, help="output CSV")
-    p.add_argument("--block", type=int, default=256, help="samples per block (default 256)")
-    _model_options(p)
-    p.set_defaults(func=_cmd_stream)
-
-def _report_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
-    p = sub.add_parser("report", help="figures and an HTML report for runs",
-                       formatter_class=fmt,
-                       epilog="example:\n  forcecal report lab/rig.toml lab/scan.uff "
-                              "lab/runs/paper.csv -o report --truth lab/truth")
-    p.add_argument("rig")
-    p.add_argument("scan")
-    p.add_argument("runs", nargs="+", metavar="RUN")
-    p.add_argument("-o", "--output", required=True, help="output folder")
-    p.add_argument("--truth", help="folder of NAME.forces.csv ground truth to overlay")
-    _model_options(p)
-    p.set_defaults(func=_cmd_report)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    fmt = argparse.RawDescriptionHelpFormatter
-    parser = _Parser(prog=PROG, description="External forces on a vibrating structure from "
-                     "force gauges, inertia and an SLDV scan; electromagnet calibration.",
-                     formatter_class=fmt)
-    from . import __version__
-
-    parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    _demo_parser(sub, fmt)
-    _simulate_parser(sub, fmt)
-    _scan_parser(sub, fmt)
-    _reconstruct_parser(sub, fmt)
-    _calibrate_parser(sub, fmt)
-    _predict_parser(sub, fmt)
-    _stream_parser(sub, fmt)
-    _report_parser(sub, fmt)
-    return parser
+COMMANDS = {"demo": _cmd_demo, "simulate": _cmd_simulate, "scan": _cmd_scan,
+            "reconstruct": _cmd_reconstruct, "calibrate": _cmd_calibrate,
+            "predict": _cmd_predict, "stream": _cmd_stream, "report": _cmd_report}
+"""Each command's handler, by the name the parser (:mod:`forcecal.cli_parser`) gives it."""
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -444,8 +463,12 @@ def main(argv: Sequence[str] | None = None) -> int:
             args = parser.parse_args(argv)
         except SystemExit as exc:  # --help, --version: printed; return instead of exiting
             return exc.code if isinstance(exc.code, int) else 0
-        if not getattr(args, "func", None):
+        if not args.command:
             parser.error("a command is required")
+        args.argv = list(sys.argv[1:] if argv is None else argv)
+        _VERBOSITY[0] = 0 if getattr(args, "quiet", False) else (
+            2 if getattr(args, "verbose", False) else 1)
+        _STARTED[0] = time.perf_counter()
         _check_arguments(args)
         for stream in (sys.stdout, sys.stderr):  # a file name's undecodable bytes: replaced
             reconfigure = getattr(stream, "reconfigure", None)
@@ -457,7 +480,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         with warnings.catch_warnings():
             warnings.simplefilter("default")
             warnings.showwarning = _show_warning
-            return args.func(args)
+            return COMMANDS[args.command](args)
     except _ArgumentError as exc:
         _say(str(exc))
         return 2
@@ -502,6 +525,26 @@ def _check_arguments(args: argparse.Namespace) -> None:
     if block is not None and block < 1:
         raise _ArgumentError(f"{prog}: argument --block: {block} is not a positive number of "
                              "samples")
+    _expand_run_folders(args)
+
+
+def _expand_run_folders(args: argparse.Namespace) -> None:
+    """A folder given as RUN stands for the run files in it (sorted); what is skipped is noted
+    on stdout. ``stream`` replays one run: its folder must hold exactly one."""
+    from .io.run_files import run_paths
+
+    if isinstance(getattr(args, "runs", None), list):
+        args.runs, notes = run_paths(args.runs)
+    elif isinstance(getattr(args, "run", None), str) and Path(args.run).is_dir():
+        runs, notes = run_paths([args.run])
+        if len(runs) != 1:
+            raise InputError(f"run folder '{args.run}': {len(runs)} run files; "
+                             f"'{PROG} {args.command}' replays one run, name its file")
+        args.run = runs[0]
+    else:
+        return
+    for note in notes:
+        _print(f"note: {note}")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -25,6 +25,7 @@ import scipy.stats
 
 from .coordinates import Coordinates
 from .harmonics import fit_harmonics
+from .spatial import SpatialModel
 
 __all__ = [
     "DC_RATIO_TOLERANCE",
@@ -36,6 +37,7 @@ __all__ = [
     "drift_notes",
     "probe_misfit_notes",
     "pull_only_notes",
+    "span_notes",
 ]
 
 MISFIT_QUANTILE = 0.999
@@ -69,12 +71,12 @@ def probe_misfit_notes(coords: Coordinates, sensor_names: list[str], what: str) 
     list of str
     """
     n_s = len(sensor_names)
-    dof = 2 * (n_s - 1)
-    if dof <= 0:
-        return []
-    limit = max(float(scipy.stats.chi2.ppf(MISFIT_QUANTILE, dof) / dof), MISFIT_RATIO)
     notes = []
-    for n, chi2 in zip(coords.harmonics, coords.chi2, strict=True):
+    for k, (n, chi2) in enumerate(zip(coords.harmonics, coords.chi2, strict=True)):
+        dof = 2 * (n_s - len(coords.span(k)[0]))
+        if dof <= 0:
+            continue
+        limit = max(float(scipy.stats.chi2.ppf(MISFIT_QUANTILE, dof) / dof), MISFIT_RATIO)
         if np.isfinite(chi2) and chi2 > limit:
             notes.append(
                 f"{what}: harmonic {int(n)}: the probes {', '.join(sensor_names)} disagree with "
@@ -83,6 +85,39 @@ def probe_misfit_notes(coords: Coordinates, sensor_names: list[str], what: str) 
                 "shape than the scan saw (a load pattern changed since the scan: scan under this "
                 "load too and build the model from both scans) or a probe's sign, scale or "
                 "position is wrong; the uncertainty is inflated accordingly")
+    return notes
+
+
+def span_notes(model: SpatialModel, coords: Coordinates, n_sensors: int,
+               what: str) -> list[str]:
+    """A note per harmonic whose probes needed several shapes of a multi-scan model.
+
+    Parameters
+    ----------
+    model : SpatialModel
+    coords : Coordinates
+        With the members each harmonic used.
+    n_sensors : int
+    what : str
+        The run, at the start of the note.
+
+    Returns
+    -------
+    list of str
+    """
+    notes = []
+    for k, n in enumerate(coords.harmonics):
+        members = coords.span(k)[0]
+        if len(members) < 2:
+            continue
+        names = model.member_names(k)
+        text = (f"{what}: harmonic {int(n)}: the run's load differs from every scan's; its "
+                f"deflection combines the shapes of scans "
+                + ", ".join(f"'{names[j]}'" for j in members))
+        if len(members) >= n_sensors:
+            text += (" (as many coordinates as probes: none is left to check the shapes "
+                     "against at this harmonic; a further probe would)")
+        notes.append(text)
     return notes
 
 

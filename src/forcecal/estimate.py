@@ -10,6 +10,7 @@ from typing import Any
 import numpy as np
 
 from .coordinates import Coordinates
+from .rig import TypeB
 
 __all__ = ["ForceEstimate"]
 
@@ -34,7 +35,16 @@ class ForceEstimate:
     static_series : (n_forces, n_samples) [N] -Psi^+ R(t) sample by sample
     combination_names, combination, combination_std : every force, the total and the
         resultant's first moments (:func:`forcecal.uncertainty.combinations`), phasors
-        (n_c, H+1) [N, N m] with their standard uncertainties
+        (n_c, H+1) [N, N m] with their standard uncertainties: the noise and the type-B
+        parts combined
+    budget : source -> (n_c, H+1) [N, N m], each source's standard uncertainty in every
+        combination and harmonic (noise: gauges, probes and shapes, unresolved harmonics;
+        type B: :data:`forcecal.budget.SOURCES`); their root sum of squares is
+        ``combination_std``
+    type_b : the rig's type-B standard uncertainties the budget used
+    monte_carlo_std, monte_carlo_draws : (n_c, H+1) [N, N m] the standard deviation of a
+        Monte Carlo over the sources :data:`forcecal.budget.MONTE_CARLO_SOURCES`, and its
+        number of draws (None and 0 without one)
     """
 
     run_name: str
@@ -63,6 +73,10 @@ class ForceEstimate:
     combination_std: np.ndarray | None = None
     dc_observed: bool = True
     notes: tuple[str, ...] = field(default=())
+    budget: dict[str, np.ndarray] = field(default_factory=dict)
+    type_b: TypeB | None = None
+    monte_carlo_std: np.ndarray | None = None
+    monte_carlo_draws: int = 0
 
     @property
     def total_series(self) -> np.ndarray:
@@ -80,6 +94,13 @@ class ForceEstimate:
     def inertia_force(self) -> np.ndarray:
         """(n_forces, H+1) complex [N]: the inertia's contribution Psi^+ J_n to each force."""
         return self.force - self.static
+
+    def expanded(self, k: float = 2.0) -> np.ndarray:
+        """(n_c, H+1) [N, N m]: expanded uncertainties k u of every combination and harmonic
+        (k = 2: about 95 % coverage for a normal distribution)."""
+        assert self.combination_std is not None
+        out: np.ndarray = k * self.combination_std
+        return out
 
     @property
     def waveform_std(self) -> float:

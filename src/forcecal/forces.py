@@ -19,11 +19,19 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .budget import SolveInputs, type_b_variance
 from .checks import check_clipping, check_record_length
-from .coordinates import Coordinates, generalized_coordinates, sensor_rows
-from .diagnostics import dc_vs_ac_notes, drift_notes, probe_misfit_notes, pull_only_notes
+from .coordinates import Coordinates, deflection, generalized_coordinates
+from .diagnostics import (
+    dc_vs_ac_notes,
+    drift_notes,
+    probe_misfit_notes,
+    pull_only_notes,
+    span_notes,
+)
 from .errors import DataError, InputError
 from .estimate import ForceEstimate
+from .harmonic_sums import grid_series
 from .harmonics import HarmonicFit, fit_harmonics, fundamental_uncertainty, refine_fundamental
 from .inertia import inertia_term
 from .records import Run
@@ -33,7 +41,7 @@ from .spatial import SpatialModel, check_model_rig
 from .uncertainty import (
     combinations,
     gauge_variance,
-    inertia_variance,
+    inertia_variance_parts,
     shape_operators,
     unresolved_inertia,
     unresolved_inertia_bound,
@@ -48,6 +56,7 @@ __all__ = [
     "kept_harmonics",
     "reconstruct",
     "significant_reactions",
+    "solve_inputs",
 ]
 
 SPLIT_CONDITION = 30.0
@@ -156,12 +165,19 @@ def channels_si(rig: Rig, run: Run) -> dict[str, np.ndarray]:
     return out
 
 
-def _series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
-    """Evaluate phasors (..., H+1) at times t -> (..., n_t)."""
-    n = np.arange(phasors.shape[-1])
-    e = np.exp(1j * 2 * np.pi * f0 * np.outer(n, t))
-    series: np.ndarray = (phasors @ e).real
-    return series
+def _times(run: Run) -> np.ndarray:
+    """(n_samples,) [s] the run's sample times t0 + k / fs (:attr:`Run.time`), computed in
+    place: no temporaries of the record's length."""
+    t = np.arange(run.n_samples, dtype=float)
+    t /= run.fs
+    t += run.t0
+    return t
+
+
+def _series(phasors: np.ndarray, f0: float, run: Run) -> np.ndarray:
+    """Evaluate phasors (..., H+1) at the run's sample times -> (..., n_samples), chunk by
+    chunk (:func:`forcecal.harmonic_sums.grid_series`)."""
+    return grid_series(phasors, f0, run.fs, run.t0, run.n_samples)
 
 
 @dataclass(frozen=True)
@@ -179,16 +195,25 @@ def _records(rig: Rig, run: Run) -> _Records:
     for name, values in sig.items():
         check_clipping(values, name, run.source, run.fs)
     rec = _Records(current=sig[rig.actuator.current],
-                   sensors=np.stack([sig[s] for s in rig.sensor_names]),
-                   gauges=np.stack([sig[g] for g in rig.gauge_names]))
+                   sensors=_rows(sig, list(rig.sensor_names)),
+                   gauges=_rows(sig, list(rig.gauge_names)))
     if not _driven(rec):
         raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
     return rec
 
 
+def _rows(sig: dict[str, np.ndarray], names: list[str]) -> np.ndarray:
+    """The channels ``names`` of ``sig`` stacked; each is dropped from ``sig`` once copied, so
+    that a long run's channels are not held twice."""
+    out = np.empty((len(names), len(sig[names[0]])))
+    for k, name in enumerate(names):
+        out[k] = sig[name] if name in names[k + 1:] else sig.pop(name)
+    return out
+
+
 def _driven(rec: _Records) -> list[np.ndarray]:
     """The records that are not constant (constant ones say nothing of the fundamental)."""
-    return [r for r in np.vstack([rec.current, rec.sensors, rec.gauges])
+    return [r for r in (rec.current, *rec.sensors, *rec.gauges)
             if np.std(r) > 1e-9 * (np.max(np.abs(r)) + 1e-300)]
 
 
@@ -227,21 +252,26 @@ def _tare_dc(rig: Rig, tare: Run | None) -> np.ndarray:
 
 
 def _inertia(rig: Rig, model: SpatialModel, coords: Coordinates, s_fit: HarmonicFit,
-             a_r: np.ndarray, w0: float, h: int) -> tuple[np.ndarray, np.ndarray, list[int]]:
-    """Step 5: J_{r,n} of every shaped harmonic, with its variance in every combination."""
+             a_r: np.ndarray, w0: float, h: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int]]:
+    """Step 5: J_{r,n} of every shaped harmonic, with its variance in every combination from
+    the probes' noise and from the scan's shapes."""
     n_c = a_r.shape[0]
     inertia = np.zeros((len(rig.gauges), h + 1), dtype=complex)
-    var = np.zeros((n_c, h + 1, 2))
+    var_probes = np.zeros((n_c, h + 1, 2))
+    var_shapes = np.zeros((n_c, h + 1, 2))
     ops = shape_operators(model, rig)
     shaped = []
     for k, n in enumerate(model.harmonics):
         n = int(n)
         if n > h:
             continue
-        inertia[:, n] = inertia_term(model.couplings[k], coords.q[k], n * w0)
-        var[:, n, :] = inertia_variance(model, ops, k, s_fit, a_r, n * w0, coords.q_std[k])
+        members, q, _ = coords.span(k)
+        inertia[:, n] = inertia_term(model.member_couplings(k)[:, list(members)], q, n * w0)
+        var_probes[:, n, :], var_shapes[:, n, :] = inertia_variance_parts(
+            model, ops, k, s_fit, a_r, n * w0, coords)
         shaped.append(n)
-    return inertia, var, shaped
+    return inertia, var_probes, var_shapes, shaped
 
 
 def _unresolved(rig: Rig, model: SpatialModel, s_fit: HarmonicFit, a_r: np.ndarray,
@@ -307,20 +337,31 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     combo_names, combo = combinations(rig)
     a_r = combo @ pinv                                               # (n_c, n_g)
     w0 = 2 * np.pi * f0
-    inertia, var, shaped = _inertia(rig, model, coords, s_fit, a_r, w0, h)
-    var += gauge_variance(a_r, g_fit)[:, :, None]
+    inertia, var_probes, var_shapes, shaped = _inertia(rig, model, coords, s_fit, a_r, w0, h)
     with_inertia, kept = kept_harmonics(
         h, shaped, significant_reactions(reactions, g_fit.phasor_std), dc=True)
-    notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0, var)
-    for a in (reactions, inertia, var):
+    noise = {"gauge noise": np.repeat(gauge_variance(a_r, g_fit)[:, :, None], 2, axis=2),
+             "probe noise": var_probes, "scan shapes": var_shapes,
+             "unresolved harmonics": np.zeros_like(var_probes)}
+    notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0,
+                         noise["unresolved harmonics"])
+    var = sum(noise.values(), start=np.zeros_like(var_probes))
+    for a in (reactions, inertia, var, *noise.values()):
         a[:, ~kept] = 0.0
     force, static, std = _solve(pinv, inertia, reactions, var, ac_coupled)
+    budget = {name: _pooled(v, ac_coupled) for name, v in noise.items()}
+    budget.update(_type_b(rig, model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
+                          ac_coupled))
+    std = np.sqrt(sum((b**2 for b in budget.values()), start=np.zeros_like(std)))
+    if not rig.type_b.declared:
+        notes.append(f"run '{run.source}': {rig.type_b.describe()}")
     notes += _split_note(rig, cond)
     static_series = force_solve(pinv, tare_dc[:, None], rec.gauges)
     if ac_coupled:
         static_series = static_series - static_series.mean(axis=1, keepdims=True)
     n_f = len(rig.forces)
-    series = _series(force, f0, run.time)
+    series = _series(force, f0, run)
+    notes += span_notes(model, coords, len(rig.sensors), f"run '{run.source}'")
     notes += _self_checks(rig, run, rec, coords, force, std[:n_f], series, f0, ac_coupled)
     return ForceEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
@@ -328,11 +369,65 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         force=force, force_std=std[:n_f], total=force.sum(axis=0), total_std=std[n_f],
         combination_names=combo_names, combination=combo @ force, combination_std=std,
         static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
-        kept=kept, coordinates=coords, time=run.time, series=series,
+        kept=kept, coordinates=coords, time=_times(run), series=series,
         static_series=static_series, psi_condition=cond,
         consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
-        dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std,
+        dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std, budget=budget,
+        type_b=rig.type_b,
     )
+
+
+def _pooled(var: np.ndarray, ac_coupled: bool) -> np.ndarray:
+    """(n_c, H+1) standard uncertainty from the variances of Re and Im (n_c, H+1, 2): pooled
+    for n >= 1, the real DC's for n = 0 (zero when the gauges are AC-coupled)."""
+    std = np.sqrt(var.mean(axis=2))
+    std[:, 0] = 0.0 if ac_coupled else np.sqrt(var[:, 0, 0])
+    return std
+
+
+def _type_b(rig: Rig, model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFit,
+            tare_dc: np.ndarray, w0: float, coords: Coordinates, kept: np.ndarray,
+            with_inertia: np.ndarray, ac_coupled: bool) -> dict[str, np.ndarray]:
+    """Step 6b: each type-B source's standard uncertainty in every combination and harmonic
+    (:mod:`forcecal.budget`)."""
+    inputs = _solve_inputs(model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
+                           ac_coupled)
+    return {name: np.sqrt(v) for name, v in type_b_variance(rig, model, inputs).items()}
+
+
+def _solve_inputs(model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFit,
+                  tare_dc: np.ndarray, w0: float, coords: Coordinates, kept: np.ndarray,
+                  with_inertia: np.ndarray, ac_coupled: bool) -> SolveInputs:
+    return SolveInputs(
+        gauges=g_fit.phasors, tare=tare_dc, sensors=s_fit.phasors,
+        sensor_std=s_fit.phasor_std, gauge_std=g_fit.phasor_std, w0=w0,
+        members=tuple(coords.span(k)[0] for k in range(len(model.harmonics))),
+        kept=kept, with_inertia=with_inertia, ac_coupled=ac_coupled)
+
+
+def solve_inputs(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
+                 tare: Run | None = None) -> SolveInputs:
+    """What the force solve of an estimate used, for :func:`forcecal.budget.monte_carlo`.
+
+    Parameters
+    ----------
+    rig, model, run : as for :func:`reconstruct`
+    estimate : ForceEstimate
+        ``reconstruct(rig, model, run, ...)``.
+    tare : Run, optional
+        The tare the estimate subtracted.
+
+    Returns
+    -------
+    SolveInputs
+    """
+    rec = _records(rig, run)
+    h = len(estimate.harmonics) - 1
+    g_fit = fit_harmonics(rec.gauges, run.fs, estimate.f0, h, t0=run.t0)
+    s_fit = fit_harmonics(rec.sensors, run.fs, estimate.f0, h, t0=run.t0)
+    return _solve_inputs(model, g_fit, s_fit, _tare_dc(rig, tare), 2 * np.pi * estimate.f0,
+                         estimate.coordinates, estimate.kept, estimate.with_inertia,
+                         not estimate.dc_observed)
 
 
 def _check_arguments(rig: object, model: object, run: object, tare: object) -> None:
@@ -409,11 +504,13 @@ def implied_phasors(rig: Rig, model: SpatialModel, run: Run,
     out = {g: estimate.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
     probes = fit_harmonics(np.stack([sig[s] for s in rig.sensor_names]), run.fs, estimate.f0,
                            h, t0=run.t0).phasors
+    at = rig.structure.coordinates(rig.sensor_points)
+    model_view = np.zeros((len(rig.sensor_names), h + 1), dtype=complex)
+    for k, n in enumerate(model.harmonics):
+        model_view[:, n] = deflection(model, estimate.coordinates, k, at)
     for j, s in enumerate(rig.sensor_names):
-        x = np.zeros(h + 1, dtype=complex)
+        x = model_view[j].copy()
         x[0] = probes[j, 0]
-        for k, n in enumerate(model.harmonics):
-            x[n] = sensor_rows(model, rig, int(n))[j] * estimate.coordinates.q[k]
         out[s] = x
     cur = rig.actuator.current
     out[cur] = fit_harmonics(sig[cur], run.fs, estimate.f0, h, t0=run.t0).phasors

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .coordinates import deflection
 from .errors import InputError
 from .forces import ForceEstimate, channels_si
 from .harmonics import fit_harmonics
@@ -196,7 +197,7 @@ def _harmonic_phasors(
     for k, n in enumerate(coords.harmonics):
         n = int(n)
         if n <= h:
-            phasors[:, n] = model.shape_values(n, xp) * coords.q[k]
+            phasors[:, n] = deflection(model, coords, k, xp)
     return phasors
 
 

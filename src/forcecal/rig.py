@@ -13,11 +13,11 @@ import tomllib
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 
-from ._toml import TableReader, check_numbers
+from ._toml import TableReader, channel_map, check_numbers, node_channel, parse_node_channel
 from .errors import RigError
 from .structures import KINDS, UP, LumpedMass, Structure, locations
 
@@ -29,8 +29,11 @@ __all__ = [
     "Rig",
     "Sensor",
     "Structure",
+    "TypeB",
     "load_rig",
     "locations",
+    "node_channel",
+    "parse_node_channel",
     "parse_rig",
     "rig_to_dict",
 ]
@@ -99,6 +102,51 @@ class Actuator:
 
 
 @dataclass(frozen=True)
+class TypeB:
+    """Type-B standard uncertainties of the rig (GUM), the ``[uncertainty]`` table.
+
+    Relative ones are fractions (0.005 for 0.5 %). Without the table the defaults apply, and
+    every output says so (:attr:`declared` is False).
+
+    Attributes
+    ----------
+    gauge_scale : [1] relative, each gauge's sensitivity
+    probe_scale : [1] relative, each displacement sensor's sensitivity
+    current_scale : [1] relative, the current sensor's
+    position : [m] each gauge's, force point's and sensor's position along every axis
+    mass : [1] relative, the distributed mass and each lumped mass
+    gap : [m] each static air gap
+    declared : whether the rig file gives them
+    """
+
+    gauge_scale: float = 0.005
+    probe_scale: float = 0.01
+    current_scale: float = 0.002
+    position: float = 0.5e-3
+    mass: float = 0.01
+    gap: float = 10e-6
+    declared: bool = False
+
+    KEYS: ClassVar[tuple[str, ...]] = ("gauge_scale", "probe_scale", "current_scale",
+                                       "position", "mass", "gap")
+
+    @classmethod
+    def none(cls) -> TypeB:
+        """Every type-B uncertainty zero, declared (ideal sensors and geometry)."""
+        return cls(**dict.fromkeys(cls.KEYS, 0.0), declared=True)
+
+    def describe(self) -> str:
+        """One line: the values, and whether the rig declares them or they are defaults."""
+        text = (f"gauge scale {self.gauge_scale:.3g}, probe scale {self.probe_scale:.3g}, "
+                f"current scale {self.current_scale:.3g} (relative); positions "
+                f"{self.position * 1e3:.3g} mm; masses {self.mass:.3g} (relative); gaps "
+                f"{self.gap * 1e6:.3g} um")
+        return ("type-B standard uncertainties declared by the rig: " if self.declared else
+                "type-B standard uncertainties: the rig declares none ([uncertainty]); "
+                "defaults used: ") + text
+
+
+@dataclass(frozen=True)
 class Rig:
     """A complete rig description (INTERFACES.md section 1)."""
 
@@ -110,6 +158,13 @@ class Rig:
     actuator: Actuator = field(default_factory=Actuator)
     frequency: float | None = None
     source: str = "<rig>"
+    channel_map: tuple[tuple[str, str], ...] = ()
+    """``[channels]``: (rig channel name, the file's channel) pairs; a UFF record is named
+    ``"node 12 +Z"`` (see :func:`node_channel`)."""
+    run_group: str | None = None
+    """``acquisition.group``: the TDMS group the runs are read from."""
+    type_b: TypeB = field(default_factory=TypeB)
+    """``[uncertainty]``: the type-B standard uncertainties (defaults when not declared)."""
 
     @property
     def gauge_names(self) -> list[str]:
@@ -161,7 +216,8 @@ class Rig:
 MAX_RIG_BYTES = 10_000_000
 """Largest rig file read (a rig of thousands of points is a few hundred kB)."""
 
-_KNOWN_TOP = {"name", "structure", "gauges", "forces", "sensors", "actuator", "acquisition"}
+_KNOWN_TOP = {"name", "structure", "gauges", "forces", "sensors", "actuator", "acquisition",
+              "channels", "uncertainty"}
 
 
 def load_rig(path: str | Path) -> Rig:
@@ -234,11 +290,37 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     actuator = _actuator(r, r.table(doc, "actuator", required=False))
     acq = r.table(doc, "acquisition", required=False)
     frequency = r.number(acq, "frequency", "acquisition", required=False, positive=True)
+    group = r.text(acq, "group", "acquisition", required=False, default=None)
     _check_names(r, gauges, forces, sensors, actuator)
     _check_statics(r, structure, gauges, forces, sensors)
+    names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
+    names += [actuator.flux] if actuator.flux is not None else []
+    channels = channel_map(r, r.table(doc, "channels", required=False), names)
+    type_b = _type_b(r, r.table(doc, "uncertainty", required=False), "uncertainty" in doc)
     return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,
                forces=forces, sensors=sensors, actuator=actuator, frequency=frequency,
-               source=source)
+               source=source, channel_map=channels, run_group=group, type_b=type_b)
+
+
+def _type_b(r: TableReader, table: dict[str, Any], declared: bool) -> TypeB:
+    """The ``[uncertainty]`` table: type-B standard uncertainties, defaults for keys absent."""
+    unknown = set(table) - set(TypeB.KEYS)
+    if unknown:
+        raise r.fail(f"uncertainty.{sorted(unknown)[0]}", "is not a type-B key (expected one of "
+                     + ", ".join(TypeB.KEYS) + ")")
+    limits = {"gauge_scale": 0.5, "probe_scale": 0.5, "current_scale": 0.5, "position": 0.1,
+              "mass": 0.5, "gap": 1e-3}
+    values: dict[str, float] = {}
+    for key in TypeB.KEYS:
+        v = r.number(table, key, "uncertainty", required=False)
+        if v is None:
+            continue
+        if not 0.0 <= v <= limits[key]:
+            raise r.fail(f"uncertainty.{key}", f"= {v!r} must lie in [0, {limits[key]:g}] "
+                         + ("(a relative standard uncertainty: 0.005 for 0.5 %)"
+                            if key not in ("position", "gap") else "(a standard uncertainty in m)"))
+        values[key] = v
+    return TypeB(**values, declared=declared)
 
 
 def _structure(r: TableReader, st: dict[str, Any]) -> Structure:
@@ -426,6 +508,15 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         if v is not None:
             act[key] = v
     doc["actuator"] = act
+    acquisition: dict[str, Any] = {}
     if rig.frequency is not None:
-        doc["acquisition"] = {"frequency": rig.frequency}
+        acquisition["frequency"] = rig.frequency
+    if rig.run_group is not None:
+        acquisition["group"] = rig.run_group
+    if acquisition:
+        doc["acquisition"] = acquisition
+    if rig.channel_map:
+        doc["channels"] = dict(rig.channel_map)
+    if rig.type_b.declared:
+        doc["uncertainty"] = {k: getattr(rig.type_b, k) for k in TypeB.KEYS}
     return doc

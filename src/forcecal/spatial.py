@@ -12,6 +12,7 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -62,6 +63,12 @@ class SpatialModel:
         (:mod:`forcecal.screening`)
     rig : the keys of the rig the model was built for (:func:`rig_keys`); a model is refused
         for a rig whose geometry, masses or sensor layout differ (:func:`check_model_rig`)
+    span : per harmonic, the shapes that other scans of the rig (under other loads) add
+        beyond ``shapes[k]``; empty for a model built from one scan (:mod:`forcecal.span`)
+    span_couplings : per harmonic, (n_gauges, n_extra) complex [kg m] their mass couplings
+    scans : the scans the model was built from (``source`` is the first)
+    member_scans : per harmonic, the scan (index into ``scans``) of each member of its span,
+        ``shapes[k]``'s first
     """
 
     f0: float
@@ -77,6 +84,10 @@ class SpatialModel:
     notes: tuple[str, ...] = ()
     rig: dict[str, float | str] = field(default_factory=dict)
     set_aside: dict[int, str] = field(default_factory=dict)
+    span: tuple[tuple[Fit, ...], ...] = ()
+    span_couplings: tuple[np.ndarray, ...] = ()
+    scans: tuple[str, ...] = ()
+    member_scans: tuple[tuple[int, ...], ...] = ()
 
     @property
     def one_shape(self) -> bool:
@@ -94,6 +105,39 @@ class SpatialModel:
         """phi_n at points, complex (n_points,) [m]."""
         return self.shapes[self.index(n)].evaluate(points)
 
+    def members(self, k: int) -> tuple[Fit, ...]:
+        """Harmonic k's span of shapes: ``shapes[k]``, then those other scans add.
+
+        Parameters
+        ----------
+        k : int
+            Position of the harmonic in :attr:`harmonics`.
+
+        Returns
+        -------
+        tuple of ShapeFit or VectorShapeFit
+        """
+        return (self.shapes[k], *(self.span[k] if self.span else ()))
+
+    def member_couplings(self, k: int) -> np.ndarray:
+        """(n_gauges, n_members) complex [kg m]: the mass couplings of harmonic k's span."""
+        extra = self.span_couplings[k] if self.span else np.zeros((len(self.gauge_names), 0))
+        return np.column_stack([self.couplings[k], extra])
+
+    def member_values(self, k: int, points: np.ndarray) -> np.ndarray:
+        """(n_points, n_members) complex [m]: harmonic k's span of shapes at points."""
+        return np.column_stack([f.evaluate(points) for f in self.members(k)])
+
+    def member_std(self, k: int, points: np.ndarray) -> np.ndarray:
+        """(n_points, n_members) [m]: the fitted shapes' standard uncertainties at points."""
+        return np.column_stack([f.std(points) for f in self.members(k)])
+
+    def member_names(self, k: int) -> tuple[str, ...]:
+        """The scan each member of harmonic k's span comes from."""
+        if not self.member_scans:
+            return (self.source,)
+        return tuple(self.scans[i] for i in self.member_scans[k])
+
     def _summary(self) -> list[tuple[str, str]]:
         """(what, value) rows shown by the reprs."""
         return [("scan", self.source), ("f0", f"{self.f0:.6g} Hz"),
@@ -101,7 +145,11 @@ class SpatialModel:
                                                 zip(self.harmonics, self.shapes, strict=True))),
                 ("dropped", ", ".join(str(n) for n in self.dropped) or "none"),
                 ("points", str(self.n_points)),
-                ("records set aside", str(len(self.set_aside)))]
+                ("records set aside", str(len(self.set_aside)))] + (
+            [("scans", ", ".join(self.scans)),
+             ("shapes per harmonic", ", ".join(f"{int(n)}: {len(self.members(k))}"
+                                               for k, n in enumerate(self.harmonics)))]
+            if len(self.scans) > 1 else [])
 
     def __repr__(self) -> str:
         """One line: f0, the harmonics with their shapes' orders, the records set aside."""
@@ -154,6 +202,13 @@ class SpatialModel:
             "notes": list(self.notes),
             "set_aside": [{"record": k + 1, "reason": why} for k, why in self.set_aside.items()],
             "rig": {"sha256": _digest(self.rig), "keys": self.rig},
+            **({} if not self.span else {
+                "scans": list(self.scans),
+                "span": [{"harmonic": int(n), "scans": list(self.member_scans[k]),
+                          "shapes": [shape(s) for s in self.span[k]],
+                          "couplings_re": self.span_couplings[k].real.tolist(),
+                          "couplings_im": self.span_couplings[k].imag.tolist()}
+                         for k, n in enumerate(self.harmonics)]}),
         }
 
     @classmethod
@@ -173,10 +228,16 @@ class SpatialModel:
                 criterion=s["criterion"], residual_std=float(s["residual_std"]),
                 coefficient_covariance=np.asarray(s["coefficient_covariance"]))
 
+        def any_shape(s: dict) -> Fit:
+            if "components" in s:
+                return VectorShapeFit(tuple(AXES.index(c["axis"]) for c in s["components"]),
+                                      tuple(shape(c) for c in s["components"]))
+            return shape(s)
+
         try:
-            shapes = [VectorShapeFit(tuple(AXES.index(c["axis"]) for c in s["components"]),
-                                     tuple(shape(c) for c in s["components"]))
-                      if "components" in s else shape(s) for s in doc["shapes"]]
+            shapes = [any_shape(s) for s in doc["shapes"]]
+            span = doc.get("span", [])
+            n_g = len(doc["gauges"])
             return cls(
                 f0=float(doc["f0_hz"]),
                 harmonics=np.asarray(doc["harmonics"], dtype=int),
@@ -192,6 +253,12 @@ class SpatialModel:
                 rig=dict(doc.get("rig", {}).get("keys", {})),
                 set_aside={int(r["record"]) - 1: str(r["reason"])
                            for r in doc.get("set_aside", [])},
+                span=tuple(tuple(any_shape(s) for s in m["shapes"]) for m in span),
+                span_couplings=tuple(
+                    (np.asarray(m["couplings_re"]) + 1j * np.asarray(m["couplings_im"]))
+                    .reshape(n_g, len(m["shapes"])) for m in span),
+                scans=tuple(doc.get("scans", ())),
+                member_scans=tuple(tuple(int(i) for i in m["scans"]) for m in span),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"model '{source}': not a forcecal spatial model ({exc})") from None
@@ -232,23 +299,25 @@ def load_model(path: str | Path) -> SpatialModel:
     return SpatialModel.from_json(doc, source=str(path))
 
 
-def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: str = "gcv",
-                        shapes: HarmonicShapes | None = None,
+def build_spatial_model(rig: Rig, scan: Scan | Sequence[Scan], n_harmonics: int = 6,
+                        criterion: str = "gcv", shapes: HarmonicShapes | None = None,
                         basis: str = "polynomial") -> SpatialModel:
-    """Fit a shape per supported harmonic and its mass couplings.
+    """Fit a shape per supported harmonic and its mass couplings; from several scans of the
+    rig under different loads, a span of shapes per harmonic (:mod:`forcecal.span`).
 
     Parameters
     ----------
     rig : Rig
         The rig (structure extent, mass distribution, gauges).
-    scan : Scan
-        The SLDV scan; its points must lie on the structure.
+    scan : Scan or sequence of Scan
+        The SLDV scan, or several scans of the rig under different loads (each harmonic then
+        holds the shapes of every scan that adds to its span); points on the structure.
     n_harmonics : int
         H: harmonics 1..H are considered; those below ``MIN_SNR`` are dropped.
     criterion : str
         "gcv" or "bic", how each shape's order is chosen.
     shapes : HarmonicShapes, optional
-        The measured harmonic shapes, when already computed from ``scan``.
+        The measured harmonic shapes, when already computed from ``scan`` (one scan only).
     basis : str
         "polynomial" (orthonormal Legendre polynomials, the black box the paper prefers) or
         "modes" (rigid motions plus the bending modes of the structure pinned at its gauges,
@@ -259,6 +328,17 @@ def build_spatial_model(rig: Rig, scan: Scan, n_harmonics: int = 6, criterion: s
     -------
     SpatialModel
     """
+    if not isinstance(scan, Scan):
+        scans = list(scan)
+        if not scans or not all(isinstance(s, Scan) for s in scans):
+            raise InputError("build_spatial_model: 'scan' must be a Scan or a non-empty list of "
+                             "Scans (from forcecal.read_scan)")
+        if len(scans) > 1:
+            from .span import merge_models
+
+            return merge_models(rig, [build_spatial_model(rig, s, n_harmonics, criterion,
+                                                          basis=basis) for s in scans])
+        scan = scans[0]
     hs = shapes if shapes is not None else harmonic_shapes(scan, rig.drive_frequency,
                                                            n_harmonics)
     st = rig.structure

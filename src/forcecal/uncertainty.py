@@ -23,8 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import scipy.linalg
 
-from .coordinates import coordinate_map, sensor_weights
+from .coordinates import Coordinates, coordinate_map, sensor_weights
 from .harmonics import HarmonicFit
 from .inertia import inertia_term, mass_weights
 from .rig import Rig
@@ -35,6 +36,7 @@ __all__ = [
     "combinations",
     "gauge_variance",
     "inertia_variance",
+    "inertia_variance_parts",
     "shape_jacobian",
     "shape_operators",
     "unresolved_inertia",
@@ -82,14 +84,15 @@ class ShapeOperators:
 
     Attributes
     ----------
-    couplings : tuple of (n_gauges, n_funcs) ndarray
-        [kg] mass coupling of every basis function (the shape's coupling is ``c @ p``).
-    at_sensors : tuple of (n_sensors, n_funcs) ndarray
-        [1] the basis functions at the sensors (the shape there is ``b @ p``).
+    couplings : tuple of tuple of (n_gauges, n_funcs) ndarray
+        [kg] per harmonic and member of its span, the mass coupling of every basis function
+        (the shape's coupling is ``c @ p``).
+    at_sensors : tuple of tuple of (n_sensors, n_funcs) ndarray
+        [1] likewise, the basis functions at the sensors (the shape there is ``b @ p``).
     """
 
-    couplings: tuple[np.ndarray, ...]
-    at_sensors: tuple[np.ndarray, ...]
+    couplings: tuple[tuple[np.ndarray, ...], ...]
+    at_sensors: tuple[tuple[np.ndarray, ...], ...]
 
 
 def shape_operators(model: SpatialModel, rig: Rig) -> ShapeOperators:
@@ -106,14 +109,16 @@ def shape_operators(model: SpatialModel, rig: Rig) -> ShapeOperators:
     """
     pts, weights = mass_weights(rig)
     sensors = rig.structure.coordinates(rig.sensor_points)
+    spans = [model.members(k) for k in range(len(model.harmonics))]
     return ShapeOperators(
-        couplings=tuple(weights @ fit.basis.evaluate(pts) for fit in model.shapes),
-        at_sensors=tuple(fit.basis.evaluate(sensors) for fit in model.shapes))
+        couplings=tuple(tuple(weights @ f.basis.evaluate(pts) for f in fits) for fits in spans),
+        at_sensors=tuple(tuple(f.basis.evaluate(sensors) for f in fits) for fits in spans))
 
 
 def shape_jacobian(model: SpatialModel, ops: ShapeOperators, k: int, sensors: HarmonicFit,
-                   w0n: float) -> tuple[np.ndarray, np.ndarray]:
-    """d J_n / d(Re p, Im p): the inertia term's sensitivity to the shape coefficients p.
+                   w0n: float, members: tuple[int, ...] = (0,)) -> tuple[np.ndarray, np.ndarray]:
+    """d J_n / d(Re p, Im p): the inertia term's sensitivity to the shape coefficients p of
+    the members of harmonic k's span that the run uses.
 
     Parameters
     ----------
@@ -126,40 +131,52 @@ def shape_jacobian(model: SpatialModel, ops: ShapeOperators, k: int, sensors: Ha
         The sensors' harmonic fit.
     w0n : float
         [rad/s] n w0.
+    members : tuple of int
+        The members used (:attr:`forcecal.coordinates.Coordinates.members`).
 
     Returns
     -------
     jac : (n_gauges, 2 n_funcs) complex ndarray
-        [N per coefficient unit]
+        [N per coefficient unit], the members' (Re p, Im p) one after another.
     cov_p : (2 n_funcs, 2 n_funcs) ndarray
-        Covariance of (Re p, Im p).
+        Covariance of those coefficients (block diagonal: each member from its own scan).
     """
-    fit = model.shapes[k]
+    fits = [model.members(k)[j] for j in members]
     n = int(model.harmonics[k])
-    c, bs = ops.couplings[k], ops.at_sensors[k]
+    c = [ops.couplings[k][j] for j in members]
+    bs = [ops.at_sensors[k][j] for j in members]
     s = sensors.phasors[:, n]
     w = sensor_weights(sensors.phasor_std[:, n])
+    p0 = [f.coefficients for f in fits]
 
-    def inertia(p: np.ndarray) -> np.ndarray:
-        gain, _ = coordinate_map(bs @ p, w)
-        return inertia_term(c @ p, complex(gain @ s), w0n)
+    def inertia(p: list[np.ndarray]) -> np.ndarray:
+        phi = np.column_stack([b @ pj for b, pj in zip(bs, p, strict=True)])
+        gain, _ = coordinate_map(phi, w)
+        m = np.column_stack([cj @ pj for cj, pj in zip(c, p, strict=True)])
+        return inertia_term(m, gain @ s, w0n)
 
-    p0 = fit.coefficients
-    nf = len(p0)
-    h = 1e-6 * np.linalg.norm(p0)
-    jac = np.empty((c.shape[0], 2 * nf), dtype=complex)
-    for j in range(nf):
-        for part, d in ((0, h), (1, 1j * h)):
-            e = np.zeros(nf, dtype=complex)
-            e[j] = d
-            jac[:, part * nf + j] = (inertia(p0 + e) - inertia(p0 - e)) / (2 * h)
-    return jac, np.kron(np.eye(2), fit.coefficient_covariance)   # Re and Im independent
+    cols, blocks = [], []
+    for i, (fit, base) in enumerate(zip(fits, p0, strict=True)):
+        nf = len(base)
+        h = 1e-6 * np.linalg.norm(base)
+        part = np.empty((c[i].shape[0], 2 * nf), dtype=complex)
+        for j in range(nf):
+            for re_im, d in ((0, h), (1, 1j * h)):
+                e = np.zeros(nf, dtype=complex)
+                e[j] = d
+                plus = [*p0[:i], base + e, *p0[i + 1:]]
+                minus = [*p0[:i], base - e, *p0[i + 1:]]
+                part[:, re_im * nf + j] = (inertia(plus) - inertia(minus)) / (2 * h)
+        cols.append(part)
+        blocks.append(np.kron(np.eye(2), fit.coefficient_covariance))  # Re, Im independent
+    return np.hstack(cols), scipy.linalg.block_diag(*blocks)
 
 
 def inertia_variance(model: SpatialModel, ops: ShapeOperators, k: int, sensors: HarmonicFit,
-                     a_r: np.ndarray, w0n: float, q_std: float) -> np.ndarray:
+                     a_r: np.ndarray, w0n: float, coords: Coordinates) -> np.ndarray:
     """Variance of (Re, Im) of each combination from harmonic k's inertia term: the
-    coordinate's noise and the shape coefficients' uncertainty.
+    coordinates' noise and the shape coefficients' uncertainty (the sum of
+    :func:`inertia_variance_parts`).
 
     Parameters
     ----------
@@ -172,20 +189,35 @@ def inertia_variance(model: SpatialModel, ops: ShapeOperators, k: int, sensors: 
         Combination rows times Psi^+.
     w0n : float
         [rad/s] n w0.
-    q_std : float
-        [1] standard uncertainty of Re Q_n and of Im Q_n.
+    coords : Coordinates
+        The run's coordinates: the members used, the covariance of Re and of Im of their
+        coordinates.
 
     Returns
     -------
     (n_c, 2) ndarray [N^2]
     """
-    a_q = np.abs(a_r @ inertia_term(model.couplings[k], q_std, w0n))
-    jac, cov_p = shape_jacobian(model, ops, k, sensors, w0n)
+    probes, shapes = inertia_variance_parts(model, ops, k, sensors, a_r, w0n, coords)
+    total: np.ndarray = probes + shapes
+    return total
+
+
+def inertia_variance_parts(model: SpatialModel, ops: ShapeOperators, k: int,
+                           sensors: HarmonicFit, a_r: np.ndarray, w0n: float,
+                           coords: Coordinates) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`inertia_variance` split by source: the coordinates' noise (the probes') and the
+    shape coefficients' uncertainty (the scan's), each (n_c, 2) [N^2]."""
+    members, _, cov_q = coords.span(k)
+    # J = M Qdd is linear in Q: each combination's sensitivity to Q is a_r M (-(n w0)^2), and
+    # Re and Im of Q share the covariance cov_q
+    sens = a_r @ inertia_term(model.member_couplings(k)[:, list(members)],
+                              np.eye(len(members)), w0n)               # (n_c, n_q)
+    var_q = np.einsum("ca,ab,cb->c", sens, cov_q, np.conj(sens)).real
+    jac, cov_p = shape_jacobian(model, ops, k, sensors, w0n, members)
     cj = a_r @ jac                                                   # (n_c, 2 nf)
-    return np.column_stack([
-        a_q**2 + np.einsum("ca,ab,cb->c", cj.real, cov_p, cj.real),
-        a_q**2 + np.einsum("ca,ab,cb->c", cj.imag, cov_p, cj.imag),
-    ])
+    shapes = np.column_stack([np.einsum("ca,ab,cb->c", cj.real, cov_p, cj.real),
+                              np.einsum("ca,ab,cb->c", cj.imag, cov_p, cj.imag)])
+    return np.column_stack([var_q, var_q]), shapes
 
 
 def unresolved_inertia_bound(rig: Rig, sensors: HarmonicFit, n: int, w0: float) -> float:

@@ -22,6 +22,9 @@ data
     :class:`CalibrationData`, the pooled observations.
 fitting
     :func:`fit_law` and its :class:`LawFit`, :func:`check_identifiable`.
+propagation
+    The parameters' covariance propagated from described errors (noise columns through the
+    fit's Jacobian, systematic effects by refitting) instead of the residuals.
 selection
     :func:`held_out_error`, :func:`select_law` and :func:`report_text`.
 prediction

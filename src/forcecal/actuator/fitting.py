@@ -187,8 +187,12 @@ class _Problem:
         return jac / self.weights[:, None] * self.scale
 
 
-def _start(law: Law, data: CalibrationData) -> tuple[_Problem, np.ndarray, np.ndarray, np.ndarray]:
+def _start(
+    law: Law, data: CalibrationData, start: np.ndarray | None = None
+) -> tuple[_Problem, np.ndarray, np.ndarray, np.ndarray]:
     """The normalised problem, its start point and its bounds.
+
+    ``start`` (parameters in the law's units) replaces the law's guess from the data.
 
     Returns
     -------
@@ -204,7 +208,7 @@ def _start(law: Law, data: CalibrationData) -> tuple[_Problem, np.ndarray, np.nd
     FitError
         When the law's start values are not usable.
     """
-    p0 = np.asarray(law.guess(data), dtype=float)
+    p0 = np.asarray(law.guess(data) if start is None else start, dtype=float)
     scale = np.asarray(law.typical(p0, data), dtype=float)
     if not np.all(np.isfinite(p0)) or not np.all(scale > 0):
         raise FitError(f"law '{law.name}': no usable start values from the data ({p0})")
@@ -310,7 +314,7 @@ def _law_fit(
     )
 
 
-def fit_law(law: Law, data: CalibrationData) -> LawFit:
+def fit_law(law: Law, data: CalibrationData, start: np.ndarray | None = None) -> LawFit:
     """Fit a law to the total force by nonlinear least squares on relative residuals.
 
     The residual of observation k is ``(F_model_k - F_k) / w_k`` with ``w_k = max(|F_k|, floor)``
@@ -324,11 +328,17 @@ def fit_law(law: Law, data: CalibrationData) -> LawFit:
         The law of one pole.
     data : CalibrationData
         The observations.
+    start : (n_params,) array or None
+        Start parameters; default the law's guess from the data (a refit after a small change
+        of the data starts from the parameters fitted before it).
 
     Returns
     -------
     LawFit
-        Parameters, covariance, residuals and information criteria.
+        Parameters, covariance, residuals and information criteria. The covariance is the
+        residual one, ``s^2 (J^T J)^-1``, which takes every observation as independent; a
+        campaign's calibration replaces it with a propagated one
+        (:mod:`forcecal.actuator.propagation`).
 
     Raises
     ------
@@ -337,7 +347,7 @@ def fit_law(law: Law, data: CalibrationData) -> LawFit:
         law, too few observations, parameters the data cannot separate) or the fit fails.
     """
     check_identifiable(law, data)
-    problem, x0, lo, hi = _start(law, data)
+    problem, x0, lo, hi = _start(law, data, start)
     sol = _solve(problem, x0, lo, hi)
     params = sol.x * problem.scale
     col, sv, vt = _normalised_svd(law, problem.jacobian(sol.x))

@@ -16,7 +16,10 @@ reconstruct`, in parallel when there are many), and each run contributes *calibr
 - the flux through a pole [Wb], when the rig names a flux channel.
 
 The samples of all runs are pooled and :func:`forcecal.actuator.select_law` chooses the law
-(see :mod:`forcecal.campaign.calibrate`, also for AC-coupled gauges).
+(see :mod:`forcecal.campaign.calibrate`, also for AC-coupled gauges). The samples of one run are
+a Fourier series of a few phasors, not independent observations: the parameters' uncertainty
+is propagated from the noise of those phasors and from the rig's type-B uncertainties
+(:mod:`forcecal.campaign.statistics`).
 
 The modules of the package:
 
@@ -25,6 +28,11 @@ runs
 samples
     The calibration samples of a run (:func:`run_samples`) and their pooling
     (:func:`calibration_data`).
+noise
+    What a run's errors do to its samples, per source (:class:`RunNoise`).
+statistics
+    The parameters' statistical and type-B uncertainty with its budget
+    (:func:`parameter_uncertainty`).
 repeatability
     The spread over repeated setpoints.
 calibrate
@@ -40,6 +48,7 @@ from __future__ import annotations
 from ..actuator import ACOnlyLaw
 from ..gaps import PoleMotion, pole_motion, quasi_static_shape
 from .calibrate import CURRENT_GAP_LAWS, calibrate_campaign, calibrate_runs
+from .noise import RunNoise, run_noise
 from .repeatability import Repeatability
 from .result import (
     CampaignResult,
@@ -50,6 +59,7 @@ from .result import (
 )
 from .runs import PARALLEL_MIN_RUNS, RunResult, reconstruct_campaign, rig_for_entry
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, calibration_data, run_samples
+from .statistics import ParameterUncertainty, noise_columns, parameter_uncertainty
 
 __all__ = [
     "CURRENT_GAP_LAWS",
@@ -58,19 +68,24 @@ __all__ = [
     "ACOnlyLaw",
     "CalibrationSamples",
     "CampaignResult",
+    "ParameterUncertainty",
     "PoleMotion",
     "ReactionsOnly",
     "Repeatability",
+    "RunNoise",
     "RunResult",
     "calibrate_campaign",
     "calibrate_runs",
     "calibration_data",
     "load_calibration",
+    "noise_columns",
+    "parameter_uncertainty",
     "pole_motion",
     "quasi_static_shape",
     "reconstruct_campaign",
     "report_text",
     "rig_for_entry",
+    "run_noise",
     "run_samples",
     "write_calibration",
 ]

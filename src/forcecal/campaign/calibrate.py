@@ -15,8 +15,10 @@ the full force, DC included.
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -26,12 +28,14 @@ from ..actuator import (
     K_I2_SFE2,
     POWER,
     ACOnlyLaw,
+    Calibration,
     CalibrationData,
     Law,
     LawFit,
     Selection,
     select_law,
 )
+from ..actuator.propagation import NoiseColumns, column_effects, covariance_of
 from ..errors import FitError, InputError
 from ..io.manifest import read_manifest
 from ..rig import Rig
@@ -40,6 +44,7 @@ from .repeatability import repeatability
 from .result import CampaignResult, ReactionsOnly, k_total_of
 from .runs import RunResult, reconstruct_campaign
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, calibration_data
+from .statistics import ParameterUncertainty, noise_columns, parameter_uncertainty
 
 __all__ = ["CURRENT_GAP_LAWS", "calibrate_campaign", "calibrate_runs"]
 
@@ -138,6 +143,25 @@ def _reactions_only(
     )
 
 
+def _calibration(selection: Selection, uncertainty: ParameterUncertainty,
+                 data: CalibrationData, columns: NoiseColumns | None) -> Calibration:
+    """The chosen law's calibration with the propagated covariance (statistical plus type B);
+    every candidate's row also gets its statistical standard uncertainties
+    (``stderr_statistical``) beside the residual ones (``stderr``)."""
+    rows: list[dict[str, Any]] = []
+    for c in selection.candidates:
+        row = c.row()
+        if columns is not None:
+            effects = column_effects(c.fit.law, c.fit.params, data, columns)
+            std = np.sqrt(np.diag(covariance_of(effects)))
+            row["stderr_statistical"] = dict(zip(c.fit.law.param_names, std.tolist(),
+                                                 strict=True))
+        rows.append(row)
+    rows += [{"law": name, "skipped": why} for name, why in selection.skipped]
+    return dataclasses.replace(Calibration.from_fit(selection.best.fit),
+                               covariance=uncertainty.covariance, candidates=tuple(rows))
+
+
 def _select(data: CalibrationData, laws: tuple[Law, ...], manifest: str) -> Selection:
     """:func:`forcecal.actuator.select_law`, its failure naming the manifest."""
     try:
@@ -174,7 +198,10 @@ def calibrate_runs(
     Returns
     -------
     CampaignResult
-        The chosen law's calibration with the campaign's scores and comparisons.
+        The chosen law's calibration with the campaign's scores and comparisons. Its
+        covariance is propagated (:func:`forcecal.campaign.statistics.parameter_uncertainty`):
+        the noise of every run's phasors (the samples of a run are not independent) plus the
+        rig's type-B uncertainties applied to all runs at once.
 
     Raises
     ------
@@ -192,8 +219,11 @@ def calibrate_runs(
         candidates = _ac_only_laws(results, candidates, block, manifest)
     data = calibration_data(results, "total", ac_only)
     selection = _select(data, candidates, manifest)
-    calibration = selection.calibration()
     chosen = selection.best.fit
+    columns = (noise_columns(results, data.n_poles)
+               if all(r.samples.noise is not None for r in results) else None)
+    uncertainty = parameter_uncertainty(chosen, data, results, rig, columns)
+    calibration = _calibration(selection, uncertainty, data, columns)
     run_k, run_res = _per_run(chosen, data, len(results))
     return CampaignResult(
         runs=results,
@@ -209,6 +239,7 @@ def calibrate_runs(
         run_residual=run_res,
         manifest=manifest,
         tares=tuple(tares),
+        uncertainty=uncertainty,
     )
 
 

@@ -1,7 +1,9 @@
 """The calibration of a campaign (:class:`CampaignResult`), its file and its text report.
 
 ``calibration.json`` holds the chosen law's :class:`forcecal.actuator.Calibration` at the top
-level (so :meth:`forcecal.actuator.Calibration.load` reads it) and beside it the campaign's
+level (so :meth:`forcecal.actuator.Calibration.load` reads it; its covariance and ``stderr`` are
+the combined standard uncertainties, statistical plus type B) and beside it the parameters'
+uncertainty budget (``uncertainty``, :mod:`forcecal.campaign.statistics`), the campaign's
 scores, the reactions-only comparison, the repeatability and a summary of every run.
 """
 
@@ -20,6 +22,7 @@ from ..actuator import Calibration, Law, Selection
 from ..actuator import report_text as selection_text
 from .repeatability import Repeatability
 from .runs import RunResult
+from .statistics import ParameterUncertainty
 
 __all__ = [
     "CampaignResult",
@@ -115,6 +118,9 @@ class CampaignResult:
         The campaign manifest's path.
     tares : tuple of str
         Names of the tare records.
+    uncertainty : ParameterUncertainty or None
+        The chosen law's parameter uncertainties with their budget (the calibration's
+        covariance is their combined covariance).
     """
 
     runs: tuple[RunResult, ...]
@@ -130,6 +136,7 @@ class CampaignResult:
     run_residual: np.ndarray
     manifest: str = "<manifest>"
     tares: tuple[str, ...] = ()
+    uncertainty: ParameterUncertainty | None = None
 
     @property
     def law(self) -> str:
@@ -149,7 +156,8 @@ class CampaignResult:
 
     @property
     def k_total_std(self) -> float | None:
-        """Standard uncertainty of :attr:`k_total` [N m^2/A^2]."""
+        """Combined standard uncertainty of :attr:`k_total` [N m^2/A^2] (statistical and
+        type B)."""
         law = self.calibration.law_object
         if k_total_of(law, self.calibration.params, self.n_poles) is None:
             return None
@@ -182,6 +190,9 @@ class CampaignResult:
             "amplitude_rel_std": self.repeatability.amplitude_rel_std,
             "groups": [dict(g) for g in self.repeatability.groups],
         }
+        if self.uncertainty is not None:
+            doc["uncertainty"] = self.uncertainty.to_json(
+                self.n_poles if self.k_total is not None else None)
         doc["campaign"] = _campaign_json(self)
         doc["runs"] = [_run_json(r, k, self.run_residual[k]) for k, r in enumerate(self.runs)]
         return _json_ready(doc)
@@ -203,9 +214,17 @@ def _chosen_json(selection: Selection) -> dict[str, Any]:
 
 def _k_total_json(result: CampaignResult) -> dict[str, Any]:
     """K_total with its uncertainty, beside the ideal value."""
+    unc = result.uncertainty
+    extra: dict[str, Any] = {}
+    if unc is not None and result.k_total is not None:
+        k = unc.param_names.index("K")
+        extra = {"stderr_statistical": result.n_poles * float(np.sqrt(unc.statistical[k, k])),
+                 "expanded": result.n_poles * float(unc.expanded[k]),
+                 "coverage_factor": unc.coverage_factor}
     return {
         "value": result.k_total,
         "stderr": result.k_total_std,
+        **extra,
         "ideal": result.ideal_k,
         "ratio_to_ideal": (
             None
@@ -213,7 +232,8 @@ def _k_total_json(result: CampaignResult) -> dict[str, Any]:
             else result.k_total / result.ideal_k
         ),
         "n_poles": result.n_poles,
-        "note": "K_total = n_poles * K (K is per pole); ideal = mu0 N^2 A / 4 from the rig",
+        "note": "K_total = n_poles * K (K is per pole); ideal = mu0 N^2 A / 4 from the rig; "
+        "stderr is the combined standard uncertainty (statistical and type B), expanded = k u",
     }
 
 
@@ -353,6 +373,32 @@ def _k_total_line(result: CampaignResult) -> str | None:
     return kt
 
 
+def _uncertainty_lines(result: CampaignResult) -> list[str]:
+    """The parameters' combined and expanded uncertainties and their budget."""
+    unc = result.uncertainty
+    if unc is None:
+        return []
+    law = result.calibration.law_object
+    k = unc.coverage_factor
+    lines = ["parameter uncertainties (statistical: the runs' phasor noise, the runs' samples "
+             "not independent; type B: the rig's, systematic over the runs):"]
+    for j, (name, unit) in enumerate(zip(law.param_names, law.param_units, strict=True)):
+        stat = float(np.sqrt(unc.statistical[j, j]))
+        tb = float(np.sqrt(unc.type_b[j, j]))
+        lines.append(f"  {name} = {result.calibration.params[j]:.6g} {unit}: u = "
+                     f"{unc.stderr[j]:.2g} (statistical {stat:.2g}, type B {tb:.2g}), "
+                     f"U (k = {k:g}) = {unc.expanded[j]:.2g}")
+    for source, std in unc.budget.items():
+        parts = ", ".join(f"{n} {v:.2g}" for n, v in zip(law.param_names, std, strict=True))
+        lines.append(f"    {source} ({unc.kinds.get(source, '')}): {parts}")
+    if len(law.param_names) > 1:
+        corr = unc.correlation
+        pairs = [f"{a}-{b} {corr[i, j]:+.3f}" for i, a in enumerate(law.param_names)
+                 for j, b in enumerate(law.param_names) if j > i]
+        lines.append("  correlation: " + ", ".join(pairs))
+    return lines
+
+
 def _reactions_line(ro: ReactionsOnly) -> str:
     """How far a calibration ignoring the inertia is."""
     if ro.selection is None:
@@ -400,6 +446,7 @@ def report_text(result: CampaignResult) -> str:
         lines.append(kt)
     if result.s_fe is not None:
         lines.append(f"s_fe = {1e6 * result.s_fe:.2f} um")
+    lines += _uncertainty_lines(result)
     lines.append(_reactions_line(result.reactions_only))
     lines.append(_repeatability_line(result.repeatability))
     return "\n".join(lines) + "\n"

@@ -18,6 +18,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 from ..checks import check_run_for_rig
 from ..errors import InputError
@@ -29,7 +30,7 @@ from ..rig import Rig
 from ..spatial import SpatialModel
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, run_samples
 
-__all__ = ["PARALLEL_MIN_RUNS", "RunResult", "reconstruct_campaign", "rig_for_entry"]
+__all__ = ["PARALLEL_MIN_RUNS", "RunResult", "pool_map", "reconstruct_campaign", "rig_for_entry"]
 
 PARALLEL_MIN_RUNS = 3
 """Campaigns with fewer runs than this are reconstructed serially whatever ``workers`` says."""
@@ -130,11 +131,12 @@ def _reconstruct_entry(task: _Task) -> tuple[int, RunResult, _Caught]:
     (serial and parallel runs then warn alike)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        run = read_run(task.entry.run)
+        run = read_run(task.entry.run, task.rig)
         check_run_for_rig(task.rig, run)
-        tare = read_run(task.tare) if task.tare is not None else None
+        tare = read_run(task.tare, task.rig) if task.tare is not None else None
         estimate = reconstruct(task.rig, task.model, run, tare=tare, ac_coupled=task.ac_coupled)
-        samples = run_samples(task.rig, task.model, run, estimate, tare, task.samples_per_period)
+        samples = run_samples(task.rig, task.model, run, estimate, tare, task.samples_per_period,
+                              tare_name=None if task.tare is None else task.tare.stem)
     result = RunResult(
         entry=task.entry,
         estimate=estimate,
@@ -211,20 +213,31 @@ def _run_tasks(
 ) -> None:
     """Reconstruct the tasks, serially or in a ``spawn`` pool, calling ``finish`` on each
     result as it comes (in the parent process)."""
-    total = len(tasks)
-    if workers <= 1 or total < PARALLEL_MIN_RUNS:
+    if workers <= 1 or len(tasks) < PARALLEL_MIN_RUNS:
         for task in tasks:
             finish(*_reconstruct_entry(task))
         return
-    context = multiprocessing.get_context("spawn")
-    with _single_threaded_workers():
-        pool = ProcessPoolExecutor(max_workers=min(workers, total), mp_context=context,
-                                   initializer=_watch_parent, initargs=(os.getpid(),))
+    for result in pool_map(_reconstruct_entry, tasks, workers):
+        finish(*result)
+
+
+def pool_map(work: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[Any]:
+    """``work(item)`` for every item in a ``spawn`` pool of at most ``workers`` processes,
+    yielded as they complete.
+
+    The workers run their linear algebra on one thread each (:func:`_single_threaded_workers`
+    while the pool starts them, that is while the tasks are submitted), leave when the parent
+    dies (:func:`_watch_parent`), and are terminated when the caller stops early or fails.
+    """
+    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(items))),
+                               mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_watch_parent, initargs=(os.getpid(),))
     try:
-        futures = [pool.submit(_reconstruct_entry, task) for task in tasks]
+        with _single_threaded_workers():  # the pool starts its processes as tasks arrive
+            futures = [pool.submit(work, item) for item in items]
         for future in as_completed(futures):
-            finish(*future.result())
-    except BaseException:
+            yield future.result()
+    except BaseException:  # an error, Ctrl-C or the caller closing the generator early
         _stop_pool(pool)
         raise
     pool.shutdown(wait=True)

@@ -26,6 +26,7 @@ from ..harmonics import fit_harmonics
 from ..records import Run
 from ..rig import Rig
 from ..spatial import SpatialModel
+from .noise import RunNoise, run_noise
 
 if TYPE_CHECKING:
     from .runs import RunResult
@@ -53,6 +54,9 @@ class CalibrationSamples:
         Flux through one pole, when the rig names a flux channel present in the run.
     motion : PoleMotion
         The displacement at the poles, to evaluate the gaps at any time.
+    noise : RunNoise or None
+        What the run's errors do to the samples, per source (for the calibration's parameter
+        uncertainties, :mod:`forcecal.campaign.statistics`); None when not described.
     """
 
     time: np.ndarray
@@ -62,6 +66,7 @@ class CalibrationSamples:
     static_force: np.ndarray
     flux: np.ndarray | None
     motion: PoleMotion
+    noise: RunNoise | None = None
 
     @property
     def n(self) -> int:
@@ -81,6 +86,7 @@ def run_samples(
     estimate: ForceEstimate,
     tare: Run | None = None,
     samples_per_period: int = DEFAULT_SAMPLES_PER_PERIOD,
+    tare_name: str | None = None,
 ) -> CalibrationSamples:
     """Calibration samples of one reconstructed run.
 
@@ -98,11 +104,14 @@ def run_samples(
         A zero-current record, the probes' zero.
     samples_per_period : int
         Instants taken over one period of the fundamental (at least ``2 H + 2``).
+    tare_name : str or None
+        The tare's name: runs that share a tare share its noise.
 
     Returns
     -------
     CalibrationSamples
-        Current, gaps, forces and flux at ``samples_per_period`` instants over one period.
+        Current, gaps, forces and flux at ``samples_per_period`` instants over one period,
+        with what the run's errors do to them (:func:`forcecal.campaign.noise.run_noise`).
 
     Raises
     ------
@@ -132,6 +141,7 @@ def run_samples(
         static_force=fourier_series(estimate.static.sum(axis=0), estimate.f0, t),
         flux=flux,
         motion=motion,
+        noise=run_noise(rig, model, run, estimate, tare, tare_name, current),
     )
 
 

@@ -7,15 +7,22 @@ from pathlib import Path
 
 import numpy as np
 
-from .._atomic import write_text_atomic
-from ..errors import DataError
+from .._atomic import atomic_path
+from ..budget import MONTE_CARLO_SOURCES
+from ..errors import DataError, InputError
 from ..forces import SPLIT_CONDITION, ForceEstimate
-from .run_files import write_table_csv
+from .result_formats import (
+    SERIES_FORMATS,
+    SERIES_SUFFIXES,
+    series_columns,
+    series_json,
+    write_series,
+)
 
-__all__ = ["MAX_FORCE_N", "estimate_summary", "write_estimate"]
+__all__ = ["MAX_FORCE_N", "SERIES_FORMATS", "estimate_summary", "write_estimate"]
 
 
-_HarmonicRows = list[dict[str, int | float | bool]]
+_HarmonicRows = list[dict[str, int | float | bool | dict[str, float]]]
 """One JSON object per harmonic the data support, in harmonic order."""
 
 
@@ -34,9 +41,11 @@ def estimate_summary(est: ForceEstimate) -> dict:
         resultant's first moments and, on a body, components), inertia share, conditioning
         figures and generalized coordinates, ready for :func:`json.dumps`.
     """
-    forces = {name: _harmonic_rows(est, est.force[k], est.force_std[k], est.static[k])
+    forces = {name: _harmonic_rows(est, est.force[k], est.force_std[k], est.static[k],
+                                   _budget(est, name))
               for k, name in enumerate(est.force_names)}
-    forces["total"] = _harmonic_rows(est, est.total, est.total_std, est.static.sum(axis=0))
+    forces["total"] = _harmonic_rows(est, est.total, est.total_std, est.static.sum(axis=0),
+                                     _budget(est, "total"))
     resultant, components = _resultant_rows(est)
     c = est.coordinates
     return {
@@ -50,6 +59,17 @@ def estimate_summary(est: ForceEstimate) -> dict:
         "split_well_determined": bool(est.psi_condition <= SPLIT_CONDITION),
         "inertia_share": est.inertia_share,
         "waveform_std_n": est.waveform_std,
+        "uncertainty": {
+            "coverage_factor": 2,
+            "budget_sources": list(est.budget),
+            **({} if est.monte_carlo_std is None else {"monte_carlo": {
+                "draws": est.monte_carlo_draws, "sources": list(MONTE_CARLO_SOURCES),
+                "linear_same_sources": "budget_std_n of those sources, root sum of squares"}}),
+            **({} if est.type_b is None else {
+                "type_b": {k: getattr(est.type_b, k) for k in type(est.type_b).KEYS},
+                "type_b_declared": est.type_b.declared,
+                "type_b_text": est.type_b.describe()}),
+        },
         "conditioning": {
             "psi_condition_number": est.psi_condition,
             "force_consistency_residual_n": est.consistency.tolist(),
@@ -59,29 +79,54 @@ def estimate_summary(est: ForceEstimate) -> dict:
                             for n, x in zip(c.harmonics, c.chi2, strict=True)},
         },
         "generalized_coordinates": [
-            {"harmonic": int(n), "re": float(q.real), "im": float(q.imag), "std": float(s)}
-            for n, q, s in zip(c.harmonics, c.q, c.q_std, strict=True)
+            {"harmonic": int(n), "re": float(q.real), "im": float(q.imag), "std": float(s),
+             **({} if not c.members or c.members[k] == (0,) else {
+                 "shapes": [int(j) for j in c.members[k]],
+                 "span": [{"re": float(v.real), "im": float(v.imag),
+                           "std": float(np.sqrt(c.q_cov[k][i, i].real))}
+                          for i, v in enumerate(c.q_span[k])]})}
+            for k, (n, q, s) in enumerate(zip(c.harmonics, c.q, c.q_std, strict=True))
         ],
         "notes": list(est.notes),
     }
 
 
+def _budget(est: ForceEstimate, name: str) -> dict[str, np.ndarray]:
+    """Each uncertainty source's (H+1,) standard uncertainty of combination ``name`` (and the
+    Monte Carlo's, under ``monte carlo``, when one was run)."""
+    if not est.budget or name not in est.combination_names:
+        return {}
+    k = est.combination_names.index(name)
+    out = {source: std[k] for source, std in est.budget.items()}
+    if est.monte_carlo_std is not None:
+        out["monte carlo"] = est.monte_carlo_std[k]
+    return out
+
+
 def _harmonic_rows(est: ForceEstimate, ph: np.ndarray, std: np.ndarray,
-                   static: np.ndarray | None) -> _HarmonicRows:
+                   static: np.ndarray | None,
+                   budget: dict[str, np.ndarray] | None = None) -> _HarmonicRows:
     """Rows of one force's phasors ``ph`` (H+1,) [N] and their uncertainties ``std`` (H+1,)
-    [N], with the reactions-only amplitude when ``static`` (H+1,) [N] is given."""
+    [N] (expanded, k = 2, beside; each source's part when ``budget`` is given), with the
+    reactions-only amplitude when ``static`` (H+1,) [N] is given."""
     rows: _HarmonicRows = []
     for n in est.harmonics:
         if not est.kept[n]:
             continue
-        row: dict[str, int | float | bool] = {
+        row: dict[str, int | float | bool | dict[str, float]] = {
             "harmonic": int(n),
             "frequency_hz": float(n * est.f0),
             "amplitude_n": float(abs(ph[n])),
             "phase_rad": float(np.angle(ph[n])),
             "std_n": float(std[n]),
+            "expanded_k2_n": float(2 * std[n]),
             "inertia_compensated": bool(est.with_inertia[n]),
         }
+        if budget:
+            row["budget_std_n"] = {src: float(b[n]) for src, b in budget.items()
+                                   if src != "monte carlo"}
+            if "monte carlo" in budget:
+                row["monte_carlo_std_n"] = float(budget["monte carlo"][n])
         if static is not None:
             row["static_amplitude_n"] = float(abs(static[n]))
         rows.append(row)
@@ -98,7 +143,8 @@ def _resultant_rows(est: ForceEstimate) -> tuple[dict[str, _HarmonicRows],
     for k, name in enumerate(est.combination_names):
         if name.startswith(("moment", "resultant")):
             target = resultant if name.startswith("moment") else components
-            target[name] = _harmonic_rows(est, est.combination[k], est.combination_std[k], None)
+            target[name] = _harmonic_rows(est, est.combination[k], est.combination_std[k], None,
+                                          _budget(est, name))
     return resultant, components
 
 
@@ -107,12 +153,17 @@ MAX_FORCE_N = 1e8
 claim, and is refused rather than written."""
 
 
-def write_estimate(est: ForceEstimate, out_dir: str | Path,
-                   source: str | None = None) -> tuple[Path, Path]:
-    """Write ``OUT/NAME.forces.csv`` and ``OUT/NAME.json`` atomically.
+def write_estimate(est: ForceEstimate, out_dir: str | Path, source: str | None = None,
+                   fmt: str = "csv", provenance: dict | None = None) -> tuple[Path, Path]:
+    """Write the force series ``OUT/NAME.forces.<ext>`` and ``OUT/NAME.json``, atomically.
 
-    Nothing is written when a value is not finite or a force exceeds :data:`MAX_FORCE_N`
-    (DataError naming the run and the column); the JSON is strict (no NaN or Infinity).
+    The series (:func:`forcecal.io.result_formats.series_columns`): ``time`` [s]; every force
+    and ``total``; the same with suffix ``_static`` (reactions only); the same with suffix
+    ``_std`` (standard uncertainty at each instant), all in N. Both files appear together or
+    neither: nothing is written when a value is not finite or a force exceeds
+    :data:`MAX_FORCE_N` (DataError naming the run and the column), or when writing fails; the
+    JSON is strict (no NaN or Infinity) and names the series file and its columns' units
+    (``series``).
 
     Parameters
     ----------
@@ -122,20 +173,32 @@ def write_estimate(est: ForceEstimate, out_dir: str | Path,
         The output folder OUT, created when missing.
     source : str, optional
         The run file, for messages (default: the run's name).
+    fmt : {"csv", "hdf5", "mat", "uff"}
+        Format of the series: ``NAME.forces.csv``, ``.h5``, ``.mat`` (MATLAB) or ``.uff``
+        (dataset-58 time records); see :mod:`forcecal.io.result_formats`.
+    provenance : dict, optional
+        Written as the JSON's ``provenance``: version, date, command line, input digests.
 
     Returns
     -------
-    csv : Path
-        The force series: every force, the total and their reactions-only counterparts [N].
+    series : Path
+        The force series.
     json : Path
-        The summary of :func:`estimate_summary`.
+        The summary of :func:`estimate_summary`, with the ``series`` entry and, when given,
+        the ``provenance`` (:func:`forcecal.provenance.provenance`).
+
+    Raises
+    ------
+    InputError
+        An unknown format, or force names the format cannot hold.
+    DataError
+        A value that is not finite or a force beyond :data:`MAX_FORCE_N`.
     """
+    if fmt not in SERIES_SUFFIXES:
+        raise InputError(f"run '{source or est.run_name}': output format {fmt!r} is not one of "
+                         f"{', '.join(SERIES_FORMATS)}")
     out_dir = Path(out_dir)
-    cols = {name: est.series[k] for k, name in enumerate(est.force_names)}
-    cols["total"] = est.total_series
-    for k, name in enumerate(est.force_names):
-        cols[f"{name}_static"] = est.static_series[k]
-    cols["total_static"] = est.static_series.sum(axis=0)
+    cols = series_columns(est)
     where = f"run '{source or est.run_name}'"
     for name, values in {"time": est.time, **cols}.items():
         v = np.asarray(values, dtype=float)
@@ -146,10 +209,17 @@ def write_estimate(est: ForceEstimate, out_dir: str | Path,
                             f"a finite force within {MAX_FORCE_N:g} N; nothing written (are the "
                             "inputs what they claim?)")
     try:
-        text = json.dumps(estimate_summary(est), indent=1, allow_nan=False)
+        doc = estimate_summary(est)
+        doc["series"] = series_json(est, fmt, cols)
+        if provenance is not None:
+            doc["provenance"] = provenance
+        text = json.dumps(doc, indent=1, allow_nan=False)
     except ValueError:
         raise DataError(f"{where}: the estimate's summary holds non-finite values; nothing "
                         "written") from None
-    csv = write_table_csv(out_dir / f"{est.run_name}.forces.csv", est.time, cols)
-    js = write_text_atomic(out_dir / f"{est.run_name}.json", text)
-    return csv, js
+    series = out_dir / f"{est.run_name}{SERIES_SUFFIXES[fmt]}"
+    js = out_dir / f"{est.run_name}.json"
+    with atomic_path(js) as tmp_js, atomic_path(series) as tmp_series:  # series moved first
+        write_series(est, tmp_series, fmt, cols)
+        tmp_js.write_text(text, encoding="utf-8")
+    return series, js

@@ -1,12 +1,19 @@
-"""Run recordings: CSV, NI TDMS and HDF5 (INTERFACES.md section 3), and result tables.
+"""Run recordings: CSV, NI TDMS, HDF5 and UFF time records (INTERFACES.md section 3), and
+result tables.
 
 A run file holds uniformly sampled, named channels:
 
-- CSV: a header row whose first column is ``time`` [s], then one numeric column per channel;
-- TDMS: one group, one channel per signal, sampling from the ``wf_increment`` property
-  (start from ``wf_start_offset``) or from a channel named ``time``;
+- CSV: a header row whose first column is the time, then one numeric column per channel
+  (dialects of lab exports: see :mod:`forcecal.io.csv_runs`);
+- TDMS: one group of channels (chosen by name when the file has several), sampling from the
+  ``wf_increment`` property (start from ``wf_start_offset``) or from a channel named ``time``;
 - HDF5: one root dataset per channel, the rate in the root attribute ``fs`` [Hz] (optionally
-  ``t0`` [s]), or a root dataset named ``time``.
+  ``t0`` [s]), or a root dataset named ``time``;
+- UFF: one dataset-58 time record per channel (see :mod:`forcecal.io.uff_runs`).
+
+Given the rig, a run's channels are renamed by its ``[channels]`` map and the units the file
+states are checked against the rig's scales (:mod:`forcecal.io.run_channels`). A folder stands
+for the run files in it (:func:`run_paths`).
 
 Reading checks what would silently spoil an estimate and says where, in one line: no samples,
 a non-numeric cell, NaN or infinite samples, non-uniform time stamps, fewer than
@@ -17,25 +24,42 @@ channels) live in :mod:`forcecal.checks`; the ones on the file's layout and time
 
 from __future__ import annotations
 
-import csv
-import io
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import h5py
 import numpy as np
 from nptdms import ChannelObject, TdmsFile, TdmsWriter
 
 from .._atomic import atomic_path, write_text_atomic
-from ..checks import check_equal_lengths, check_finite, check_plausible, check_sample_count
+from ..checks import check_sample_count
 from ..errors import DataError, InputError
 from ..records import Run
-from ._run_values import decimal_resolution, finite_number, positive_number, tdms_log
+from ._run_values import (
+    RunFile,
+    check_finite_time,
+    decimal_resolution,
+    finish_run,
+    finite_number,
+    first_irregular_step,
+    first_line,
+    positive_number,
+    run_from_time,
+    sampled_run,
+    sampling_from_time,
+    tdms_log,
+)
+from .csv_runs import TIME_UNITS, read_csv_columns
+
+if TYPE_CHECKING:
+    from ..rig import Rig
 
 __all__ = [
     "RUN_SUFFIXES",
     "read_run",
     "read_table_csv",
+    "run_paths",
     "write_run_csv",
     "write_run_hdf5",
     "write_run_tdms",
@@ -43,25 +67,30 @@ __all__ = [
     "write_table_hdf5",
 ]
 
-RUN_SUFFIXES = (".csv", ".tdms", ".h5", ".hdf5")
-_UNIFORM_RTOL = 1e-6  # allowed deviation of a time step from the mean step, relative
-_ROUNDING_CAP = 0.25  # rounded stamps excuse at most this share of a step
-_MIN_RATE = 1e-3  # Hz: one sample in 17 minutes; slower is a damaged increment
-_MAX_RATE = 1e9  # Hz: no DAQ samples faster; a larger rate is a damaged or mis-scaled file
-_MAX_T0 = 1e10  # s: about 300 years; a later start is a damaged stamp
+RUN_SUFFIXES = (".csv", ".tdms", ".h5", ".hdf5", ".uff", ".unv")
+OUTPUT_SUFFIXES = (".forces.csv", ".forces.h5", ".forces.mat", ".forces.uff", ".stream.csv",
+                   ".stream.h5")
+"""What forcecal writes beside runs; a folder of runs skips them."""
 
 
 # --------------------------------------------------------------------------------------------
 # reading runs
 
 
-def read_run(path: str | Path) -> Run:
+def read_run(path: str | Path, rig: Rig | None = None, *, group: str | None = None) -> Run:
     """Read one run recording, choosing the reader from the file suffix.
 
     Parameters
     ----------
     path : str or Path
-        ``.csv``, ``.tdms``, ``.h5`` or ``.hdf5``.
+        ``.csv``, ``.tdms``, ``.h5``, ``.hdf5``, ``.uff`` or ``.unv``.
+    rig : Rig, optional
+        The rig: its ``[channels]`` map renames the file's channels to the rig's names, its
+        ``acquisition.group`` chooses a TDMS file's group, and the units the file states are
+        checked against its scales. Without it the channels keep the file's names.
+    group : str, optional
+        The TDMS group to read (instead of the rig's ``acquisition.group``); needed when a file
+        has several groups of channels.
 
     Returns
     -------
@@ -72,66 +101,130 @@ def read_run(path: str | Path) -> Run:
     Raises
     ------
     InputError
-        Missing file, unknown suffix, unreadable file, missing ``time`` column or sampling.
+        Missing file, unknown suffix, unreadable file, missing ``time`` column or sampling,
+        several TDMS groups and none chosen.
     DataError
-        Empty, non-numeric, NaN/infinite, non-uniformly sampled or too short records.
+        Empty, non-numeric, NaN/infinite, non-uniformly sampled or too short records; a
+        channel of the rig's map missing from the file; a stated unit the rig's scale does not
+        convert.
     """
+    from .uff_runs import read_uff_run
+
     path = Path(path)
     suffix = path.suffix.lower()
-    readers = {
-        ".csv": _read_csv_run,
-        ".tdms": _read_tdms_run,
-        ".h5": _read_hdf5_run,
-        ".hdf5": _read_hdf5_run,
-    }
-    if suffix not in readers:
+    if suffix not in RUN_SUFFIXES:
         raise InputError(
             f"run '{path}': unknown file type '{path.suffix}'; accepted: {', '.join(RUN_SUFFIXES)}"
         )
     if not path.is_file():
         raise InputError(f"run '{path}': file does not exist")
-    return readers[suffix](path)
+    if group is None and rig is not None:
+        group = rig.run_group
+    if suffix == ".csv":
+        loaded = _read_csv_run(path)
+    elif suffix == ".tdms":
+        loaded = RunFile(_read_tdms_run(path, group))
+    elif suffix in (".uff", ".unv"):
+        loaded = read_uff_run(path)
+    else:
+        loaded = RunFile(_read_hdf5_run(path))
+    if rig is None:
+        return loaded.run
+    from .run_channels import apply_rig
+
+    return apply_rig(loaded, rig)
 
 
-def _read_csv_run(path: Path) -> Run:
-    header, cells, rows = _parse_csv(path, "run")
-    values = _numeric(cells, header, rows, path, "run")
-    time = values[:, 0]
+def run_paths(paths: Sequence[str | Path]) -> tuple[list[str], list[str]]:
+    """The run files named: a folder stands for every run file in it, sorted by name.
+
+    Parameters
+    ----------
+    paths : sequence of str or Path
+        Run files and folders of runs.
+
+    Returns
+    -------
+    runs : list of str
+        The run files, folders expanded in place.
+    notes : list of str
+        One line per folder that held other entries, naming what was skipped: files of other
+        types, sub-folders and forcecal's own outputs (``NAME.forces.csv``, ...); hidden
+        entries are skipped silently.
+
+    Raises
+    ------
+    InputError
+        A folder that holds no run file.
+    """
+    runs: list[str] = []
+    notes: list[str] = []
+    for item in paths:
+        folder = Path(item)
+        if not folder.is_dir():
+            runs.append(str(item))
+            continue
+        found, skipped = [], []
+        for entry in sorted(folder.iterdir(), key=lambda e: e.name):
+            name = entry.name
+            if name.startswith("."):
+                continue
+            if entry.is_file() and name.lower().endswith(RUN_SUFFIXES) \
+                    and not name.lower().endswith(OUTPUT_SUFFIXES):
+                found.append(str(entry))
+            else:
+                skipped.append(name + ("/" if entry.is_dir() else ""))
+        if not found:
+            raise InputError(f"run folder '{folder}': no run files in it (expected "
+                             f"{', '.join(RUN_SUFFIXES)})")
+        runs += found
+        if skipped:
+            shown = ", ".join(repr(n) for n in skipped[:5])
+            more = f" and {len(skipped) - 5} more" if len(skipped) > 5 else ""
+            notes.append(f"run folder '{folder}': {len(found)} run files; skipped {shown}"
+                         f"{more} (not run files)")
+    return runs, notes
+
+
+def _read_csv_run(path: Path) -> RunFile:
+    table = read_csv_columns(path, "run")
+    unit = table.units[0]
+    if unit not in TIME_UNITS:
+        raise InputError(f"run '{path}': the time column is in {unit!r}; expected s, ms or us")
+    factor = TIME_UNITS[unit]
+    time = table.values[:, 0] * factor if factor != 1.0 else table.values[:, 0]
     check_sample_count(time.size, path)
-
-    def where(k: int) -> str:
-        return f"row {rows[k]}"
-
-    _check_finite_time(time, path, where)
+    check_finite_time(time, path, table.row)
     resolution = np.zeros_like(time)
-    if _first_irregular_step(time, resolution) is not None:  # allow for the digits written
-        resolution = decimal_resolution([row[0] for row in cells], time)
-    fs, t0 = _sampling_from_time(time, path, resolution, where)
-    channels = {name: values[:, j] for j, name in enumerate(header[1:], start=1)}
-    return _finish(path, channels, fs, t0)
+    if first_irregular_step(time, resolution) is not None:  # allow for the digits written
+        resolution = decimal_resolution(table.time_texts(), table.values[:, 0]) * factor
+    fs, t0 = sampling_from_time(time, path, resolution, table.row)
+    names = table.names[1:]
+    channels = {name: table.values[:, j] for j, name in enumerate(names, start=1)}
+    aliases = {label: name for label, name in zip(table.labels[1:], names, strict=True)
+               if label != name}
+    units = {name: u for name, u in zip(names, table.units[1:], strict=True) if u}
+    return RunFile(finish_run(path, channels, fs, t0), aliases, units)
 
 
-def _read_tdms_run(path: Path) -> Run:
+def _read_tdms_run(path: Path, group: str | None) -> Run:
     with tdms_log() as messages:
         try:
             tdms = TdmsFile.read(path)
-            groups = [g for g in tdms.groups() if g.channels()]
-            if len(groups) != 1:
-                names = ", ".join(repr(g.name) for g in groups) or "none with channels"
-                raise InputError(f"run '{path}': expected one group of channels, found {names}")
-            raw = {ch.name: ch for ch in groups[0].channels()}
+            chosen = _tdms_group(tdms, path, group)
+            raw = {ch.name: ch for ch in chosen.channels()}
             time_name = next((n for n in raw if n.strip().lower() == "time"), None)
             channels = {n: _tdms_values(ch, path) for n, ch in raw.items() if n != time_name}
             time = _tdms_time(raw[time_name], path) if time_name is not None else None
         except (InputError, DataError):
             raise
         except Exception as exc:  # npTDMS raises assorted errors on a malformed file
-            raise InputError(f"run '{path}': not a readable TDMS file ({_first_line(exc)})"
+            raise InputError(f"run '{path}': not a readable TDMS file ({first_line(exc)})"
                              ) from exc
     if messages:
         raise InputError(f"run '{path}': a damaged TDMS file (npTDMS: {messages[0]})")
     if not channels:
-        raise DataError(f"run '{path}': group {groups[0].name!r} holds no signal channels")
+        raise DataError(f"run '{path}': group {chosen.name!r} holds no signal channels")
     first_name = next(iter(channels))
     first = raw[first_name]
     if "wf_increment" in first.properties:
@@ -147,13 +240,31 @@ def _read_tdms_run(path: Path) -> Run:
                     "channels share one rate")
         t0 = finite_number(first.properties.get("wf_start_offset", 0.0),
                             f"channel {first_name!r}: property 'wf_start_offset'", path)
-        return _sampled(path, channels, 1.0 / increment, t0)
+        return sampled_run(path, channels, 1.0 / increment, t0)
     if time is None:
         raise InputError(
             f"run '{path}': no 'wf_increment' property and no 'time' channel; "
             "cannot tell the sampling"
         )
-    return _with_time_channel(path, time, channels)
+    return run_from_time(path, time, channels)
+
+
+def _tdms_group(tdms, path: Path, group: str | None):
+    """The group of channels to read: the one chosen, else the only one with channels."""
+    if group is not None:
+        by_name = {g.name: g for g in tdms.groups()}
+        if group not in by_name:
+            names = ", ".join(repr(g) for g in by_name) or "none"
+            raise InputError(f"run '{path}': no group {group!r} (the group chosen for the runs); "
+                             f"the file's groups: {names}")
+        return by_name[group]
+    groups = [g for g in tdms.groups() if g.channels()]
+    if len(groups) != 1:
+        names = ", ".join(repr(g.name) for g in groups) or "none with channels"
+        hint = ("; choose one with --group NAME or [acquisition] group = \"NAME\" in the rig"
+                if groups else "")
+        raise InputError(f"run '{path}': expected one group of channels, found {names}{hint}")
+    return groups[0]
 
 
 def _read_hdf5_run(path: Path) -> Run:
@@ -162,7 +273,7 @@ def _read_hdf5_run(path: Path) -> Run:
             attrs = {key: h5.attrs[key] for key in ("fs", "t0") if key in h5.attrs}
             data = {n: h5[n][()] for n in h5 if isinstance(h5[n], h5py.Dataset)}
     except Exception as exc:  # h5py raises OSError, KeyError, RuntimeError... on damage
-        raise InputError(f"run '{path}': not a readable HDF5 file ({_first_line(exc)})") from exc
+        raise InputError(f"run '{path}': not a readable HDF5 file ({first_line(exc)})") from exc
     time_name = next((n for n in data if n.strip().lower() == "time"), None)
     channels = {n: _hdf5_values(v, n, path) for n, v in data.items() if n != time_name}
     if not channels:
@@ -170,171 +281,13 @@ def _read_hdf5_run(path: Path) -> Run:
     if "fs" in attrs:
         fs = positive_number(attrs["fs"], "root attribute 'fs'", path)
         t0 = finite_number(attrs.get("t0", 0.0), "root attribute 't0'", path)
-        return _sampled(path, channels, fs, t0)
+        return sampled_run(path, channels, fs, t0)
     if time_name is None:
         raise InputError(
             f"run '{path}': no 'fs' attribute on the file root and no 'time' dataset; "
             "cannot tell the sampling"
         )
-    return _with_time_channel(path, _hdf5_values(data[time_name], time_name, path), channels)
-
-
-def _sampled(path: Path, channels: dict[str, np.ndarray], fs: float, t0: float) -> Run:
-    """A run whose sampling rate the file states: equal, long enough channels."""
-    check_equal_lengths(channels, path)
-    check_sample_count(len(next(iter(channels.values()))), path)
-    return _finish(path, channels, fs, t0)
-
-
-def _with_time_channel(path: Path, time: np.ndarray, channels: dict[str, np.ndarray]) -> Run:
-    """Finish a run whose sampling comes from a time channel."""
-    check_equal_lengths({"time": time, **channels}, path)
-    check_sample_count(time.size, path)
-    _check_finite_time(time, path, _sample_label)
-    fs, t0 = _sampling_from_time(time, path, np.zeros_like(time), _sample_label)
-    return _finish(path, channels, fs, t0)
-
-
-def _finish(path: Path, channels: dict[str, np.ndarray], fs: float, t0: float) -> Run:
-    """Check every channel for NaN/inf and absurd values, and build the Run."""
-    if not (np.isfinite(fs) and _MIN_RATE <= fs <= _MAX_RATE and abs(t0) <= _MAX_T0):
-        raise DataError(f"run '{path}': sampling rate {fs:.6g} Hz and start time {t0:.6g} s; "
-                        f"expected a rate from {_MIN_RATE:g} to {_MAX_RATE:g} Hz and a start "
-                        f"time within {_MAX_T0:g} s")
-    for name, values in channels.items():
-        check_finite(values, name, path, t0, fs)
-        check_plausible(values, name, path, t0, fs)
-    return Run(channels=channels, fs=fs, t0=t0, name=path.stem, source=str(path))
-
-
-# --------------------------------------------------------------------------------------------
-# time stamps
-
-
-def _sample_label(k: int) -> str:
-    return f"sample {k}"
-
-
-def _check_finite_time(time: np.ndarray, path: Path, where: Callable[[int], str]) -> None:
-    bad = np.flatnonzero(~np.isfinite(time))
-    if bad.size:
-        raise DataError(
-            f"run '{path}': time has {bad.size} NaN or infinite values, the first at "
-            f"{where(int(bad[0]))}"
-        )
-    far = np.flatnonzero(np.abs(time) > _MAX_T0)
-    if far.size:
-        raise DataError(f"run '{path}': time {time[far[0]]:.6g} s at {where(int(far[0]))} is "
-                        f"beyond {_MAX_T0:g} s; expected time stamps in s")
-
-
-def _first_irregular_step(time: np.ndarray, resolution: np.ndarray) -> int | None:
-    """Index k of the first step time[k+1] - time[k] off the mean step, or None.
-
-    Allowed deviation: ``_UNIFORM_RTOL`` of the mean step, or what rounding the two stamps to
-    their ``resolution`` (n_samples,) [s] and to float64 can cause, whichever is larger; but
-    never a quarter step, so that a dropped or repeated sample (a whole step) always shows.
-    """
-    step = (time[-1] - time[0]) / (time.size - 1)
-    rounding = np.maximum(resolution[:-1], resolution[1:])
-    rounding = rounding + 4 * np.finfo(float).eps * np.maximum(np.abs(time[:-1]), np.abs(time[1:]))
-    tolerance = np.maximum(_UNIFORM_RTOL * abs(step), np.minimum(rounding, _ROUNDING_CAP * step))
-    off = np.flatnonzero(np.abs(np.diff(time) - step) > tolerance)
-    return int(off[0]) if off.size else None
-
-
-def _sampling_from_time(
-    time: np.ndarray, path: Path, resolution: np.ndarray, where: Callable[[int], str]
-) -> tuple[float, float]:
-    """(fs [Hz], t0 [s]) of uniform time stamps; DataError saying where they are not."""
-    step = (time[-1] - time[0]) / (time.size - 1)
-    if not step > 0:
-        raise DataError(f"run '{path}': time stamps do not increase")
-    k = _first_irregular_step(time, resolution)
-    if k is not None:
-        actual = time[k + 1] - time[k]
-        raise DataError(
-            f"run '{path}': time stamps are not uniform: the step of {actual:.6g} s at "
-            f"t={time[k]:.6g} s ({where(k)}) differs from the mean step {step:.6g} s by "
-            f"{100 * abs(actual - step) / step:.3g} %"
-        )
-    return 1.0 / step, float(time[0])
-
-
-# --------------------------------------------------------------------------------------------
-# CSV parsing
-
-
-def _parse_csv(path: Path, what: str) -> tuple[list[str], list[list[str]], list[int]]:
-    """Header names, data rows (cells as text) and their 1-based row numbers in the file."""
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise InputError(f"{what} '{path}': not a text (UTF-8) CSV file") from exc
-    reader = csv.reader(io.StringIO(text))
-    header: list[str] | None = None
-    cells: list[list[str]] = []
-    rows: list[int] = []
-    try:
-        for row in reader:
-            if not any(cell.strip() for cell in row):
-                continue
-            if header is None:
-                header = [cell.strip() for cell in row]
-                continue
-            cells.append(row)
-            rows.append(reader.line_num)
-    except csv.Error as exc:  # e.g. a cell beyond the field size limit, a NUL byte
-        raise DataError(f"{what} '{path}': row {reader.line_num + 1} cannot be read as CSV "
-                        f"({exc})") from None
-    if header is None:
-        raise DataError(f"{what} '{path}': the file is empty")
-    _check_header(header, path, what)
-    if not cells:
-        raise DataError(f"{what} '{path}': a header but no data rows")
-    for row, number in zip(cells, rows, strict=True):
-        if len(row) != len(header):
-            raise DataError(
-                f"{what} '{path}': row {number} has {len(row)} cells, the header {len(header)}"
-            )
-    return header, cells, rows
-
-
-def _check_header(header: list[str], path: Path, what: str) -> None:
-    if header[0].lower() != "time":
-        raise InputError(f"{what} '{path}': the first column is {header[0]!r}; expected 'time'")
-    if len(header) < 2:
-        raise DataError(f"{what} '{path}': no channel columns after 'time'")
-    seen: set[str] = set()
-    for column, name in enumerate(header, start=1):
-        if not name:
-            raise InputError(f"{what} '{path}': column {column} has no name in the header")
-        if name in seen:
-            raise InputError(f"{what} '{path}': column {name!r} appears twice in the header")
-        seen.add(name)
-
-
-def _numeric(
-    cells: list[list[str]], header: list[str], rows: list[int], path: Path, what: str
-) -> np.ndarray:
-    """(n_rows, n_columns) float array; DataError naming row and column of a bad cell."""
-    if not any("_" in cell for row in cells for cell in row):  # float() takes '1_000'
-        try:
-            return np.array(cells, dtype=float)
-        except ValueError:
-            pass
-    for row, number in zip(cells, rows, strict=True):
-        for cell, name in zip(row, header, strict=True):
-            try:
-                if "_" in cell:
-                    raise ValueError(cell)
-                float(cell)
-            except ValueError:
-                raise DataError(
-                    f"{what} '{path}': row {number}, column {name!r}: {cell.strip()!r} is not "
-                    "a number"
-                ) from None
-    raise DataError(f"{what} '{path}': a cell is not a number")  # pragma: no cover
+    return run_from_time(path, _hdf5_values(data[time_name], time_name, path), channels)
 
 
 # --------------------------------------------------------------------------------------------
@@ -366,10 +319,6 @@ def _hdf5_values(value: np.ndarray, name: str, path: Path) -> np.ndarray:
     return data.astype(float)
 
 
-def _rate_from_increment(increment: object, path: Path) -> float:
-    return 1.0 / positive_number(increment, "property 'wf_increment'", path)
-
-
 # --------------------------------------------------------------------------------------------
 # result tables
 
@@ -399,9 +348,9 @@ def read_table_csv(path: str | Path) -> tuple[np.ndarray, dict[str, np.ndarray]]
     path = Path(path)
     if not path.is_file():
         raise InputError(f"table '{path}': file does not exist")
-    header, cells, rows = _parse_csv(path, "table")
-    values = _numeric(cells, header, rows, path, "table")
-    return values[:, 0], {name: values[:, j] for j, name in enumerate(header[1:], start=1)}
+    table = read_csv_columns(path, "table")
+    time = table.values[:, 0] * TIME_UNITS.get(table.units[0], 1.0)
+    return time, {name: table.values[:, j] for j, name in enumerate(table.names[1:], start=1)}
 
 
 def write_table_csv(path: str | Path, time: np.ndarray, columns: Mapping[str, np.ndarray]) -> Path:
@@ -555,9 +504,3 @@ def write_table_hdf5(path: str | Path, time: np.ndarray,
     step = float(np.mean(np.diff(time))) if time.size > 1 else 1.0
     return write_run_hdf5(Run(channels=dict(columns), fs=1.0 / step,
                               t0=float(time[0]) if time.size else 0.0), path)
-
-
-def _first_line(exc: BaseException) -> str:
-    """The first line of an exception's message (its type name when it has none)."""
-    text = str(exc).strip() or type(exc).__name__
-    return text.splitlines()[0]

@@ -20,7 +20,7 @@ from ..io.run_files import read_table_csv
 from ..records import Run, Scan
 from ..rig import Rig
 from ..scan import HarmonicShapes, harmonic_shapes
-from ..spatial import SpatialModel, build_spatial_model
+from ..spatial import SpatialModel, build_spatial_model, check_model_rig
 from .figures import (
     CalibrationPoints,
     fig_calibration,
@@ -55,23 +55,50 @@ def _scan_shapes(rig: Rig, scan: Scan, n_harmonics: int) -> HarmonicShapes:
     return harmonic_shapes(scan, rig.drive_frequency, n_harmonics)
 
 
-def _model_section(model: SpatialModel, shapes_png: Path, fig: Figure) -> Section:
+def _model_scan(model: SpatialModel, rig: Rig) -> Scan | None:
+    """The model's first scan, read again for fig. 3 (None when it is no longer there)."""
+    from ..errors import ForcecalError
+    from ..io.scan_files import read_scan
+
+    path = Path(model.scans[0] if model.scans else model.source)
+    if not path.is_file():
+        return None
+    try:
+        return read_scan(path, locations=rig.structure.directed)
+    except ForcecalError:
+        return None
+
+
+def _model_section(model: SpatialModel, shapes_png: Path | None,
+                   fig: Figure | None) -> Section:
     """The spatial model's section: fundamental, harmonic shapes table and fig. 3."""
-    rows: list[list[Any]] = [[int(n), s.order, f"{model.snr[int(n) - 1]:.1f}"]
-                             for n, s in zip(model.harmonics, model.shapes, strict=True)]
-    rows += [[n, "-", f"dropped: {why}"] for n, why in sorted(model.dropped.items())]
+    rows: list[list[Any]] = [[int(n), s.order, f"{model.snr[int(n) - 1]:.1f}",
+                              len(model.members(k))]
+                             for k, (n, s) in enumerate(zip(model.harmonics, model.shapes,
+                                                            strict=True))]
+    rows += [[n, "-", f"dropped: {why}", 0] for n, why in sorted(model.dropped.items())]
     text = (f"Fundamental refined from the scan: {model.f0:.6g} Hz; {model.n_points} scan points. "
             f"Lowest MAC between the harmonics' shapes: {model.similarity.min():.5f}, so "
             + ("one shape serves all harmonics (the paper's eq. 19)."
                if model.one_shape else "each harmonic keeps its own shape."))
-    return Section("Spatial model (SLDV scan)", [
+    if len(model.scans) > 1:
+        text += (f" Built from {len(model.scans)} scans under different loads ("
+                 + ", ".join(model.scans) + "): each harmonic holds the shapes of the scans "
+                 "that add to its span, and every run uses those its probes need.")
+    blocks: list[Any] = [
         text,
-        Table(rows, header=["harmonic", "basis order (GCV)", "scan signal-to-noise"],
-              caption="Harmonic shapes"),
-        Image(fig, caption="Fig. 3: phase-aligned harmonic deflection shapes over the scan with "
-                           "the fitted curves, and their normalized overlay. "
-                           f"({shapes_png.name})"),
-    ])
+        Table(rows, header=["harmonic", "basis order (GCV)", "scan signal-to-noise",
+                            "shapes"], caption="Harmonic shapes"),
+    ]
+    if fig is not None and shapes_png is not None:
+        blocks.append(Image(fig, caption="Fig. 3: phase-aligned harmonic deflection shapes over "
+                                         "the scan with the fitted curves (other scans' shapes "
+                                         "dotted, scaled onto the first's), and their normalized "
+                                         f"overlay. ({shapes_png.name})"))
+    else:
+        blocks.append("Fig. 3 needs the scan's records: the model's scan "
+                      f"'{model.scans[0] if model.scans else model.source}' is not at hand.")
+    return Section("Spatial model (SLDV scan)", blocks)
 
 
 def _ac_error(x: np.ndarray, true: np.ndarray) -> float:
@@ -121,6 +148,27 @@ def _run_figures(rig: Rig, run: Run, est: ForceEstimate, truth: dict[str, np.nda
     return images
 
 
+def _budget_table(est: ForceEstimate) -> tuple[list[list[Any]], list[str], str]:
+    """Rows (source, each force's and the total's DC and fundamental std) of the budget."""
+    names = [*est.force_names, "total"]
+    idx = [est.combination_names.index(n) for n in names]
+    header = ["source"] + [f"{n} {part}" for n in names for part in ("DC", "n = 1")]
+
+    def cells(std: np.ndarray) -> list[str]:
+        return [f"{std[k, j]:.3g}" for k in idx for j in (0, 1)]
+
+    rows: list[list[Any]] = [[src, *cells(std)] for src, std in est.budget.items()]
+    assert est.combination_std is not None
+    rows.append(["combined standard uncertainty", *cells(est.combination_std)])
+    rows.append(["expanded (k = 2)", *cells(est.expanded())])
+    if est.monte_carlo_std is not None:
+        rows.append([f"Monte Carlo ({est.monte_carlo_draws} draws, noise and type B)",
+                     *cells(est.monte_carlo_std)])
+    caption = ("Uncertainty budget, N: each source's standard uncertainty. "
+               + (est.type_b.describe() if est.type_b is not None else ""))
+    return rows, header, caption
+
+
 def _run_section(rig: Rig, est: ForceEstimate, run: Run, truth: dict[str, np.ndarray] | None,
                  figs: Path) -> Section:
     """One run's section: its forces with uncertainties, errors against the truth, figures."""
@@ -132,6 +180,8 @@ def _run_section(rig: Rig, est: ForceEstimate, run: Run, truth: dict[str, np.nda
         Table(estimate_table(est)[1:], header=estimate_table(est)[0],
               caption="Force phasors with standard uncertainties"),
     ]
+    if est.budget:
+        blocks.append(Table(*_budget_table(est)))
     if truth is not None:
         blocks.append(Table(_truth_errors(est, truth),
                             header=["force", "error (full method)", "error (reactions only)"],
@@ -142,17 +192,21 @@ def _run_section(rig: Rig, est: ForceEstimate, run: Run, truth: dict[str, np.nda
     return Section(f"Run {run.name}", blocks)
 
 
-def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
+def run_report(rig: Rig, scan: Scan | SpatialModel, runs: Sequence[Run], out_dir: str | Path,
                truth_dir: str | Path | None = None, n_harmonics: int = 6,
-               criterion: str = "gcv", basis: str = "polynomial") -> Path:
+               criterion: str = "gcv", basis: str = "polynomial",
+               provenance: dict | None = None,
+               progress: Callable[[str], None] | None = None) -> Path:
     """Model, forces, figures and ``OUT/report.html`` for runs.
 
     Parameters
     ----------
     rig : Rig
         The rig the scan and the runs were measured on.
-    scan : Scan
-        The SLDV scan the spatial model is built from.
+    scan : Scan or SpatialModel
+        The SLDV scan the spatial model is built from, or a model already built (from one
+        scan or several: fig. 3 then shows its first scan's measured shapes when that file is
+        still where the model says, and the fitted shapes only otherwise).
     runs : Sequence of Run
         The runs whose forces are reconstructed.
     out_dir : str or pathlib.Path
@@ -165,6 +219,11 @@ def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
         As for :func:`forcecal.spatial.build_spatial_model`.
     basis : str
         As for :func:`forcecal.spatial.build_spatial_model`.
+    provenance : dict, optional
+        :func:`forcecal.provenance.provenance` of the inputs (default: of the model's scans and
+        the runs' files, as far as they are files).
+    progress : callable, optional
+        Called with a line as each stage starts (the model, each run, the page).
 
     Returns
     -------
@@ -173,15 +232,26 @@ def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
     """
     out = Path(out_dir)
     figs = out / "figures"
-    hs = _scan_shapes(rig, scan, n_harmonics)
-    model = build_spatial_model(rig, scan, n_harmonics=n_harmonics, criterion=criterion,
-                                shapes=hs, basis=basis)
+    say = progress or (lambda _line: None)
+    say("  spatial model and fig. 3")
+    if isinstance(scan, SpatialModel):
+        check_model_rig(scan, rig)
+        model, first = scan, _model_scan(scan, rig)
+        hs = None if first is None else _scan_shapes(rig, first, len(model.snr))
+    else:
+        hs = _scan_shapes(rig, scan, n_harmonics)
+        model = build_spatial_model(rig, scan, n_harmonics=n_harmonics, criterion=criterion,
+                                    shapes=hs, basis=basis)
     model.save(out / "model.json")
-    fig = _SHAPE_FIGURES[rig.structure.dim](hs, model)
-    shapes_png = save_png(fig, figs / "shapes.png")
-    sections = [_model_section(model, shapes_png, fig)]
+    if hs is not None:
+        fig = _SHAPE_FIGURES[rig.structure.dim](hs, model)
+        shapes_png = save_png(fig, figs / "shapes.png")
+        sections = [_model_section(model, shapes_png, fig)]
+    else:
+        sections = [_model_section(model, None, None)]
     summary = []
-    for run in runs:
+    for k, run in enumerate(runs):
+        say(f"  run {k + 1}/{len(runs)} {run.name}: forces and figs. 6-8")
         est = reconstruct(rig, model, run)
         write_estimate(est, out)
         summary.append([run.name, f"{est.f0:.6g}", _pct(est.inertia_share),
@@ -190,7 +260,24 @@ def run_report(rig: Rig, scan: Scan, runs: Sequence[Run], out_dir: str | Path,
     sections.insert(0, Section("Summary", [Table(
         summary, header=["run", "f0 (Hz)", "inertia share", "total-force std (N)",
                          "cond(Psi)"])]))
+    if provenance is None:
+        from ..provenance import provenance as make
+
+        provenance = make([rig.source, *(model.scans or [model.source]),
+                           *(r.source for r in runs)])
+    sections.append(provenance_section(provenance))
     return write_report(out / "report.html", f"forcecal: forces of {rig.name}", sections)
+
+
+def provenance_section(prov: dict) -> Section:
+    """The report's last section: version, date, command line, every input's SHA-256."""
+    rows = [[f["path"], f.get("bytes", "-"), f.get("sha256", "not a file")]
+            for f in prov["inputs"]]
+    return Section("Provenance", [
+        f"forcecal {prov['forcecal_version']} (Python {prov['python']}), "
+        f"{prov['created_utc']}; command: {prov['command']}",
+        Table(rows, header=["input", "bytes", "SHA-256"], caption="Input files"),
+    ])
 
 
 def calibration_report(rig: Rig, model: SpatialModel, result: CampaignResult,

@@ -1,8 +1,17 @@
 """Write a simulated campaign in the public formats (INTERFACES.md section 5, ``simulate``).
 
-``OUT/rig.toml``, ``OUT/scan.uff``, ``OUT/runs/*.csv``, ``OUT/manifest.csv`` for the user's
+``OUT/rig.toml``, ``OUT/scan.uff`` (and ``OUT/scan2.uff``, ``OUT/scan3.uff``, ... when the rig
+is scanned under more than one load), ``OUT/runs/*.csv``, ``OUT/manifest.csv`` for the user's
 side; ``OUT/truth/NAME.forces.csv``, ``OUT/truth/NAME.npz`` and ``OUT/truth/simulator.json``
-(the parameters the lab would not know) for checking any estimate against the truth.
+(the parameters the lab would not know, every scan's and run's drives, reference coil and static
+gaps) for checking any estimate against the truth.
+
+A ``lab`` rig (``realism``, :class:`.realism.Realism`) adds a zero-current tare run when the
+preset has none, declares its type-B uncertainties in ``rig.toml``, and states every drawn error
+in the truth: ``simulator.json``'s ``realism`` (the settings, every channel's sensitivity, every
+gauge's preload, offset and zero-current reading, each run's drive drift and chirp, each scan's
+drive level and frequency at every acquisition), and each run's NPZ (its ``imperfections``,
+:class:`.virtual_rig.Truth`).
 """
 
 from __future__ import annotations
@@ -10,6 +19,7 @@ from __future__ import annotations
 import json
 from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import tomli_w
@@ -18,10 +28,23 @@ from .._atomic import atomic_path, write_text_atomic
 from ..io.manifest import write_manifest
 from ..io.run_files import write_run_csv, write_table_csv
 from ..io.uff import write_scan_uff
+from ..records import Scan
 from ..rig import rig_to_dict
 from .beam import natural_frequencies
-from .presets import BodySpec, PlateSpec, Preset, get_preset
-from .virtual_rig import Truth, build_model, public_rig, record_run, record_scan
+from .lab import draw_errors, record_lab_scan
+from .magnet import Drive
+from .presets import BodySpec, PlateSpec, Preset, get_preset, with_tare
+from .realism import Realism
+from .virtual_rig import (
+    Model,
+    Truth,
+    build_model,
+    public_rig,
+    record_run,
+    record_scan,
+    scan_file,
+    static_gaps,
+)
 
 __all__ = ["write_simulation", "write_truth"]
 
@@ -32,7 +55,9 @@ def write_truth(out: Path, name: str, truth: Truth) -> None:
     Parameters
     ----------
     out : Path
-        The truth folder; ``NAME.forces.csv`` and ``NAME.npz`` are written there atomically.
+        The truth folder; ``NAME.forces.csv`` and ``NAME.npz`` are written there atomically
+        (the NPZ holds the time series, every pole's static gap, ``static_gap`` [m], and a
+        ``lab`` rig's ``imperfections``).
     name : str
         The run's name.
     truth : Truth
@@ -41,13 +66,14 @@ def write_truth(out: Path, name: str, truth: Truth) -> None:
     cols = {n: truth.pole_force[k] for k, n in enumerate(truth.pole_names)}
     cols["total"] = truth.pole_force.sum(axis=0)
     write_table_csv(out / f"{name}.forces.csv", truth.t, cols)
+    arrays: dict[str, Any] = dict(
+        time=truth.t, pole_names=np.array(truth.pole_names), pole_force=truth.pole_force,
+        gap=truth.gap, nodes=truth.nodes, w=truth.w.astype(np.float32), inertia=truth.inertia,
+        current=truth.current, flux=truth.flux, static_gap=truth.static_gap,
+        **truth.imperfections)
     with atomic_path(out / f"{name}.npz") as tmp:
         with open(tmp, "wb") as fh:
-            np.savez_compressed(
-                fh, time=truth.t, pole_names=np.array(truth.pole_names),
-                pole_force=truth.pole_force, gap=truth.gap, nodes=truth.nodes,
-                w=truth.w.astype(np.float32), inertia=truth.inertia, current=truth.current,
-                flux=truth.flux)
+            np.savez_compressed(fh, **arrays)
 
 
 def _structure_facts(preset: Preset) -> dict:
@@ -76,6 +102,30 @@ def _structure_facts(preset: Preset) -> dict:
     }
 
 
+def _drives(preset: Preset, drives: tuple[Drive, ...]) -> list[dict]:
+    """Every coil's drive, named by its current channel."""
+    return [{"coil": m.current_channel, "source": d.source, "dc": d.dc, "ac": d.ac,
+             "frequency_Hz": d.frequency, "phase_rad": d.phase,
+             "harmonics": [list(h) for h in d.harmonics]}
+            for m, d in zip(preset.magnets, drives, strict=True)]
+
+
+def _pole_gaps(preset: Preset, gap: float | None, gaps: dict[str, float]) -> dict[str, float]:
+    names = [p.name for m in preset.magnets for p in m.poles]
+    return dict(zip(names, static_gaps(preset, gap, gaps).tolist(), strict=True))
+
+
+def _scans_and_runs(preset: Preset) -> dict:
+    """What every scan and run did: file, drives, reference coil, static gap of every pole."""
+    scans = [{"file": scan_file(k), "reference": preset.magnets[s.reference].current_channel,
+              "drives": _drives(preset, s.drives), "static_gap_m": _pole_gaps(preset, s.gap,
+                                                                              s.gaps)}
+             for k, s in enumerate(preset.scans)]
+    runs = {r.name: {"drives": _drives(preset, r.drives),
+                     "static_gap_m": _pole_gaps(preset, r.gap, r.gaps)} for r in preset.runs}
+    return {"scans": scans, "runs": runs}
+
+
 def _simulator_facts(preset: Preset) -> dict:
     model = build_model(preset)
     mag = preset.magnets[0]
@@ -92,12 +142,14 @@ def _simulator_facts(preset: Preset) -> dict:
                    "resistance_ohm": mag.resistance, "gap_offset_m": mag.gap_offset,
                    "ideal_K_total_Nm2_A2": mag.ideal_k},
         "noise": dict(vars(preset.noise)),
+        **_scans_and_runs(preset),
     }
 
 
 def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
                      progress: Callable[[str], None] | None = None,
-                     binary_uff: bool = False) -> Path:
+                     binary_uff: bool = False,
+                     realism: str | Realism | None = None) -> Path:
     """Simulate ``preset_name`` and write every file of the public formats under ``out``.
 
     Parameters
@@ -111,7 +163,10 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     progress : callable, optional
         Called with a short message before each stage.
     binary_uff : bool
-        Write the scan as binary (58b) records instead of ASCII.
+        Write the scans as binary (58b) records instead of ASCII.
+    realism : str, Realism or None
+        ``"ideal"`` (white noise only) or ``"lab"`` (:class:`.realism.Realism` defaults), or a
+        Realism; None keeps the preset's own (ideal for every built-in one).
 
     Returns
     -------
@@ -124,32 +179,79 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
         An unknown preset.
     SimulationError
         A pole closes its gap or the magnetic circuit does not converge.
+
+    Notes
+    -----
+    The noise of the first scan is drawn first, then the runs', then any further scan's, so
+    a preset's first scan and runs do not depend on how many scans it has. A ``lab`` rig's
+    errors are drawn before all of them.
     """
-    preset = get_preset(preset_name)
+    preset = get_preset(preset_name, realism)
+    if preset.realism is not None:
+        preset = with_tare(preset)
     out = Path(out)
     rng = np.random.default_rng(seed)
     model = build_model(preset)
     say = progress or (lambda _msg: None)
+    lab = _LabRecorder(preset, model, rng) if preset.realism is not None else None
 
     say("scan")
-    scan = record_scan(preset, rng, model)
+    scan = record_scan(preset, rng, model) if lab is None else lab.scan(0)
     rig = public_rig(preset)
     write_text_atomic(out / "rig.toml", tomli_w.dumps(rig_to_dict(rig)))
-    write_scan_uff(scan, out / "scan.uff", binary=binary_uff)
+    write_scan_uff(scan, out / scan_file(0), binary=binary_uff)
 
     rows = []
     for k, spec in enumerate(preset.runs):
         say(f"run {k + 1}/{len(preset.runs)}: {spec.name}")
-        run, truth = record_run(preset, spec, rng, model)
+        run, truth = record_run(preset, spec, rng, model, None if lab is None else lab.errors)
         write_run_csv(run, out / "runs" / f"{spec.name}.csv")
         write_truth(out / "truth", spec.name, truth)
+        if lab is not None:
+            lab.note_run(spec.name, truth)
         row: dict[str, object] = {"run": f"runs/{spec.name}.csv"}
         if spec.gap is not None:
             row["gap"] = spec.gap
+        row.update({f"gap_{pole}": gap for pole, gap in spec.gaps.items()})
         row["tare"] = "true" if spec.tare else "false"
         row.update(spec.labels)
         rows.append(row)
+    for k in range(1, len(preset.scans)):
+        say(f"scan {k + 1}/{len(preset.scans)}")
+        more = record_scan(preset, rng, model, which=k) if lab is None else lab.scan(k)
+        write_scan_uff(more, out / scan_file(k), binary=binary_uff)
     write_manifest(out / "manifest.csv", rows)
-    write_text_atomic(out / "truth" / "simulator.json",
-                      json.dumps(_simulator_facts(preset), indent=2))
+    facts = _simulator_facts(preset)
+    if lab is not None:
+        facts["realism"] = lab.facts()
+    write_text_atomic(out / "truth" / "simulator.json", json.dumps(facts, indent=2))
     return out
+
+
+class _LabRecorder:
+    """A ``lab`` rig's drawn errors, and the drifts of the runs and scans recorded with them."""
+
+    def __init__(self, preset: Preset, model: Model, rng: np.random.Generator):
+        self.preset, self.model, self.rng = preset, model, rng
+        self.errors = draw_errors(preset, model, rng)
+        self.walks: dict[int, dict] = {}
+        self.runs: dict[str, dict] = {}
+
+    def scan(self, which: int) -> Scan:
+        """Record scan ``which``; keep its walk."""
+        scan, walk = record_lab_scan(self.preset, self.rng, self.model, which, self.errors)
+        self.walks[which] = {"file": scan_file(which), "drive_level": walk.level.tolist(),
+                             "frequency_Hz": walk.frequency.tolist(),
+                             "start_sample": walk.start.tolist()}
+        return scan
+
+    def note_run(self, name: str, truth: Truth) -> None:
+        """Keep run ``name``'s drive drift and chirp."""
+        self.runs[name] = {"drive_drift_per_s": float(truth.imperfections["drive_drift"]),
+                           "drive_chirp_per_s": float(truth.imperfections["drive_chirp"])}
+
+    def facts(self) -> dict:
+        """The settings and every drawn error, for ``simulator.json``."""
+        assert self.preset.realism is not None
+        return {"settings": self.preset.realism.describe(), **self.errors.as_dict(),
+                "runs": self.runs, "scans": [self.walks[k] for k in sorted(self.walks)]}

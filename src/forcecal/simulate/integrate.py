@@ -79,11 +79,23 @@ class Response:
 
 
 def _scalar_drive(drive: Drive) -> Callable[[float], float]:
-    """``drive.value`` for one float time, on plain floats (the per-step hot path)."""
+    """``drive.value`` for one float time, on plain floats (the per-step hot path); a steady
+    drive (no ``drift``, no ``chirp``) keeps the arithmetic it always had."""
     w = 2 * math.pi * drive.frequency
     dc, ac, phase = float(drive.dc), float(drive.ac), float(drive.phase)
     extra = tuple((n * w, float(amp), float(ph)) for n, amp, ph in drive.harmonics)
     sin = math.sin
+    if drive.drift or drive.chirp:
+        drift, half_chirp = float(drive.drift), 0.5 * float(drive.chirp)
+
+        def drifting(t: float) -> float:
+            tau = t + half_chirp * t * t                  # 2 pi f tau: the chirped phase
+            out = dc + ac * sin(w * tau + phase)
+            for nw, amp, ph in extra:
+                out = out + amp * sin(nw * tau + ph)
+            return out * (1.0 + drift * t)
+
+        return drifting
 
     def value(t: float) -> float:
         out = dc + ac * sin(w * t + phase)

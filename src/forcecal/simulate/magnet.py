@@ -69,6 +69,12 @@ class Drive:
         Phase of the fundamental.
     harmonics : tuple of (n, amplitude, phase)
         Extra terms ``amplitude * sin(2 pi n f t + phase)`` for distorted drives.
+    drift : float [1/s]
+        A slow linear drift of the drive's level: the whole drive (``dc``, ``ac`` and the
+        harmonics) is scaled by ``1 + drift * t``.
+    chirp : float [1/s]
+        A slow linear drift of the frequency: the instantaneous frequency is
+        ``f (1 + chirp * t)``, so every ``2 pi f t`` above reads ``2 pi f (t + chirp t^2 / 2)``.
     """
 
     source: str  # "current" or "voltage"
@@ -77,6 +83,8 @@ class Drive:
     frequency: float
     phase: float = 0.0
     harmonics: tuple[tuple[int, float, float], ...] = ()
+    drift: float = 0.0
+    chirp: float = 0.0
 
     def __post_init__(self) -> None:
         if self.source not in ("current", "voltage"):
@@ -101,10 +109,37 @@ class Drive:
             Shaped like ``t``.
         """
         w = 2 * math.pi * self.frequency
+        if self.drift or self.chirp:
+            tt = np.asarray(t, dtype=float)
+            arg = w * (tt + 0.5 * self.chirp * tt**2)
+            out = self.dc + self.ac * np.sin(arg + self.phase)
+            for n, amp, ph in self.harmonics:
+                out = out + amp * np.sin(n * arg + ph)
+            return out * (1.0 + self.drift * tt)
         out = self.dc + self.ac * np.sin(w * np.asarray(t) + self.phase)
         for n, amp, ph in self.harmonics:
             out = out + amp * np.sin(n * w * np.asarray(t) + ph)
         return out
+
+    def scaled(self, level: float, frequency: float | None = None) -> Drive:
+        """The same drive with its whole level (``dc``, ``ac``, harmonics) times ``level``,
+        at ``frequency`` [Hz] (default: its own).
+
+        Parameters
+        ----------
+        level : float
+            The factor on every amplitude.
+        frequency : float, optional
+            The new fundamental [Hz].
+
+        Returns
+        -------
+        Drive
+        """
+        return Drive(self.source, self.dc * level, self.ac * level,
+                     self.frequency if frequency is None else frequency, self.phase,
+                     tuple((n, amp * level, ph) for n, amp, ph in self.harmonics),
+                     self.drift, self.chirp)
 
 
 @dataclass(frozen=True)

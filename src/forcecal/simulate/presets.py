@@ -1,20 +1,26 @@
 """Built-in virtual rigs: the paper's beam, a calibration campaign, a near-resonance drive, a
-plate on three gauges, and a 3-D block on six gauges with measuring directions.
+plate on three gauges, a 3-D block on six gauges with measuring directions, and two rigs scanned
+under more than one load: two magnets on their own coils, and two magnets on one current whose
+pole gaps change unequally.
 
 Every preset is a complete description: structure, gauges, magnets, sensors, noise, the SLDV
-scan and the runs. The drive's true frequency deliberately differs from the nominal one written
-to the rig file, as a signal generator's does.
+scans and the runs. The drive's true frequency deliberately differs from the nominal one written
+to the rig file, as a signal generator's does. Its ``realism`` says how its measurements are
+made: ideal (white noise only, the default) or ``lab`` (:class:`.realism.Realism`: coloured
+noise, quantization, sensitivity errors, a drifting drive, gravity preload and gauge offsets).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
 from .magnet import Drive, Magnet, Pole
+from .realism import Realism, resolve_realism
 
 __all__ = ["PRESETS", "BeamSpec", "BodySpec", "NoiseSpec", "PlateSpec", "Preset", "RunSpec",
-           "ScanSpec", "get_preset"]
+           "ScanSpec", "get_preset", "with_tare"]
 
 
 @dataclass(frozen=True)
@@ -130,7 +136,10 @@ class NoiseSpec:
 
 @dataclass(frozen=True)
 class RunSpec:
-    """One recorded run: the drive of every magnet, the static gap, the record length."""
+    """One recorded run: the drive of every magnet, the static gap, the record length.
+
+    ``gap`` overrides every pole's static gap, then ``gaps`` (pole name -> m) single poles'.
+    """
 
     name: str
     drives: tuple[Drive, ...]
@@ -138,6 +147,7 @@ class RunSpec:
     duration: float = 1.0                      # s
     tare: bool = False
     labels: dict[str, str] = field(default_factory=dict)
+    gaps: dict[str, float] = field(default_factory=dict)   # pole name -> m, after ``gap``
 
 
 @dataclass(frozen=True)
@@ -145,7 +155,11 @@ class ScanSpec:
     """A sequential SLDV scan: ``n_points`` evenly along a beam, or on a plate an
     ``grid = (n_x, n_y)`` grid of points over the whole rectangle, edges included. On a body the
     grid covers the top face and ``heights`` rows of points the four side faces, and a 3-D
-    SLDV measures every point along x, y and z in one acquisition."""
+    SLDV measures every point along x, y and z in one acquisition.
+
+    ``reference`` is the index of the magnet whose coil current is recorded beside every point;
+    ``gap`` overrides every pole's static gap, then ``gaps`` (pole name -> m) single poles'.
+    """
 
     drives: tuple[Drive, ...]
     n_points: int = 61
@@ -153,6 +167,8 @@ class ScanSpec:
     gap: float | None = None
     grid: tuple[int, int] | None = None        # plate and body only
     heights: int = 3                           # body only
+    reference: int = 0                         # magnet whose coil current is the reference
+    gaps: dict[str, float] = field(default_factory=dict)   # pole name -> m, after ``gap``
 
 
 BeamSensor = tuple[str, float]
@@ -170,7 +186,10 @@ class Preset:
     ``beam`` is the structure: a :class:`BeamSpec` (sensors ``(name, x)``), a
     :class:`PlateSpec` (sensors ``(name, x, y)``, poles with their ``y``) or a :class:`BodySpec`
     (sensors ``(name, x, y, z, dx, dy, dz)``, poles with their ``y``, ``z`` and direction); the
-    field keeps its historical name, :attr:`structure` is the neutral alias.
+    field keeps its historical name, :attr:`structure` is the neutral alias. ``scan`` is the
+    first SLDV scan, ``more_scans`` further scans of the same rig under other loads;
+    :attr:`scans` lists them all. ``realism`` is None for ideal measurements (white noise
+    only) or the :class:`.realism.Realism` of a ``lab`` rig.
     """
 
     name: str
@@ -183,6 +202,13 @@ class Preset:
     nominal_frequency: float
     fs: float = 10_000.0
     noise: NoiseSpec = field(default_factory=NoiseSpec)
+    more_scans: tuple[ScanSpec, ...] = ()
+    realism: Realism | None = None
+
+    @property
+    def scans(self) -> tuple[ScanSpec, ...]:
+        """Every scan: ``scan`` first, then ``more_scans``."""
+        return (self.scan, *self.more_scans)
 
     @property
     def structure(self) -> BeamSpec | PlateSpec | BodySpec:
@@ -300,17 +326,95 @@ def _body() -> Preset:
     )
 
 
+def _coils(a: tuple[float, float], b: tuple[float, float],
+           phase_b: float = 0.0) -> tuple[Drive, Drive]:
+    """Current drives (dc, ac) [A] of coils A and B at the fundamental, B shifted by phase_b."""
+    return (Drive("current", *a, _F_TRUE), Drive("current", *b, _F_TRUE, phase=phase_b))
+
+
+def _two_coil() -> Preset:
+    left = Magnet(poles=(Pole("FA", 0.20, 1.0e-3),), current_channel="ia",
+                  flux_channel="phia", voltage_channel="va")
+    right = Magnet(poles=(Pole("FB", 0.42, 1.0e-3),), current_channel="ib",
+                   flux_channel="phib", voltage_channel="vb")
+    return Preset(
+        name="two-coil",
+        description="the paper's beam pulled by two magnets on their own coils (FA at 0.2 m on "
+                    "coil A, FB at 0.42 m on coil B), current drives at 20 Hz; scanned twice, "
+                    "coil A dominant (reference coil A) then coil B dominant and shifted in "
+                    "phase (reference coil B); runs with coil B changed since the scans",
+        beam=BeamSpec(), magnets=(left, right), sensors=_SENSORS,
+        scan=ScanSpec(drives=_coils((0.5, 0.25), (0.2, 0.1)), reference=0),
+        more_scans=(ScanSpec(drives=_coils((0.2, 0.1), (0.5, 0.25), 0.8), reference=1),),
+        runs=(RunSpec("matched", drives=_coils((0.5, 0.25), (0.2, 0.1))),
+              RunSpec("b_changed", drives=_coils((0.5, 0.25), (0.6, 0.3), 1.5)),
+              RunSpec("b_only_weak_a", drives=_coils((0.15, 0.075), (0.6, 0.3), 0.5)),
+              RunSpec("equal", drives=_coils((0.4, 0.2), (0.4, 0.2)))),
+        nominal_frequency=20.0,
+    )
+
+
+def _one_pole(pole: Pole, k: int) -> Magnet:
+    """Coil ``k`` of the tilt rig: a one-pole magnet on its own core, pulling
+    ``mu0 N^2 A i^2 / (2 (s + l_fe / mu_r)^2)``. Its iron path is half the campaign U-core's
+    (the same offset s_fe = 50 um); its 150 turns (0.75 ohm) pull 0.56 times as hard as one of
+    the U-core's poles at the same gap, so that the closest pair of gaps (0.7 / 0.9 mm at 1 A)
+    stays clear of pull-in and of harmonics the scans do not see."""
+    return Magnet(poles=(pole,), turns=150.0, pole_area=_MAGNET.pole_area,
+                  iron_length=_MAGNET.iron_length / 2, mu_r=_MAGNET.mu_r, resistance=0.75,
+                  current_channel=f"i{k}", flux_channel=f"phi{k}", voltage_channel=f"v{k}")
+
+
+def _same_current(dc: float, ac: float) -> tuple[Drive, Drive]:
+    """Both coils driven alike: one current (dc, ac) [A] at the fundamental."""
+    drive = Drive("current", dc, ac, _F_TRUE)
+    return (drive, drive)
+
+
+def _tilt() -> Preset:
+    magnets = tuple(_one_pole(p, k + 1) for k, p in enumerate(_MAGNET.poles))
+    runs = []
+    for g1, g2 in ((0.8e-3, 1.2e-3), (1.2e-3, 0.8e-3), (0.7e-3, 0.9e-3), (1.1e-3, 1.3e-3),
+                   (1.0e-3, 1.0e-3)):
+        for dc in (0.4, 0.8):
+            runs.append(RunSpec(
+                f"g{g1 * 1e6:04.0f}_{g2 * 1e6:04.0f}_dc{dc * 10:02.0f}_ac02",
+                drives=_same_current(dc, 0.2), gaps={"F1": g1, "F2": g2},
+                duration=0.5, labels={"dc": f"{dc}", "ac": "0.2", "repeat": "1"}))
+    runs.append(RunSpec("tare", drives=_same_current(0.0, 0.0),
+                        gaps={"F1": 1.0e-3, "F2": 1.0e-3}, duration=0.5, tare=True,
+                        labels={"dc": "0", "ac": "0", "repeat": "1"}))
+    return Preset(
+        name="tilt",
+        description="the campaign's beam pulled at its pole positions by two one-pole magnets "
+                    "on their own cores (F1 at 0.25 m on coil 1, F2 at 0.35 m on coil 2), both "
+                    "coils carrying the same current, so the closer pole pulls harder: scanned "
+                    "(0.7 A DC, 0.3 A AC) at equal gaps (1.0 mm) and at F1 0.8 mm, F2 1.2 mm; "
+                    "five gap pairs x two DC currents at 0.2 A AC (current drive) and a "
+                    "zero-current tare",
+        beam=BeamSpec(), magnets=magnets, sensors=_SENSORS,
+        scan=ScanSpec(drives=_same_current(0.7, 0.3), gap=1.0e-3),
+        more_scans=(ScanSpec(drives=_same_current(0.7, 0.3),
+                             gaps={"F1": 0.8e-3, "F2": 1.2e-3}),),
+        runs=tuple(runs), nominal_frequency=20.0,
+    )
+
+
 PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign, "plate": _plate,
-           "body": _body}
+           "body": _body, "two-coil": _two_coil, "tilt": _tilt}
 
 
-def get_preset(name: str) -> Preset:
+def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
     """The preset called ``name``.
 
     Parameters
     ----------
     name : str
         A key of :data:`PRESETS`.
+    realism : str, Realism or None
+        ``"ideal"`` or None (the preset as it is: white noise only), ``"lab"`` (the
+        :class:`.realism.Realism` defaults) or a Realism; a ``lab`` preset without a
+        zero-current tare run gets one (:func:`with_tare`).
 
     Returns
     -------
@@ -320,13 +424,39 @@ def get_preset(name: str) -> Preset:
     Raises
     ------
     InputError
-        An unknown name.
+        An unknown name or realism.
     """
     from ..errors import InputError
 
     if name not in PRESETS:
         raise InputError(f"preset '{name}' is unknown (choose from {', '.join(PRESETS)})")
-    return PRESETS[name]()
+    chosen = resolve_realism(realism)
+    preset = PRESETS[name]()
+    if chosen is None:
+        return preset
+    return with_tare(dataclasses.replace(preset, realism=chosen))
+
+
+def with_tare(preset: Preset) -> Preset:
+    """``preset`` with a zero-current tare run (named ``tare``, 0.5 s, the first run's gaps and
+    drive sources, every level zero) when it has none.
+
+    Parameters
+    ----------
+    preset : Preset
+
+    Returns
+    -------
+    Preset
+        ``preset`` itself when one of its runs is a tare.
+    """
+    if any(r.tare for r in preset.runs) or not preset.runs:
+        return preset
+    first = preset.runs[0]
+    zero = tuple(Drive(d.source, 0.0, 0.0, d.frequency) for d in first.drives)
+    tare = RunSpec("tare", drives=zero, gap=first.gap, duration=0.5, tare=True,
+                   gaps=dict(first.gaps))
+    return dataclasses.replace(preset, runs=(*preset.runs, tare))
 
 
 def first_mode_beta(beam: BeamSpec | PlateSpec | BodySpec, f1: float) -> float:

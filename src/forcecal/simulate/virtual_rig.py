@@ -6,27 +6,34 @@ The structure is a beam (:mod:`.beam`), a rectangular plate (:mod:`.plate`) or a
 gauge or a pole acts or a probe or the SLDV measures.
 
 Measurements carry seeded white noise; the ground truth (pole forces, gaps, displacement field,
-the inertia term of each gauge) is returned beside them.
+the inertia term of each gauge) is returned beside them. A preset may be scanned more than once,
+under other loads (:attr:`Preset.scans`); ``which`` picks the scan, the first by default. A
+preset with a ``realism`` (:class:`.realism.Realism`) is measured by :mod:`.lab` instead:
+coloured noise, quantization, sensitivity errors, a drifting drive, gravity preload and gauge
+offsets; the functions here hand it over, with the rig's drawn errors (``errors``).
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
-from dataclasses import dataclass
-from typing import Any
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..records import Run, Scan
-from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor
+from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor, TypeB
 from ..structures import Beam, Body, Plate
 from .beam import BeamModel, assemble_beam, natural_frequencies
 from .integrate import Response, integrate
-from .magnet import Drive, Magnet
+from .magnet import Drive, Magnet, Pole
 from .plate import PlateModel, assemble_plate
-from .presets import BeamSpec, BodySpec, PlateSpec, Preset, RunSpec, first_mode_beta
+from .presets import BeamSpec, BodySpec, PlateSpec, Preset, RunSpec, ScanSpec, first_mode_beta
 from .solid import SolidModel, assemble_solid
+
+if TYPE_CHECKING:
+    from .lab import LabErrors
 
 __all__ = [
     "Truth",
@@ -38,8 +45,10 @@ __all__ = [
     "record_scan",
     "relaxation_modes",
     "run_truth",
+    "scan_file",
     "scan_points",
     "scan_response",
+    "static_gaps",
 ]
 
 Model = BeamModel | PlateModel | SolidModel
@@ -52,7 +61,11 @@ class Truth:
     pole_force : (n_poles, n_samples) [N]; gap : (n_poles, n_samples) [m];
     nodes : (n_nodes,) [m] on a beam, (n_nodes, 2) (x, y) on a plate, (n_nodes, 3) on a body;
     w : (n_nodes, n_samples) [m] deflection at the FE nodes (on a body its z component);
-    inertia : (n_gauges, n_samples) [N], J_r = integral(rho psi_r w_tt) + lumped terms.
+    inertia : (n_gauges, n_samples) [N], J_r = integral(rho psi_r w_tt) + lumped terms;
+    static_gap : (n_poles,) [m], each pole's gap at zero deflection during the run;
+    imperfections : what a ``lab`` rig drew for the run (empty for an ideal one): the drive's
+    ``drive_drift`` and ``drive_chirp`` [1/s], every channel's ``sensitivity`` (named by
+    ``sensitivity_channels``), each gauge's ``gauge_preload`` and ``gauge_offset`` [N].
     """
 
     t: np.ndarray
@@ -64,6 +77,8 @@ class Truth:
     inertia: np.ndarray
     current: np.ndarray
     flux: np.ndarray
+    static_gap: np.ndarray
+    imperfections: dict[str, np.ndarray] = field(default_factory=dict)
 
 
 def build_model(preset: Preset) -> Model:
@@ -107,18 +122,54 @@ def _first_bending(model: Model) -> float:
     return float(natural_frequencies(model, 1)[0])
 
 
-def _magnets_at(preset: Preset, gap: float | None) -> tuple[Magnet, ...]:
-    if gap is None:
+def _magnets_at(preset: Preset, gap: float | None,
+                gaps: Mapping[str, float] | None = None) -> tuple[Magnet, ...]:
+    """The preset's magnets with every pole at ``gap``, then single poles at ``gaps``."""
+    gaps = dict(gaps or {})
+    names = [p.name for m in preset.magnets for p in m.poles]
+    unknown = sorted(set(gaps) - set(names))
+    if unknown:
+        raise ValueError(f"preset '{preset.name}': no pole {unknown[0]!r} to set the gap of "
+                         f"(poles: {', '.join(names)})")
+    if gap is None and not gaps:
         return preset.magnets
-    return tuple(dataclasses.replace(m, poles=tuple(dataclasses.replace(p, gap=gap)
-                                                     for p in m.poles))
+
+    def at(p: Pole) -> Pole:
+        return dataclasses.replace(p, gap=gaps.get(p.name, p.gap if gap is None else gap))
+
+    return tuple(dataclasses.replace(m, poles=tuple(at(p) for p in m.poles))
                  for m in preset.magnets)
 
 
+def static_gaps(preset: Preset, gap: float | None = None,
+                gaps: Mapping[str, float] | None = None) -> np.ndarray:
+    """Every pole's gap at zero deflection [m], in the order of the magnets' poles.
+
+    Parameters
+    ----------
+    preset : Preset
+        The virtual rig.
+    gap : float or None [m]
+        Overrides every pole's static gap.
+    gaps : mapping pole name -> float [m], optional
+        Overrides single poles' static gaps, after ``gap``.
+
+    Returns
+    -------
+    (n_poles,) ndarray [m]
+    """
+    return np.array([p.gap for m in _magnets_at(preset, gap, gaps) for p in m.poles])
+
+
 def public_rig(preset: Preset) -> Rig:
-    """What the lab writes in its rig file: geometry, masses, channels; no stiffness, no truth."""
+    """What the lab writes in its rig file: geometry, masses, channels; no stiffness, no truth.
+
+    Its ``[uncertainty]`` declares every type-B uncertainty zero (exact sensors), or those of
+    the preset's ``realism``.
+    """
     b = preset.beam
     mag = preset.magnets[0]
+    type_b = TypeB.none() if preset.realism is None else preset.realism.type_b
     if isinstance(b, BodySpec):
         return Rig(
             name=f"virtual {preset.name} rig",
@@ -134,7 +185,7 @@ def public_rig(preset: Preset) -> Rig:
                           for n, x, y, z, *d in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
-            frequency=preset.nominal_frequency,
+            frequency=preset.nominal_frequency, type_b=type_b,
         )
     if isinstance(b, PlateSpec):
         return Rig(
@@ -148,7 +199,7 @@ def public_rig(preset: Preset) -> Rig:
             sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
-            frequency=preset.nominal_frequency,
+            frequency=preset.nominal_frequency, type_b=type_b,
         )
     return Rig(
         name=f"virtual {preset.name} rig",
@@ -160,7 +211,7 @@ def public_rig(preset: Preset) -> Rig:
         sensors=tuple(Sensor(name=n, x=x) for n, x in _rows(preset.sensors)),
         actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                           turns=mag.turns, pole_area=mag.pole_area),
-        frequency=preset.nominal_frequency,
+        frequency=preset.nominal_frequency, type_b=type_b,
     )
 
 
@@ -226,22 +277,39 @@ def _inertia(model: Model, preset: Preset, a) -> np.ndarray:
 
 
 def simulate_response(preset: Preset, drives: tuple[Drive, ...], gap: float | None,
-                      duration: float, model: Model | None = None) -> Response:
+                      duration: float, model: Model | None = None,
+                      gaps: Mapping[str, float] | None = None) -> Response:
+    """The rig's steady-state response to ``drives`` with every pole at ``gap`` (None: the
+    preset's gaps), then single poles at ``gaps`` (pole name -> m)."""
     model = model or build_model(preset)
-    return integrate(model, _magnets_at(preset, gap), drives, preset.fs, duration)
+    return integrate(model, _magnets_at(preset, gap, gaps), drives, preset.fs, duration)
 
 
 def record_run(preset: Preset, spec: RunSpec, rng: np.random.Generator,
-               model: Model | None = None) -> tuple[Run, Truth]:
-    """Simulate one run and return what the DAQ recorded (noisy) and the truth."""
+               model: Model | None = None,
+               errors: LabErrors | None = None) -> tuple[Run, Truth]:
+    """Simulate one run and return what the DAQ recorded (noisy) and the truth.
+
+    A ``lab`` preset's run is simulated under its drifting drive (:func:`.lab.record_lab_run`);
+    ``errors`` are its rig's (drawn from ``rng`` when not given); an ideal preset has none.
+    """
     model = model or build_model(preset)
-    r = simulate_response(preset, spec.drives, spec.gap, spec.duration, model)
-    return measure_run(preset, spec, model, r, rng), run_truth(preset, model, r)
+    if preset.realism is not None:
+        from .lab import record_lab_run
+
+        return record_lab_run(preset, spec, rng, model, errors)
+    r = simulate_response(preset, spec.drives, spec.gap, spec.duration, model, spec.gaps)
+    return measure_run(preset, spec, model, r, rng), run_truth(preset, model, r, spec)
 
 
 def measure_run(preset: Preset, spec: RunSpec, model: Model, r: Response,
-                rng: np.random.Generator) -> Run:
-    """What the DAQ records of a simulated response: every channel with its white noise."""
+                rng: np.random.Generator, errors: LabErrors | None = None) -> Run:
+    """What the DAQ records of a simulated response: every channel with its white noise (a
+    ``lab`` preset's: :func:`.lab.measure_lab_run`, with its rig's ``errors``)."""
+    if preset.realism is not None:
+        from .lab import measure_lab_run
+
+        return measure_lab_run(preset, spec, model, r, rng, errors)
     noise = preset.noise
     n = len(r.t)
     gauges = _gauge_forces(model, preset, r.u, r.v)
@@ -259,8 +327,10 @@ def measure_run(preset: Preset, spec: RunSpec, model: Model, r: Response,
                source=f"{spec.name}.csv", labels=dict(spec.labels))
 
 
-def run_truth(preset: Preset, model: Model, r: Response) -> Truth:
-    """The ground truth of a simulated response."""
+def run_truth(preset: Preset, model: Model, r: Response, spec: RunSpec | None = None) -> Truth:
+    """The ground truth of a simulated response; ``spec`` (the run) gives its static gaps
+    (without it, the preset's)."""
+    static = static_gaps(preset) if spec is None else static_gaps(preset, spec.gap, spec.gaps)
     if isinstance(model, SolidModel):
         w = r.u[2::3]                                             # u_z of every node
     else:
@@ -269,27 +339,47 @@ def run_truth(preset: Preset, model: Model, r: Response) -> Truth:
         t=r.t, pole_names=tuple(p.name for m in preset.magnets for p in m.poles),
         pole_force=r.pole_force, gap=r.gap, nodes=model.nodes, w=w,
         inertia=_inertia(model, preset, r.a), current=r.current, flux=r.flux,
+        static_gap=static,
     )
 
 
 def record_scan(preset: Preset, rng: np.random.Generator,
-                model: Model | None = None) -> Scan:
+                model: Model | None = None, which: int = 0,
+                errors: LabErrors | None = None) -> Scan:
     """A sequential SLDV scan: each point a velocity record with its own random start phase.
 
     The rig runs on its periodic steady state; point k is recorded over its own window, which
     starts at a random time within one drive period, with the coil current of the same window
-    as reference.
+    (the current of the scan's ``reference`` magnet) as reference. ``which`` indexes
+    :attr:`Preset.scans`. A ``lab`` preset's drive walks from point to point
+    (:func:`.lab.record_lab_scan`), with its rig's ``errors``.
     """
     model = model or build_model(preset)
-    return measure_scan(preset, model, scan_response(preset, model), rng)
+    if preset.realism is not None:
+        from .lab import record_lab_scan
+
+        return record_lab_scan(preset, rng, model, which, errors)[0]
+    return measure_scan(preset, model, scan_response(preset, model, which), rng, which)
 
 
-def scan_points(preset: Preset) -> np.ndarray:
+def _scan_spec(preset: Preset, which: int) -> ScanSpec:
+    scans = preset.scans
+    if not 0 <= which < len(scans):
+        raise IndexError(f"preset '{preset.name}' has {len(scans)} scan(s), not a scan {which}")
+    return scans[which]
+
+
+def scan_file(which: int = 0) -> str:
+    """The file a scan is written to: ``scan.uff`` for the first, ``scan2.uff``, ... after."""
+    return "scan.uff" if which == 0 else f"scan{which + 1}.uff"
+
+
+def scan_points(preset: Preset, which: int = 0) -> np.ndarray:
     """The scan grid [m]: (n_points,) along a beam; (n_x * n_y, 2) over a plate, x fastest; on
     a body the locations (n, 6) of the records: every point of the top face's grid and of the
     side faces' rows (at ``heights`` levels strictly between bottom and top), along x, y and z
-    (the three records of a point follow each other)."""
-    spec = preset.scan
+    (the three records of a point follow each other). ``which`` indexes :attr:`Preset.scans`."""
+    spec = _scan_spec(preset, which)
     b = preset.beam
     if isinstance(b, BodySpec):
         assert spec.grid is not None, "a body's scan needs its top-face grid"
@@ -317,31 +407,43 @@ def scan_points(preset: Preset) -> np.ndarray:
     return np.linspace(0.0, b.length, spec.n_points)
 
 
-def scan_response(preset: Preset, model: Model) -> Response:
-    """The steady-state response the scan samples: one record plus one drive period."""
-    spec = preset.scan
+def scan_response(preset: Preset, model: Model, which: int = 0) -> Response:
+    """The steady-state response a scan samples: one record plus one drive period.
+
+    ``which`` indexes :attr:`Preset.scans`.
+    """
+    spec = _scan_spec(preset, which)
     n_rec = int(round(spec.record * preset.fs))
     per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
     return simulate_response(preset, spec.drives, spec.gap, (n_rec + per_period) / preset.fs,
-                             model)
+                             model, spec.gaps)
 
 
 def measure_scan(preset: Preset, model: Model, r: Response,
-                 rng: np.random.Generator) -> Scan:
-    """The scan's records: a window per point at a random start within one drive period."""
-    spec = preset.scan
+                 rng: np.random.Generator, which: int = 0,
+                 errors: LabErrors | None = None) -> Scan:
+    """The scan's records: a window per point at a random start within one drive period; the
+    reference is the coil current of the scan's ``reference`` magnet. ``which`` indexes
+    :attr:`Preset.scans` (``r`` is that scan's :func:`scan_response`). A ``lab`` preset's
+    records carry its noise and its rig's ``errors`` (:func:`.lab.measure_lab_scan`; the drive
+    does not walk here)."""
+    if preset.realism is not None:
+        from .lab import measure_lab_scan
+
+        return measure_lab_scan(preset, model, r, rng, which, errors)
+    spec = _scan_spec(preset, which)
     n_rec = int(round(spec.record * preset.fs))
     per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
-    x = scan_points(preset)
+    x = scan_points(preset, which)
     velocity = model.row(x) @ r.v                            # (n_points, n_total)
     # a 3-D SLDV measures a point's three components in one acquisition
     per_point = 3 if preset.is_body else 1
     starts = np.repeat(rng.integers(0, per_period, size=len(x) // per_point), per_point)
     idx = starts[:, None] + np.arange(n_rec)[None, :]
     response = np.take_along_axis(velocity, idx, axis=1)
-    reference = r.current[0][idx]
+    reference = r.current[spec.reference][idx]
     response = response + preset.noise.ldv * rng.standard_normal(response.shape)
     noise = rng.standard_normal((len(x) // per_point, n_rec))
     reference = reference + preset.noise.current * np.repeat(noise, per_point, axis=0)
     return Scan(points=x, response=response, reference=reference, fs=preset.fs,
-                quantity="velocity", source="scan.uff")
+                quantity="velocity", source=scan_file(which))

@@ -28,6 +28,14 @@ drift) of bandwidth min(1 / (``LOOP_MEMORIES`` memory), ``LOOP_MAX_STEP`` / peri
 stays within ``FREQUENCY_RANGE`` of the guess, and holds while |X_1| is below ``LOCK_SNR``
 times its noise (no drive, a tare record). Changing w changes M_k and the readout with it: the
 estimate is then the RLS estimate with the window's regressors taken at the current frequency.
+
+Several shapes per harmonic
+---------------------------
+With a model built from several scans (:mod:`forcecal.span`) each harmonic's readout starts on
+its first shape; once the window is engaged, every grid step the probes' phasors choose the
+members of the span as the batch estimate does (:func:`forcecal.coordinates.choose_members`),
+and the readout switches when another set's information criterion is lower by more than
+``SPAN_SWITCH`` (no flicker between two sets that explain the probes equally well).
 """
 
 from __future__ import annotations
@@ -39,7 +47,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..coordinates import check_sensor_gain, coordinate_map, sensor_rows
+from ..coordinates import check_sensor_gain, choose_members, coordinate_map, member_fit
 from ..errors import DataError, DimensionError, InputError
 from ..forces import FREQUENCY_MISMATCH, force_solve, kept_harmonics, significant_reactions
 from ..inertia import inertia_term
@@ -78,6 +86,9 @@ LOCK_SNR = 5.0
 """The frequency loop acts only while |X_1| of the current exceeds this many noise stds."""
 FREQUENCY_RANGE = 0.05
 """The tracked frequency stays within this relative distance of the initial guess."""
+SPAN_SWITCH = 2.0
+"""Lowering of the information criterion (AIC units) that makes the readout change the set of
+a harmonic's shapes it uses."""
 
 
 # --------------------------------------------------------------------------------------------
@@ -182,25 +193,38 @@ class StreamEstimator:
         self._force_harmonics = [int(n) for n in np.flatnonzero(self._kept)]
         self._loop_settings()
         self._tail: np.ndarray | None = None
+        self.last_std = np.empty((self._n_f + 1, 0))
         self._d2_energy = np.zeros(len(self.channel_names))
         self._d2_weight = 0.0
         self._state = harmonic_start(len(self.channel_names), h, f0_guess, fs, t0)
         self._t0 = float(t0)
         self._retune()
 
-    def _track_noise(self, y: np.ndarray) -> None:
+    def _track_noise(self, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Follow every channel's white-noise variance over the window from its second
         differences (which remove the slow harmonics: var(d2) = 6 sigma^2 for white noise),
-        exponentially weighted like the phasors, independent of the frequency loop."""
+        exponentially weighted like the phasors, independent of the frequency loop.
+
+        Returns the weighted energy (n_channels, m) and weight (m,) after each sample of ``y``
+        (the same whatever the blocks the record arrives in)."""
         z = y if self._tail is None else np.concatenate([self._tail, y], axis=1)
         self._tail = z[:, -2:]
         d2 = z[:, 2:] - 2.0 * z[:, 1:-1] + z[:, :-2]
-        m = d2.shape[1]
-        if m == 0:
-            return
-        decay = np.exp(np.arange(m - 1, -1, -1) * math.log(self.lam))
-        self._d2_energy = self.lam**m * self._d2_energy + (d2 * d2) @ decay
-        self._d2_weight = self.lam**m * self._d2_weight + float(decay.sum())
+        m, n = y.shape[1], d2.shape[1]                # d2[:, i] ends at sample m - n + i
+        ages = np.arange(m, dtype=float)
+        # E_j = lam^(j+1) E_prev + sum_{i <= j} lam^(j - i) d2_i^2, as a scaled cumulative sum
+        # (pieces are at most chunk_limit(lam) samples: lam^-m stays finite)
+        grow = np.exp(-ages * math.log(self.lam))
+        sq = np.zeros((y.shape[0], m))
+        sq[:, m - n:] = d2 * d2
+        ones = np.zeros(m)
+        ones[m - n:] = 1.0
+        shrink = np.exp((ages + 1.0) * math.log(self.lam))
+        energy = shrink * (self._d2_energy[:, None] + np.cumsum(sq * grow, axis=1))
+        weight = shrink * (self._d2_weight + np.cumsum(ones * grow))
+        if m:
+            self._d2_energy, self._d2_weight = energy[:, -1].copy(), float(weight[-1])
+        return energy, weight
 
     @property
     def noise_level(self) -> np.ndarray:
@@ -258,8 +282,9 @@ class StreamEstimator:
 
     def _shape_terms(self, sensor_std: Sequence[float] | np.ndarray | None
                      ) -> list[tuple[int, np.ndarray, np.ndarray]]:
-        """[(n, m_n, G_n)]: every shaped harmonic's mass couplings (n_g,) and the map
-        G_n (n_s,) from the probes' phasors to its coordinate Q_n = G_n S_n."""
+        """[(n, m_n, G_n)]: every shaped harmonic's mass couplings (n_g, n_q) of the members
+        of its span in use (the first at the start) and the map G_n (n_q, n_s) from the probes'
+        phasors to their coordinates Q_n = G_n S_n."""
         rig, model = self.rig, self.model
         if sensor_std is None:
             weight = np.ones(self._n_s)
@@ -269,15 +294,62 @@ class StreamEstimator:
                 raise InputError(f"stream: sensor_std must hold {self._n_s} positive values; "
                                  f"got {std}")
             weight = 1.0 / std**2
+        self._weight = weight
+        self._at_sensors = rig.structure.coordinates(rig.sensor_points)
+        self._members: dict[int, tuple[int, ...]] = {}
         terms = []
         for k, n in enumerate(model.harmonics):
             n = int(n)
             if n > self.n_harmonics:
                 continue
             check_sensor_gain(model, rig, n, "stream")
-            gain, _ = coordinate_map(sensor_rows(model, rig, n), weight)
-            terms.append((n, model.couplings[k], gain))
+            terms.append(self._shape_term(k, (0,)))
         return terms
+
+    def _shape_term(self, k: int, members: tuple[int, ...]
+                    ) -> tuple[int, np.ndarray, np.ndarray]:
+        """(n, m_n, G_n) of harmonic k on the given members of its span."""
+        n = int(self.model.harmonics[k])
+        self._members[n] = members
+        phi = self.model.member_values(k, self._at_sensors)[:, list(members)]
+        gain, _ = coordinate_map(phi, self._weight)
+        return n, self.model.member_couplings(k)[:, list(members)], np.atleast_2d(gain)
+
+    def _update_span(self) -> None:
+        """Let the probes' phasors choose each harmonic's members (several scans only)."""
+        model = self.model
+        if not model.span:
+            return
+        n_g, n_s = self._n_g, self._n_s
+        cov = np.diag(stationary(self.lam, self._state.step, self.n_harmonics)[2])
+        per_phasor = np.sqrt(0.5 * (cov[1::2] + cov[2::2]))
+        std = self.noise_level[n_g:n_g + n_s, None] * per_phasor[None, :]      # (n_s, H)
+        phasors = self.phasors[n_g:n_g + n_s]
+        changed = False
+        for i, (n, _, _) in enumerate(self._shaped):
+            k = model.index(n)
+            if len(model.members(k)) < 2 or not np.all(std[:, n - 1] > 0):
+                continue
+            w = 1.0 / std[:, n - 1] ** 2
+            phi = model.member_values(k, self._at_sensors)
+            phi_std = model.member_std(k, self._at_sensors)
+            scale = self.rig.type_b.probe_scale
+            best = choose_members(phi, phi_std, phasors[:, n], w, scale_std=scale)
+            now = self._members[n]
+            if best.members == now:
+                continue
+            current = member_fit(phi, phi_std, phasors[:, n], w, now, check=False,
+                                 scale_std=scale)
+            if current is None or best.aic < current.aic - SPAN_SWITCH:
+                self._shaped[i] = self._shape_term(k, best.members)
+                changed = True
+        if changed:
+            self._retune()
+
+    @property
+    def members(self) -> dict[int, tuple[int, ...]]:
+        """The members of each shaped harmonic's span the readout uses now."""
+        return dict(self._members)
 
     def _force_readout(self, w: float) -> np.ndarray:
         """(n_out, n_channels, p) readout of the forces (and, AC-coupled, of the static DC):
@@ -372,6 +444,26 @@ class StreamEstimator:
         var = np.einsum("fcp,pq,fcq->fc", k, cov, k)
         return np.sqrt(var @ sigma**2)
 
+    def _piece_std(self, y: np.ndarray, energy: np.ndarray, weight: np.ndarray,
+                   count0: int) -> np.ndarray:
+        """(n_forces + 1, m) [N]: the white-noise standard uncertainty of each force and of
+        their total at each sample of a piece, with the readout in effect over it.
+
+        The stationary value (as :meth:`noise_std`, from the channels' noise level at that
+        sample; the total through the summed readout, so the forces' correlation counts),
+        scaled up while the window fills as an exponentially weighted mean's is: its variance
+        after k samples is (1 + lambda^k) / (1 - lambda^k) times its stationary one. Before a
+        channel's noise can be measured (its first two samples) its own size stands for it."""
+        sigma2 = np.divide(energy, 6.0 * weight, out=y * y, where=weight > 0)
+        cov = stationary(self.lam, self._state.step, self.n_harmonics)[2]
+        k = self._readout[:self._n_f]                                    # (n_f, n_ch, p)
+        rows = np.concatenate([k, k.sum(axis=0, keepdims=True)])
+        var = np.einsum("fcp,pq,fcq->fc", rows, cov, rows) @ sigma2      # (n_f + 1, m)
+        counts = count0 + 1.0 + np.arange(energy.shape[1])
+        power = np.exp(counts * math.log(self.lam))
+        std: np.ndarray = np.sqrt(var * ((1.0 + power) / (1.0 - power)))
+        return std
+
     # ------------------------------------------------------------------ streaming
 
     def _samples(self, block: Mapping[str, np.ndarray] | np.ndarray) -> np.ndarray:
@@ -418,17 +510,23 @@ class StreamEstimator:
         force : (n_forces, n) [N] sum_n Re(F_n(k) exp(j n theta_k)) with the phasors of each
             sample (inertia compensated)
         static : (n_forces, n) [N] the reactions-only estimate -Psi^+ R(t_k), sample by sample
+
+        The white-noise standard uncertainty of every sample's forces and of their total
+        follows in :attr:`last_std`, (n_forces + 1, n) [N].
         """
         y = self._samples(block)
         n = y.shape[1]
         out = np.empty((self._readout.shape[0], n))
+        self.last_std = np.empty((self._n_f + 1, n))
         pos = 0
         while pos < n:
             stop = min(n, pos + self.grid - self._state.count % self.grid, pos + self._piece)
             # tables as long as the piece (rounded up to a power of two), cached per frequency
             length = min(self._piece, 1 << (stop - pos - 1).bit_length())
             tables = window_tables(self.lam, self._state.step, self.n_harmonics, length)
-            self._track_noise(y[:, pos:stop])
+            energy, weight = self._track_noise(y[:, pos:stop])
+            self.last_std[:, pos:stop] = self._piece_std(y[:, pos:stop], energy, weight,
+                                                         self._state.count)
             self._state, out[:, pos:stop] = kernel(
                 self._state, y[:, pos:stop], self.lam, tables, self._readout, self._kappa,
                 self.prior)
@@ -450,6 +548,7 @@ class StreamEstimator:
         if st.count < self._engage:
             return
         self._update_kept()
+        self._update_span()
         if not self.track_frequency:
             return
         ic = len(self.channel_names) - 1

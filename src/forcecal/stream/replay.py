@@ -1,26 +1,88 @@
 """Recorded runs through the streaming estimator, as a live acquisition would feed it, and
-the streamed forces written as a table."""
+the streamed forces written as a table.
+
+:func:`stream_table` is the real stream: the run is read in blocks (:mod:`forcecal.io.blocks`),
+each block goes through the estimator in pieces of ``block`` samples and its forces are
+appended to the table at once (:mod:`forcecal.io.table_writer`), so that memory does not grow
+with the record's length. :func:`replay` feeds a run held in memory the same way and returns
+the forces as arrays.
+"""
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
+from typing import IO
 
 import numpy as np
 
 from ..errors import InputError
-from ..io.run_files import write_table_csv, write_table_hdf5
+from ..io import blocks as io_blocks
+from ..io.blocks import RunBlocks
+from ..io.table_writer import CSV_DIGITS, table_writer
 from ..records import Run
 from ..rig import Rig
 from ..spatial import SpatialModel
 from .estimator import StreamEstimator
 
-__all__ = ["replay", "write_stream_csv"]
+__all__ = ["replay", "stream_forces", "stream_table", "write_stream_csv"]
+
+Check = Callable[[np.ndarray, Mapping[str, np.ndarray], Mapping[str, np.ndarray]], None]
+"""A test of each block of streamed forces before it is written: (time, forces, static)."""
 
 
+def _block_size(block: int) -> int:
+    if int(block) != block or block < 1:
+        raise InputError(f"stream: block must be a positive whole number of samples; "
+                         f"got {block}")
+    return int(block)
 
-# --------------------------------------------------------------------------------------------
-# recorded runs
+
+def _estimator(rig: Rig, model: SpatialModel, fs: float, t0: float,
+               f0_guess: float | None, options: dict) -> StreamEstimator:
+    return StreamEstimator(rig, model, f0_guess or model.f0, fs, t0=t0, **options)
+
+
+def stream_forces(est: StreamEstimator, blocks: Iterable[np.ndarray], block: int = 256,
+                  t0: float = 0.0
+                  ) -> Iterator[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+    """The estimator's forces of every block read, fed to it in pieces of ``block`` samples.
+
+    Parameters
+    ----------
+    est : StreamEstimator
+        The estimator, before the first sample of the record.
+    blocks : iterable of (n_channels, m) ndarray
+        Consecutive raw samples in the order of ``est.channel_names``.
+    block : int
+        Samples per call of :meth:`StreamEstimator.process`.
+    t0 : float
+        [s] time of the record's first sample.
+
+    Yields
+    ------
+    time : (m,) ndarray
+        [s] t0 + k / fs of the block's samples.
+    force : (n_forces, m) ndarray
+        [N] as :meth:`StreamEstimator.process`.
+    static : (n_forces, m) ndarray
+        [N] the reactions-only estimate.
+    std : (n_forces + 1, m) ndarray
+        [N] the forces' and their total's standard uncertainty at each sample
+        (:attr:`StreamEstimator.last_std`).
+    """
+    block = _block_size(block)
+    start = 0
+    for raw in blocks:
+        m = raw.shape[1]
+        force = np.empty((len(est.force_names), m))
+        static = np.empty_like(force)
+        std = np.empty((len(est.force_names) + 1, m))
+        for s in range(0, m, block):
+            force[:, s:s + block], static[:, s:s + block] = est.process(raw[:, s:s + block])
+            std[:, s:s + block] = est.last_std
+        yield t0 + np.arange(start, start + m) / est.fs, force, static, std
+        start += m
 
 
 def replay(rig: Rig, model: SpatialModel, run: Run, block: int = 256, *,
@@ -65,36 +127,92 @@ def replay(rig: Rig, model: SpatialModel, run: Run, block: int = 256, *,
     static : dict
         Force name -> (n_samples,) [N], reactions-only.
     """
-    if int(block) != block or block < 1:
-        raise InputError(f"stream: block must be a positive whole number of samples; "
-                         f"got {block}")
-    block = int(block)
+    block = _block_size(block)
     tare_dc = None
     if tare is not None:
         tare_dc = [g.scale * tare.channel(g.name).mean() for g in rig.gauges]
-    est = StreamEstimator(rig, model, f0_guess or model.f0, run.fs, n_harmonics=n_harmonics,
-                          forgetting=forgetting, t0=run.t0, track_frequency=track_frequency,
-                          sensor_std=sensor_std, tare_dc=tare_dc, ac_coupled=ac_coupled,
-                          extra_harmonics=extra_harmonics)
+    est = _estimator(rig, model, run.fs, run.t0, f0_guess, {
+        "n_harmonics": n_harmonics, "forgetting": forgetting,
+        "track_frequency": track_frequency, "sensor_std": sensor_std, "tare_dc": tare_dc,
+        "ac_coupled": ac_coupled, "extra_harmonics": extra_harmonics})
     raw = np.stack([run.channel(name) for name in est.channel_names])
-    n = raw.shape[1]
-    force = np.empty((len(est.force_names), n))
-    static = np.empty_like(force)
-    for start in range(0, n, block):
-        force[:, start:start + block], static[:, start:start + block] = \
-            est.process(raw[:, start:start + block])
+    pieces = list(stream_forces(est, [raw], block, run.t0))      # (time, force, static, std)
+    force = np.concatenate([p[1] for p in pieces], axis=1)
+    static = np.concatenate([p[2] for p in pieces], axis=1)
     names = est.force_names
     return (run.time, {k: force[i] for i, k in enumerate(names)},
             {k: static[i] for i, k in enumerate(names)})
 
 
+def _columns(names: Sequence[str], std: bool = False) -> list[str]:
+    """The table's columns after ``time``: one per force, ``total``, the same ``_static``, and
+    with ``std`` the same ``_std`` (the forces' and the total's standard uncertainty)."""
+    return [*names, "total", *(f"{n}_static" for n in names), "total_static",
+            *((*(f"{n}_std" for n in names), "total_std") if std else ())]
+
+
+def _rows(force: np.ndarray, static: np.ndarray, std: np.ndarray | None = None) -> np.ndarray:
+    return np.concatenate([force, force.sum(axis=0)[None], static, static.sum(axis=0)[None],
+                           *(() if std is None else (std,))])
+
+
+def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str | Path,
+                 block: int = 256, *, check: Check | None = None, digits: int = CSV_DIGITS,
+                 stdout: IO[bytes] | None = None, f0_guess: float | None = None,
+                 **options: object) -> int:
+    """Stream a run file through the estimator into a table, block by block.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel
+    blocks : RunBlocks
+        The run, open for reading in blocks and checked
+        (:func:`forcecal.io.blocks.check_run_blocks`).
+    target : str or Path
+        ``NAME.csv``, ``NAME.h5``/``NAME.hdf5``, or ``-`` for CSV on standard output; the
+        columns of :func:`write_stream_csv`, then each force's and the total's ``_std``.
+    block : int
+        Samples per call of :meth:`StreamEstimator.process`.
+    check : callable, optional
+        Called with (time, forces, static) of every block before it is written; an exception
+        it raises stops the stream and leaves no output file.
+    digits : int
+        Significant digits of the CSV columns (the time is written exactly).
+    stdout : binary file, optional
+        Where ``-`` writes (default: standard output).
+    f0_guess : float, optional
+        As :func:`replay`.
+    **options
+        As :class:`StreamEstimator` (``n_harmonics``, ``forgetting``, ...).
+
+    Returns
+    -------
+    int
+        Rows written.
+    """
+    block = _block_size(block)
+    est = _estimator(rig, model, blocks.fs, blocks.t0, f0_guess, dict(options))
+    names = est.force_names
+    size = block * max(1, io_blocks.READ_BLOCK // block)   # whole calls of ``block`` a read
+    with table_writer(target, _columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
+                      rows=blocks.n_samples, stdout=stdout) as out:
+        for time, force, static, std in stream_forces(
+                est, blocks.blocks(est.channel_names, size), block, blocks.t0):
+            if check is not None:
+                check(time, dict(zip(names, force, strict=True)),
+                      dict(zip(names, static, strict=True)))
+            out.write(time, _rows(force, static, std))
+        return out.rows
+
+
 def write_stream_csv(path: str | Path, time: np.ndarray, forces: Mapping[str, np.ndarray],
-                     static: Mapping[str, np.ndarray]) -> Path:
+                     static: Mapping[str, np.ndarray], digits: int = 0) -> Path:
     """Write a streamed estimate with the columns of ``reconstruct``'s ``NAME.forces.csv``:
     ``time``, one per force, ``total``, then the same with suffix ``_static`` [N].
 
     A path ending in ``.h5``/``.hdf5`` is written as HDF5 (one dataset per column, the
-    layout of a run file), which is an order of magnitude faster than text for long streams.
+    layout of a run file), which is faster than text for long streams.
 
     Parameters
     ----------
@@ -106,6 +224,9 @@ def write_stream_csv(path: str | Path, time: np.ndarray, forces: Mapping[str, np
         Force name -> (n_samples,) [N].
     static : mapping
         Force name -> (n_samples,) [N], reactions-only.
+    digits : int
+        Significant digits of the CSV columns; 0, the default: every value reads back
+        exactly (in 15 digits when they suffice, else 17).
 
     Returns
     -------
@@ -114,10 +235,16 @@ def write_stream_csv(path: str | Path, time: np.ndarray, forces: Mapping[str, np
     if list(forces) != list(static):
         raise InputError(f"table '{path}': forces {list(forces)} and static {list(static)} "
                          "name different forces")
-    cols = {name: np.asarray(v, dtype=float) for name, v in forces.items()}
-    cols["total"] = np.sum(list(cols.values()), axis=0)
-    stat = {f"{name}_static": np.asarray(v, dtype=float) for name, v in static.items()}
-    stat["total_static"] = np.sum(list(stat.values()), axis=0)
-    if Path(path).suffix.lower() in (".h5", ".hdf5"):
-        return write_table_hdf5(path, time, {**cols, **stat})
-    return write_table_csv(path, time, {**cols, **stat})
+    time = np.asarray(time, dtype=float).ravel()
+    force = np.array([np.asarray(v, dtype=float).ravel() for v in forces.values()])
+    stat = np.array([np.asarray(v, dtype=float).ravel() for v in static.values()])
+    for name, column in [*zip(forces, force, strict=True), *zip(static, stat, strict=True)]:
+        if column.size != time.size:
+            raise InputError(f"table '{path}': column {name!r} has {column.size} values, time "
+                             f"has {time.size}")
+    step = float(np.mean(np.diff(time))) if time.size > 1 else 1.0
+    with table_writer(path, _columns(list(forces)), 1.0 / step,
+                      float(time[0]) if time.size else 0.0, digits=digits,
+                      rows=time.size) as out:
+        out.write(time, _rows(force.reshape(-1, time.size), stat.reshape(-1, time.size)))
+    return Path(path)

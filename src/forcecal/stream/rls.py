@@ -54,6 +54,10 @@ A block is processed in pieces that end on a fixed grid of sample counts (``grid
 period); the frequency tracker acts only on that grid, so the result does not depend on how the
 samples were split into blocks (to rounding: 1e-15 relative once the window spans a period,
 1e-12 during the first period, where the conditioning of M_k amplifies rounding).
+
+The per-sample loops (demodulation, cumulative sums, readout, and the start-up's solves of
+M_k) run compiled (:mod:`forcecal.stream.compiled`); ``compiled=False`` runs them as whole-array
+NumPy, the reference the compiled loops are tested against (equal to rounding).
 """
 
 from __future__ import annotations
@@ -65,6 +69,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import DimensionError
+from .reference import PRIOR, RlsState, rls_start, rls_update
 
 __all__ = [
     "PRIOR",
@@ -86,93 +91,10 @@ __all__ = [
     "window_tables",
 ]
 
-PRIOR = 1.0
-"""r0: information of the prior at the start (P_0 = I / r0), in samples' worth of regressor."""
 STEADY_TOL = 1e-16
 """lambda^k below which the information matrix is its stationary value (to rounding)."""
 _GROWTH = math.log(4.0)
 """A cumulative sum spans at most ln(4) / (1 - lambda) samples (weights up to 4)."""
-
-
-# --------------------------------------------------------------------------------------------
-# the reference: information-form RLS for any regressor
-
-
-@dataclass(frozen=True)
-class RlsState:
-    """Recursive least squares in information form.
-
-    Attributes
-    ----------
-    information : (p, p) [1] R_k = sum lambda^(k-i) phi_i phi_i^T + lambda^k r0 I
-    moment : (p, n_outputs) [unit of y] b_k = sum lambda^(k-i) phi_i y_i^T
-    count : samples seen
-    """
-
-    information: np.ndarray
-    moment: np.ndarray
-    count: int = 0
-
-
-def rls_start(n_regressors: int, n_outputs: int, prior: float = PRIOR) -> RlsState:
-    """The state before any sample: prior information ``prior * I``, no data.
-
-    Parameters
-    ----------
-    n_regressors : int
-        p, the regressor's length.
-    n_outputs : int
-        Outputs sharing the regressor.
-    prior : float
-        r0, the prior's information per regressor.
-
-    Returns
-    -------
-    RlsState
-    """
-    return RlsState(information=prior * np.eye(n_regressors),
-                    moment=np.zeros((n_regressors, n_outputs)))
-
-
-def rls_update(state: RlsState, y: np.ndarray, regressors: np.ndarray,
-               lam: float) -> tuple[RlsState, np.ndarray]:
-    """Exact RLS with forgetting over a block of samples (the reference form).
-
-    Parameters
-    ----------
-    state : the state after the previous sample
-    y : (n_outputs, n) [any unit] samples of every output, sharing the regressor
-    regressors : (p, n) [1] phi_k of every sample
-    lam : forgetting factor lambda, 0 < lambda <= 1
-
-    Returns
-    -------
-    state : after the last sample
-    estimates : (n_outputs, p, n) x_k = R_k^{-1} b_k of every sample
-    """
-    y = np.atleast_2d(np.asarray(y, dtype=float))
-    phi = np.atleast_2d(np.asarray(regressors, dtype=float))
-    p, n = phi.shape
-    if y.shape[-1] != n or state.information.shape != (p, p) or y.shape[0] != \
-            state.moment.shape[1]:
-        raise DimensionError(f"rls_update: y {y.shape}, regressors {phi.shape}, state for "
-                             f"{state.information.shape[0]} regressors and "
-                             f"{state.moment.shape[1]} outputs")
-    if n == 0:
-        return state, np.zeros((y.shape[0], p, 0))
-    a = [1.0, -lam]
-    outer = (phi[:, None, :] * phi[None, :, :]).reshape(p * p, n)
-    from scipy.signal import lfilter  # the reference form only; keeps start-up light
-
-    info = lfilter([1.0], a, outer, axis=-1, zi=lam * state.information.reshape(-1, 1))[0]
-    cross = (phi[:, None, :] * y[None, :, :]).reshape(p * y.shape[0], n)
-    mom = lfilter([1.0], a, cross, axis=-1, zi=lam * state.moment.reshape(-1, 1))[0]
-    info = info.reshape(p, p, n)
-    mom = mom.reshape(p, y.shape[0], n)
-    x = np.linalg.solve(info.transpose(2, 0, 1), mom.transpose(2, 0, 1))     # (n, p, n_out)
-    new = RlsState(information=info[:, :, -1].copy(), moment=mom[:, :, -1].copy(),
-                   count=state.count + n)
-    return new, x.transpose(2, 1, 0)
 
 
 # --------------------------------------------------------------------------------------------
@@ -277,10 +199,21 @@ def _assembly(n_harmonics: int) -> np.ndarray:
     return flat
 
 
+@lru_cache(maxsize=8)
+def _terms(n_harmonics: int) -> tuple[np.ndarray, np.ndarray]:
+    """(2, p^2) rows and weights of the (at most two) terms of :func:`_assembly`'s columns."""
+    a = _assembly(n_harmonics)
+    rows = np.argsort(a == 0, axis=0, kind="stable")[:2]
+    return rows, np.take_along_axis(a, rows, axis=0)
+
+
 def _assemble(g: np.ndarray) -> np.ndarray:
-    """Information matrix (..., p, p) from the window sums g (..., 2H+1)."""
+    """Information matrix (..., p, p) from the window sums g (..., 2H+1); the product with
+    :func:`_assembly` as its two terms per entry (no BLAS call, so no thread pool)."""
     h = (g.shape[-1] - 1) // 2
-    flat = np.concatenate([g.real, g.imag], axis=-1) @ _assembly(h)
+    parts = np.concatenate([g.real, g.imag], axis=-1)
+    (r0, r1), (w0, w1) = _terms(h)
+    flat = parts[..., r0] * w0 + parts[..., r1] * w1
     return flat.reshape(*g.shape[:-1], 2 * h + 1, 2 * h + 1)
 
 
@@ -330,12 +263,14 @@ class _Tables:
     weight : (H+1, L) lambda^-i rotor
     back : (H+1, L) lambda^i conj(rotor)
     power : (L,) lambda^i
+    planes : (4, H+1, L) [Re weight, Im weight, Re back, Im back], for the compiled loops
     """
 
     rotor: np.ndarray
     weight: np.ndarray
     back: np.ndarray
     power: np.ndarray
+    planes: np.ndarray
 
 
 @lru_cache(maxsize=8)
@@ -347,8 +282,11 @@ def window_tables(lam: float, step: float, n_harmonics: int, length: int) -> _Ta
     for n in range(1, n_harmonics + 1):
         np.multiply(rotor[n - 1], first, out=rotor[n])
     power = lam ** i.astype(float)
-    t = _Tables(rotor=rotor, weight=rotor / power, back=rotor.conj() * power, power=power)
-    for a in (t.rotor, t.weight, t.back, t.power):
+    weight, back = rotor / power, rotor.conj() * power
+    planes = np.empty((4, n_harmonics + 1, length))
+    planes[0], planes[1], planes[2], planes[3] = weight.real, weight.imag, back.real, back.imag
+    t = _Tables(rotor=rotor, weight=weight, back=back, power=power, planes=planes)
+    for a in (t.rotor, t.weight, t.back, t.power, t.planes):
         a.setflags(write=False)
     return t
 
@@ -447,8 +385,8 @@ def mixing(readout: np.ndarray, lam: float, step: float, n_harmonics: int) -> np
 
 
 def harmonic_update(state: HarmonicState, y: np.ndarray, lam: float,
-                    readout: np.ndarray | None = None,
-                    prior: float = PRIOR) -> tuple[HarmonicState, np.ndarray]:
+                    readout: np.ndarray | None = None, prior: float = PRIOR, *,
+                    compiled: bool = True) -> tuple[HarmonicState, np.ndarray]:
     """Exact RLS of harmonic regressors over a block, at the state's constant frequency.
 
     Parameters
@@ -460,6 +398,7 @@ def harmonic_update(state: HarmonicState, y: np.ndarray, lam: float,
         instantaneous harmonic components u_{c,k} = T_k^T x_{c,k} ([U_0, Re U_1, Im U_1, ...]
         with U_n = X_n exp(j n theta_k), so that Re U_n is harmonic n's value at sample k)
     prior : r0 of :func:`rls_start`
+    compiled : the compiled loops (default) or the NumPy reference (:func:`kernel`)
 
     Returns
     -------
@@ -479,14 +418,15 @@ def harmonic_update(state: HarmonicState, y: np.ndarray, lam: float,
     kap = None if readout is None else mixing(readout, lam, state.step, h)
     pieces = []
     for start in range(0, max(n, 1), limit):
-        state, out = kernel(state, y[:, start:start + limit], lam, tabs, readout, kap, prior)
+        state, out = kernel(state, y[:, start:start + limit], lam, tabs, readout, kap, prior,
+                            compiled=compiled)
         pieces.append(out)
     return state, pieces[0] if len(pieces) == 1 else np.concatenate(pieces, axis=-1)
 
 
 def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
-            readout: np.ndarray | None, kap: np.ndarray | None,
-            prior: float) -> tuple[HarmonicState, np.ndarray]:
+           readout: np.ndarray | None, kap: np.ndarray | None, prior: float,
+           compiled: bool = True) -> tuple[HarmonicState, np.ndarray]:
     """Exact RLS over one piece of at most ``chunk_limit(lam)`` samples.
 
     Parameters
@@ -505,6 +445,9 @@ def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
         ``mixing(readout, ...)``, the readout folded for the stationary window.
     prior : float
         r0.
+    compiled : bool
+        Demodulation, cumulative sums and (stationary) readout by the compiled loops of
+        :mod:`forcecal.stream.compiled`; False: by whole-array NumPy, the reference.
 
     Returns
     -------
@@ -519,32 +462,53 @@ def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
         if readout is None:
             return state, np.zeros((n_ch, h + 1, 0), dtype=complex)
         return state, np.zeros((readout.shape[0], 0))
-    start = np.exp(-2j * np.pi * state.phase * np.arange(h + 1))[:, None]
-    weight = tables.weight[:, :c] * start                         # lambda^-i exp(-j n theta_i)
-    power = tables.power[:c]
-    last = power[c - 1]
-    new = HarmonicState(demod=lam * last * state.demod + last * (y @ weight.T),
-                        energy=lam * last * state.energy + (y * y) @ power[::-1],
-                        phase=float((state.phase + state.step * c) % 1.0),
-                        step=state.step, count=state.count + c)
+    start = np.exp(-2j * np.pi * state.phase * np.arange(h + 1))
+    last = tables.power[c - 1]
     steady = state.count >= steady_count(lam)
-    if kap is not None and steady:
-        # forces straight from the mixed, demodulated channels: Re sum_n kappa . beta_n
-        acc = np.cumsum((kap @ y) * weight, axis=-1)                # (n_out, H+1, c)
-        acc += lam * np.sum(kap * state.demod.T, axis=-1)[..., None]
-        return new, np.einsum("onj,nj->oj", acc, tables.back[:, :c] * start.conj()).real
-    acc = np.cumsum(y[:, None, :] * weight, axis=-1)                # (n_ch, H+1, c)
-    acc += lam * state.demod[..., None]
-    beta = to_real(acc * (tables.back[:, :c] * start.conj()))     # (n_ch, p, c)
+    if compiled:
+        from . import compiled as jit  # here, not at the top: Numba loads on first use
+
+        if kap is not None and steady:
+            offset = lam * np.sum(kap * state.demod.T, axis=-1) * start.conj()
+            out, dsum, esum = jit.steady_readout(y, tables.planes, tables.power, kap, offset)
+            return _advance(state, lam, last, dsum * start, esum, c), out
+        cum, dsum, esum = jit.demodulate(y, tables.planes, tables.power)
+        new = _advance(state, lam, last, dsum * start, esum, c)
+        acc = cum * start[:, None] + lam * state.demod[..., None]    # (n_ch, H+1, c)
+    else:
+        weight = tables.weight[:, :c] * start[:, None]             # lambda^-i exp(-j n theta_i)
+        new = _advance(state, lam, last, y @ weight.T, (y * y) @ tables.power[c - 1::-1], c)
+        if kap is not None and steady:
+            # forces straight from the mixed, demodulated channels: Re sum_n kappa . beta_n
+            mixed = np.cumsum((kap @ y) * weight, axis=-1)          # (n_out, H+1, c)
+            mixed += lam * np.sum(kap * state.demod.T, axis=-1)[..., None]
+            return new, np.einsum("onj,nj->oj", mixed,
+                                  tables.back[:, :c] * start.conj()[:, None]).real
+        acc = np.cumsum(y[:, None, :] * weight, axis=-1)            # (n_ch, H+1, c)
+        acc += lam * state.demod[..., None]
+    beta = to_real(acc * (tables.back[:, :c] * start.conj()[:, None]))     # (n_ch, p, c)
+    counts = state.count + np.arange(1, c + 1)
     if steady:
         u = np.einsum("pq,cqj->cpj", stationary(lam, state.step, h)[1], beta)
+    elif compiled:                                     # M_k of every sample, by Cholesky
+        g = _window_sums(lam, state.step, h, counts)
+        u = jit.solve_information(np.concatenate([g.real, g.imag], axis=-1), *_terms(h),
+                                  prior * lam ** counts.astype(float), beta)
     else:
-        info = harmonic_information(lam, state.step, h, state.count + np.arange(1, c + 1),
-                                    prior)
+        info = harmonic_information(lam, state.step, h, counts, prior)
         u = np.linalg.solve(info, beta.transpose(2, 1, 0)).transpose(2, 1, 0)
     if readout is None:
-        return new, to_complex(u) * (tables.rotor[:, :c] * start)
+        return new, to_complex(u) * (tables.rotor[:, :c] * start[:, None])
     return new, np.einsum("ocp,cpj->oj", readout, u)
+
+
+def _advance(state: HarmonicState, lam: float, last: float, dsum: np.ndarray,
+             esum: np.ndarray, c: int) -> HarmonicState:
+    """The state after a piece of c samples whose weighted sums are dsum and esum."""
+    return HarmonicState(demod=lam * last * state.demod + last * dsum,
+                         energy=lam * last * state.energy + esum,
+                         phase=float((state.phase + state.step * c) % 1.0),
+                         step=state.step, count=state.count + c)
 
 
 def last_coefficients(state: HarmonicState, lam: float, prior: float) -> np.ndarray:

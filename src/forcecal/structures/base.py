@@ -107,6 +107,8 @@ class Structure(ABC):
     axes: ClassVar[tuple[str, ...]]
     directed: ClassVar[bool] = False
     n_rigid: ClassVar[int]
+    mass_field: ClassVar[str]
+    """The field holding the distributed mass (mass per length, per area, density)."""
     bases: ClassVar[tuple[str, ...]] = ("polynomial", "modes")
     singular_support: ClassVar[str] = "gauges on one line, or at one point"
     masses: tuple[LumpedMass, ...]
@@ -127,6 +129,32 @@ class Structure(ABC):
     def total_mass(self) -> float:
         """Distributed plus lumped mass [kg]."""
         return self.distributed_mass + sum(m.mass for m in self.masses)
+
+    def with_masses(self, distributed: float = 1.0,
+                    lumped: Sequence[float] | None = None) -> Structure:
+        """A copy whose distributed mass is scaled by ``distributed`` and whose k-th lumped
+        mass by ``lumped[k]`` (an uncertainty budget's perturbations).
+
+        Parameters
+        ----------
+        distributed : float
+            [1] factor on the mass per length, per area or the density.
+        lumped : sequence of float, optional
+            [1] one factor per lumped mass (default: unchanged).
+
+        Returns
+        -------
+        Structure
+        """
+        import dataclasses
+
+        factors = [1.0] * len(self.masses) if lumped is None else list(lumped)
+        masses = tuple(dataclasses.replace(m, mass=m.mass * f)
+                       for m, f in zip(self.masses, factors, strict=True))
+        field = self.mass_field
+        changed: Structure = dataclasses.replace(  # type: ignore[type-var]
+            self, masses=masses, **{field: getattr(self, field) * distributed})
+        return changed
 
     @abstractmethod
     def contains(self, x: float, y: float = 0.0, z: float = 0.0, tol: float = 1e-9) -> bool:

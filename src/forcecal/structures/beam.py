@@ -30,6 +30,7 @@ class Beam(OutOfPlane):
     masses: tuple[LumpedMass, ...] = ()
 
     kind: ClassVar[str] = "beam"
+    mass_field: ClassVar[str] = "mass_per_length"
     axes: ClassVar[tuple[str, ...]] = ("x",)
     n_rigid: ClassVar[int] = 2
 

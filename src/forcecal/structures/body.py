@@ -47,6 +47,7 @@ class Body(Structure):
     masses: tuple[LumpedMass, ...] = ()
 
     kind: ClassVar[str] = "body"
+    mass_field: ClassVar[str] = "density"
     axes: ClassVar[tuple[str, ...]] = ("x", "y", "z")
     directed: ClassVar[bool] = True
     n_rigid: ClassVar[int] = 6

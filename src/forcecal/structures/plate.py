@@ -32,6 +32,7 @@ class Plate(OutOfPlane):
     masses: tuple[LumpedMass, ...] = ()
 
     kind: ClassVar[str] = "plate"
+    mass_field: ClassVar[str] = "mass_per_area"
     axes: ClassVar[tuple[str, ...]] = ("x", "y")
     n_rigid: ClassVar[int] = 3
 

@@ -122,6 +122,13 @@ def _draw_beam_harmonic(ax: Axes, shapes: HarmonicShapes, model: SpatialModel, n
         ax.plot(x[aside] * 1e3, meas[aside].real * factor, "x", color="C3", ms=8, mew=1.8,
                 label="set aside")
     m = model.index(n)
+    for j, (member, name) in enumerate(zip(model.members(m)[1:], model.member_names(m)[1:],
+                                           strict=True)):
+        # another scan's shape, at its own load: scaled and rotated onto this one to compare
+        other = member.evaluate(xf)
+        other = other * (np.vdot(other, fit) / np.vdot(other, other))
+        ax.plot(xf * 1e3, other.real * factor, ":", color=f"C{4 + j}", lw=1.4,
+                label=f"Re {Path(name).name} (scaled)")
     ax.set_title(f"harmonic {n}: {n * shapes.f0:.1f} Hz, polynomial order "
                  f"{model.shapes[m].order}, scan SNR {model.snr[n - 1]:.0f}",
                  loc="left", fontsize="medium")

@@ -1,0 +1,302 @@
+"""The type-B part of the uncertainty budget (GUM; METHOD.md section 6).
+
+Noise is not the only source of error in a force estimate: the gauges' and probes' sensitivities
+are known to a calibration's uncertainty, the positions of gauges, force points and probes to a
+ruler's, the masses to a balance's or a handbook's. The rig declares their standard
+uncertainties (``[uncertainty]``, :class:`forcecal.rig.TypeB`); this module propagates them to
+every force harmonic and every reported combination (each force, the total, the resultant's
+moments).
+
+Linear propagation (GUM 5.1): each parameter theta_i (a gauge's or a probe's scale, one
+coordinate of one point, the distributed mass, one lumped mass) is moved by +-u(theta_i) and the
+force solve is repeated with the estimate's own formulas (the coordinate map over the members
+the run used, the mass couplings recomputed for the moved rig, the force solve); the central
+difference is the sensitivity times u. The parameters are independent, so their variances add;
+the budget groups them by source. Re and Im are pooled as for the noise.
+
+Monte Carlo (GUM Supplement 1, :func:`monte_carlo`): every parameter and every channel phasor
+drawn at once from its distribution, each draw through the same force solve; its standard
+deviation checks the linear propagation where the model is not linear over the uncertainties.
+
+The run's harmonic fits, its kept harmonics and the members each harmonic uses are held at the
+estimate's: a type-B error moves the forces, not which harmonics the data show.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .coordinates import coordinate_map, sensor_weights
+from .inertia import inertia_term, mass_coupling
+from .relaxation import force_matrix
+from .rig import Rig
+from .spatial import SpatialModel
+from .uncertainty import combinations
+
+__all__ = ["MONTE_CARLO_SOURCES", "SOURCES", "Parameter", "SolveInputs", "combination_phasors",
+           "draw_std", "monte_carlo", "parameters", "type_b_variance"]
+
+SOURCES = ("gauge sensitivity", "probe sensitivity", "positions", "masses")
+"""The budget's type-B sources, in the order reported."""
+
+
+@dataclass(frozen=True)
+class SolveInputs:
+    """What the force solve of one run needs, held at the estimate's values.
+
+    Attributes
+    ----------
+    gauges : (n_gauges, H+1) complex ndarray
+        [N] reaction phasors in SI, before the tare.
+    tare : (n_gauges,) ndarray
+        [N] the tare's DC.
+    sensors : (n_sensors, H+1) complex ndarray
+        [m] probe phasors in SI.
+    sensor_std : (n_sensors, H+1) ndarray
+        [m] their standard uncertainties.
+    gauge_std : (n_gauges, H+1) ndarray
+        [N] the reactions' standard uncertainties.
+    w0 : float
+        [rad/s] the fundamental.
+    members : tuple of tuple of int
+        Per harmonic of the model, the members of its span the run uses.
+    kept, with_inertia : (H+1,) bool ndarray
+    ac_coupled : bool
+    """
+
+    gauges: np.ndarray
+    tare: np.ndarray
+    sensors: np.ndarray
+    sensor_std: np.ndarray
+    gauge_std: np.ndarray
+    w0: float
+    members: tuple[tuple[int, ...], ...]
+    kept: np.ndarray
+    with_inertia: np.ndarray
+    ac_coupled: bool
+
+
+Couplings = tuple[np.ndarray, ...]
+
+
+def model_couplings(rig: Rig, model: SpatialModel) -> Couplings:
+    """Per harmonic, the (n_gauges, n_members) mass couplings of the span on ``rig``."""
+    return tuple(np.column_stack([mass_coupling(rig, f.evaluate) for f in model.members(k)])
+                 for k in range(len(model.harmonics)))
+
+
+def combination_phasors(rig: Rig, model: SpatialModel, inputs: SolveInputs,
+                        couplings: Couplings | None = None) -> np.ndarray:
+    """The reported combinations' phasors from fixed inputs: the estimate's force solve.
+
+    Parameters
+    ----------
+    rig : Rig
+        Possibly perturbed (moved points, scaled masses).
+    model : SpatialModel
+    inputs : SolveInputs
+    couplings : tuple of ndarray, optional
+        The span's couplings on ``rig`` (default: the model's own).
+
+    Returns
+    -------
+    (n_combinations, H+1) complex ndarray [N]
+    """
+    h = inputs.gauges.shape[1] - 1
+    at = rig.structure.coordinates(rig.sensor_points)
+    reactions = inputs.gauges.copy()
+    reactions[:, 0] -= inputs.tare
+    inertia = np.zeros_like(reactions)
+    for k, n in enumerate(model.harmonics):
+        n = int(n)
+        if n > h or not inputs.with_inertia[n]:
+            continue
+        cols = list(inputs.members[k])
+        phi = model.member_values(k, at)[:, cols]
+        gain, _ = coordinate_map(phi, sensor_weights(inputs.sensor_std[:, n]))
+        m = (model.member_couplings(k) if couplings is None else couplings[k])[:, cols]
+        inertia[:, n] = inertia_term(m, np.atleast_1d(gain @ inputs.sensors[:, n]),
+                                     n * inputs.w0)
+    inertia[:, ~inputs.kept] = 0.0
+    reactions[:, ~inputs.kept] = 0.0
+    from .forces import force_solve  # forces imports this module
+
+    force = force_solve(np.linalg.pinv(force_matrix(rig)), inertia, reactions)
+    if inputs.ac_coupled:
+        force[:, 0] = 0.0
+    combo: np.ndarray = combinations(rig)[1] @ force
+    return combo
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """One type-B parameter: its name (a rig key), its budget source, its standard
+    uncertainty and how a deviation ``d`` (in its unit) changes the rig and the inputs."""
+
+    name: str
+    source: str
+    std: float
+    apply: Callable[[float], tuple[Rig, SolveInputs, bool]]
+    """d -> (rig, inputs, whether the couplings must be recomputed)."""
+
+
+def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
+    """Every type-B parameter of the rig with a non-zero standard uncertainty.
+
+    Parameters
+    ----------
+    rig : Rig
+        Its ``type_b`` gives the standard uncertainties.
+    inputs : SolveInputs
+
+    Returns
+    -------
+    list of Parameter
+    """
+    tb = rig.type_b
+    out: list[Parameter] = []
+
+    def scaled(field: str, i: int) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
+        def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
+            arr = getattr(inputs, field).copy()
+            arr[i] *= 1.0 + d
+            changes: dict[str, Any] = {field: arr}
+            if field == "gauges":
+                changes["tare"] = inputs.tare * np.where(np.arange(len(inputs.tare)) == i,
+                                                         1.0 + d, 1.0)
+            return rig, dataclasses.replace(inputs, **changes), False
+        return apply
+
+    def moved(group: str, i: int, axis: str) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
+        def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
+            items = list(getattr(rig, group))
+            items[i] = dataclasses.replace(items[i], **{axis: getattr(items[i], axis) + d})
+            changes: dict[str, Any] = {group: tuple(items)}
+            return dataclasses.replace(rig, **changes), inputs, group == "gauges"
+        return apply
+
+    def massed(k: int | None) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
+        def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
+            st = rig.structure
+            lumped = [1.0 + (d if j == k else 0.0) for j in range(len(st.masses))]
+            moved_st = st.with_masses(1.0 + d if k is None else 1.0, lumped)
+            return dataclasses.replace(rig, structure=moved_st), inputs, True
+        return apply
+
+    if tb.gauge_scale > 0:
+        out += [Parameter(f"gauges[{i}].scale", "gauge sensitivity", tb.gauge_scale,
+                          scaled("gauges", i)) for i in range(len(rig.gauges))]
+    if tb.probe_scale > 0:
+        out += [Parameter(f"sensors[{i}].scale", "probe sensitivity", tb.probe_scale,
+                          scaled("sensors", i)) for i in range(len(rig.sensors))]
+    if tb.position > 0:
+        for group in ("gauges", "forces", "sensors"):
+            for i in range(len(getattr(rig, group))):
+                out += [Parameter(f"{group}[{i}].{axis}", "positions", tb.position,
+                                  moved(group, i, axis)) for axis in rig.structure.axes]
+    if tb.mass > 0:
+        out.append(Parameter("structure (distributed mass)", "masses", tb.mass, massed(None)))
+        out += [Parameter(f"structure.masses[{k}].mass", "masses", tb.mass, massed(k))
+                for k in range(len(rig.structure.masses))]
+    return out
+
+
+def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs
+                    ) -> dict[str, np.ndarray]:
+    """Each type-B source's variance in every combination and harmonic (linear propagation).
+
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel
+    inputs : SolveInputs
+
+    Returns
+    -------
+    dict
+        Source (:data:`SOURCES`) -> (n_combinations, H+1) ndarray [N^2]: of Re and of Im
+        pooled for n >= 1, of the (real) DC for n = 0.
+    """
+    n_c = len(combinations(rig)[0])
+    h = inputs.gauges.shape[1] - 1
+    out = {s: np.zeros((n_c, h + 1)) for s in SOURCES}
+    for p in parameters(rig, inputs):
+        ends = []
+        for d in (p.std, -p.std):
+            rig_p, inp_p, recouple = p.apply(d)
+            ends.append(combination_phasors(rig_p, model, inp_p,
+                                            model_couplings(rig_p, model) if recouple else None))
+        delta = 0.5 * (ends[0] - ends[1])
+        var = 0.5 * (delta.real**2 + delta.imag**2)
+        var[:, 0] = delta[:, 0].real ** 2
+        out[p.source] += var
+    return out
+
+
+def monte_carlo(rig: Rig, model: SpatialModel, inputs: SolveInputs, n_draws: int,
+                rng: np.random.Generator, noise: bool = True) -> np.ndarray:
+    """GUM Supplement 1: the combinations' phasors over joint draws of every type-B parameter
+    (Gaussian, its standard uncertainty: the same parameters as :func:`parameters`) and, with
+    ``noise``, of every channel phasor.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel
+    inputs : SolveInputs
+    n_draws : int
+    rng : numpy.random.Generator
+    noise : bool
+        Draw the gauges' and probes' phasors from their standard uncertainties too (the shape
+        coefficients stay at the model's: their part is the linear propagation's).
+
+    Returns
+    -------
+    (n_draws, n_combinations, H+1) complex ndarray [N]
+    """
+    tb = rig.type_b
+    st = rig.structure
+    draws = []
+    for _ in range(n_draws):
+        g = 1.0 + tb.gauge_scale * rng.standard_normal(len(rig.gauges))
+        s = 1.0 + tb.probe_scale * rng.standard_normal(len(rig.sensors))
+        inp = dataclasses.replace(inputs, gauges=inputs.gauges * g[:, None],
+                                  tare=inputs.tare * g, sensors=inputs.sensors * s[:, None])
+        if noise:
+            inp = dataclasses.replace(inp, gauges=_jitter(inp.gauges, inp.gauge_std, rng),
+                                      sensors=_jitter(inp.sensors, inp.sensor_std, rng))
+        moved: dict[str, Any] = {group: tuple(dataclasses.replace(p, **{
+                     ax: getattr(p, ax) + tb.position * rng.standard_normal()
+                     for ax in st.axes}) for p in getattr(rig, group))
+                 for group in ("gauges", "forces", "sensors")}
+        masses = st.with_masses(1.0 + tb.mass * rng.standard_normal(),
+                                (1.0 + tb.mass * rng.standard_normal(len(st.masses))).tolist())
+        cur = dataclasses.replace(rig, structure=masses, **moved)
+        draws.append(combination_phasors(cur, model, inp, model_couplings(cur, model)))
+    return np.array(draws)
+
+
+def draw_std(draws: np.ndarray) -> np.ndarray:
+    """(n_combinations, H+1) standard deviation of Monte Carlo draws (n_draws, n_c, H+1): of Re
+    and Im pooled for n >= 1, of the real DC for n = 0, as the stated uncertainties are."""
+    std: np.ndarray = np.sqrt(0.5 * (draws.real.var(axis=0) + draws.imag.var(axis=0)))
+    std[:, 0] = draws[:, :, 0].real.std(axis=0)
+    return std
+
+
+MONTE_CARLO_SOURCES = ("gauge noise", "probe noise", *SOURCES)
+"""The budget's sources a :func:`monte_carlo` run draws (the scan shapes' and the unresolved
+harmonics' parts stay those of the linear propagation)."""
+
+
+def _jitter(x: np.ndarray, std: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """Phasors drawn about ``x`` with Re and Im of std ``std`` (the DC real)."""
+    z = rng.standard_normal(x.shape) + 1j * rng.standard_normal(x.shape)
+    z[:, 0] = z[:, 0].real
+    out: np.ndarray = x + std * z
+    return out
