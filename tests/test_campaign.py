@@ -37,7 +37,7 @@ from forcecal.campaign import (
     rig_for_entry,
     write_calibration,
 )
-from forcecal.campaign.runs import pool_map
+from forcecal.cluster import pool_map
 from forcecal.errors import FitError, InputError
 from forcecal.io.manifest import ManifestEntry, write_manifest
 from forcecal.io.run_files import write_run_csv

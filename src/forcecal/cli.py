@@ -20,6 +20,7 @@ import numpy as np
 
 from .cli_parser import PROG, build_parser
 from .cli_parser import ArgumentError as _ArgumentError
+from .cluster import run_jobs
 from .errors import DataError, ForcecalError, InputError
 
 __all__ = ["main"]
@@ -73,6 +74,9 @@ EXTRAPOLATION = 10.0
 and gaps, and refuses beyond."""
 MAX_HARMONICS = 100
 """Most harmonics ``--harmonics`` may ask for."""
+MANY_JOBS = 4
+"""Runs or campaigns from which ``reconstruct`` and ``calibrate`` start a local cluster when
+``--workers`` is not given (fewer are done serially: the cluster's start would cost more)."""
 
 
 _STARTED = [time.perf_counter()]
@@ -143,7 +147,7 @@ def _inputs(args) -> list[str]:
     manifest (for the provenance of what it writes)."""
     files = [args.rig, *getattr(args, "scans", []), getattr(args, "scan", None),
              *getattr(args, "runs", []), getattr(args, "run", None), getattr(args, "tare", None),
-             getattr(args, "manifest", None)]
+             *(getattr(args, "manifest", None) or [])]
     return [str(f) for f in files if f]
 
 
@@ -229,7 +233,6 @@ def _check_distinct_names(paths) -> None:
 
 
 def _cmd_reconstruct(args) -> int:
-    from .forces import reconstruct
     from .io.results import write_estimate
     from .io.staging import staged_folder
 
@@ -241,14 +244,12 @@ def _cmd_reconstruct(args) -> int:
     model = _model_for(args, rig)
     runs = _read_runs(args.runs, rig)
     tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
-    estimates = []
-    for k, run in enumerate(runs):
-        est = reconstruct(rig, model, run, tare=tare, ac_coupled=args.ac_coupled)
-        if args.monte_carlo:
-            est = _with_monte_carlo(rig, model, run, est, tare, args.monte_carlo)
-        estimates.append(est)
-        if len(runs) > 1:
-            _progress(k + 1, len(runs), run.name)
+    estimates = run_jobs(_reconstruct_job,
+                         [(rig, model, run, tare, args.ac_coupled, args.monte_carlo)
+                          for run in runs],
+                         names=[run.name for run in runs], workers=_workers(args, len(runs)),
+                         scheduler=args.scheduler,
+                         progress=_progress if len(runs) > 1 else None)
     lines = []
     origin = _provenance(args)
     with staged_folder(args.output) as stage:
@@ -265,6 +266,29 @@ def _cmd_reconstruct(args) -> int:
     for line in lines:
         _print(line)
     return 0
+
+
+def _reconstruct_job(job):
+    """One run's estimate (a job of :func:`forcecal.cluster.run_jobs`): ``job`` is ``(rig,
+    model, run, tare, ac_coupled, monte_carlo draws)``."""
+    from .forces import reconstruct
+
+    rig, model, run, tare, ac_coupled, n_draws = job
+    est = reconstruct(rig, model, run, tare=tare, ac_coupled=ac_coupled)
+    return _with_monte_carlo(rig, model, run, est, tare, n_draws) if n_draws else est
+
+
+def _workers(args, n_jobs: int) -> int:
+    """Local workers for ``n_jobs`` jobs: ``--workers``, else one per core when there are
+    several jobs (and a local cluster is worth its start, about two seconds), else 1."""
+    if args.workers is not None:
+        if args.workers < 1:
+            raise _ArgumentError(f"{PROG} {args.command}: argument --workers: {args.workers} is "
+                                 "not a positive number of processes")
+        return int(args.workers)
+    if n_jobs < MANY_JOBS:
+        return 1
+    return max(1, min(n_jobs, os.cpu_count() or 1))
 
 
 def _budget_lines(est) -> list[str]:
@@ -307,16 +331,52 @@ def _cmd_calibrate(args) -> int:
 
     rig = _load_rig(args)
     model = _model_for(args, rig)
-    result = calibrate_campaign(rig, model, args.manifest, progress=_progress,
-                                ac_only=args.ac_coupled)
+    manifests = [str(m) for m in args.manifest]
+    if len(manifests) == 1:
+        result = calibrate_campaign(rig, model, manifests[0], progress=_progress,
+                                    ac_only=args.ac_coupled,
+                                    workers=None if args.workers is None else args.workers)
+        results, folders = [result], [Path(args.output)]
+    else:
+        folders = _campaign_folders(args.output, manifests)
+        results = run_jobs(_calibrate_job, [(rig, model, m, args.ac_coupled) for m in manifests],
+                           names=[f.name for f in folders],
+                           workers=_workers(args, len(manifests)),
+                           scheduler=args.scheduler, progress=_progress)
     with staged_folder(args.output) as stage:
-        path = write_calibration(result, stage)
-        if not args.no_report:
-            from .report.pipeline import calibration_report
+        for result, folder in zip(results, folders, strict=True):
+            where = stage / folder.relative_to(args.output)
+            where.mkdir(parents=True, exist_ok=True)
+            path = write_calibration(result, where)
+            if not args.no_report:
+                from .report.pipeline import calibration_report
 
-            calibration_report(rig, model, result, stage)
-    _print(Path(args.output) / path.name)
+                calibration_report(rig, model, result, where)
+            _print(folder / path.name)
     return 0
+
+
+def _campaign_folders(output: str, manifests: list[str]) -> list[Path]:
+    """OUT/NAME for each of several manifests, NAME the manifest's file name without suffix;
+    two manifests of one NAME are refused (their outputs would overwrite each other)."""
+    seen: dict[str, str] = {}
+    for m in manifests:
+        name = Path(m).stem
+        if name in seen:
+            raise InputError(f"manifest '{m}': its calibration would be written to "
+                             f"{Path(output) / name} like that of manifest '{seen[name]}'; "
+                             "rename one of them")
+        seen[name] = m
+    return [Path(output) / Path(m).stem for m in manifests]
+
+
+def _calibrate_job(job):
+    """One campaign's calibration (a job of :func:`forcecal.cluster.run_jobs`): ``job`` is
+    ``(rig, model, manifest, ac_only)``; its runs are reconstructed serially."""
+    from .campaign import calibrate_campaign
+
+    rig, model, manifest, ac_only = job
+    return calibrate_campaign(rig, model, manifest, workers=1, ac_only=ac_only)
 
 
 def _cmd_predict(args) -> int:

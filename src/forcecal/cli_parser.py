@@ -94,7 +94,9 @@ def _calibrate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
                               "--manifest lab/manifest.csv -o calibration")
     p.add_argument("rig")
     p.add_argument("scan", help="scan file, or a MODEL.json")
-    p.add_argument("--manifest", required=True, help="campaign manifest CSV")
+    p.add_argument("--manifest", required=True, nargs="+", metavar="CSV",
+                   help="campaign manifest CSV; several campaigns (one folder each in OUT, "
+                        "named after the manifest) are spread over --workers or --scheduler")
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--ac-coupled", action="store_true",
                    help="fit the law on the harmonics alone (gauges without DC)")
@@ -169,6 +171,15 @@ def build_parser() -> argparse.ArgumentParser:
         verbosity.add_argument("-v", "--verbose", action="store_true",
                                help="details (the uncertainty budget of every force), and "
                                     "progress even when stderr is not a terminal")
+    for name in ("reconstruct", "calibrate"):                      # the commands of many jobs
+        jobs = sub.choices[name].add_mutually_exclusive_group()
+        jobs.add_argument(
+            "--workers", type=int, metavar="N", default=None,
+            help="processes of a local Dask cluster over which several runs or campaigns are "
+                 "spread (default: one per core when there are several; 1: serially)")
+        jobs.add_argument(
+            "--scheduler", metavar="ADDRESS",
+            help="an existing Dask scheduler (tcp://host:8786) whose workers run the jobs")
     for name in ("reconstruct", "calibrate", "stream", "report"):  # the commands that read runs
         sub.choices[name].add_argument(
             "--group", metavar="NAME",

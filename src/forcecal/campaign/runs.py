@@ -8,19 +8,14 @@ currents, and zero-current tare records. :func:`reconstruct_campaign` reconstruc
 
 from __future__ import annotations
 
-import contextlib
-import multiprocessing
 import os
-import threading
-import time
 import warnings
-from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Any
 
 from ..checks import check_run_for_rig
+from ..cluster import pool_map
 from ..errors import InputError
 from ..forces import ForceEstimate, reconstruct
 from ..gaps import static_gaps
@@ -30,12 +25,10 @@ from ..rig import Rig
 from ..spatial import SpatialModel
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, run_samples
 
-__all__ = ["PARALLEL_MIN_RUNS", "RunResult", "pool_map", "reconstruct_campaign", "rig_for_entry"]
+__all__ = ["PARALLEL_MIN_RUNS", "RunResult", "reconstruct_campaign", "rig_for_entry"]
 
 PARALLEL_MIN_RUNS = 3
 """Campaigns with fewer runs than this are reconstructed serially whatever ``workers`` says."""
-
-_THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 
 _Caught = list[tuple[str, type[Warning]]]
 """Warnings recorded in a worker: ``(message, category)``."""
@@ -190,24 +183,6 @@ def _campaign_tasks(
     return tasks
 
 
-@contextlib.contextmanager
-def _single_threaded_workers() -> Iterator[None]:
-    """Worker processes started inside run their linear algebra on one thread each.
-
-    The workers are the parallelism: BLAS threads in every worker would oversubscribe the
-    cores (on a busy machine by a factor of ten in time). The variables are set only where the
-    user has not set them, only while the pool starts its processes, and restored after.
-    """
-    added = [name for name in _THREAD_VARIABLES if name not in os.environ]
-    for name in added:
-        os.environ[name] = "1"
-    try:
-        yield
-    finally:
-        for name in added:
-            os.environ.pop(name, None)
-
-
 def _run_tasks(
     tasks: list[_Task], workers: int, finish: Callable[[int, RunResult, _Caught], None]
 ) -> None:
@@ -219,58 +194,6 @@ def _run_tasks(
         return
     for result in pool_map(_reconstruct_entry, tasks, workers):
         finish(*result)
-
-
-def pool_map(work: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[Any]:
-    """``work(item)`` for every item in a ``spawn`` pool of at most ``workers`` processes,
-    yielded as they complete.
-
-    The workers run their linear algebra on one thread each (:func:`_single_threaded_workers`
-    while the pool starts them, that is while the tasks are submitted), leave when the parent
-    dies (:func:`_watch_parent`), and are terminated when the caller stops early or fails.
-    """
-    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(items))),
-                               mp_context=multiprocessing.get_context("spawn"),
-                               initializer=_watch_parent, initargs=(os.getpid(),))
-    try:
-        with _single_threaded_workers():  # the pool starts its processes as tasks arrive
-            futures = [pool.submit(work, item) for item in items]
-        for future in as_completed(futures):
-            yield future.result()
-    except BaseException:  # an error, Ctrl-C or the caller closing the generator early
-        _stop_pool(pool)
-        raise
-    pool.shutdown(wait=True)
-
-
-def _stop_pool(pool: ProcessPoolExecutor) -> None:
-    """End a pool now: pending tasks cancelled, running workers terminated (an error or
-    Ctrl-C in the parent must not leave them computing)."""
-    processes = list(getattr(pool, "_processes", {}).values())  # before shutdown clears it
-    pool.shutdown(wait=False, cancel_futures=True)
-    for process in processes:
-        with contextlib.suppress(Exception):
-            process.terminate()
-    for process in processes:
-        with contextlib.suppress(Exception):
-            process.join(timeout=5)
-
-
-_PARENT_POLL_S = 0.5
-"""How often a worker checks that its parent is alive [s]."""
-
-
-def _watch_parent(parent: int) -> None:
-    """Worker initializer: exit when the parent process is gone (killed with SIGKILL, say,
-    when nothing could terminate the workers); a daemon thread polls the parent's pid."""
-
-    def watch() -> None:
-        while True:
-            time.sleep(_PARENT_POLL_S)
-            if os.getppid() != parent:
-                os._exit(1)
-
-    threading.Thread(target=watch, name="forcecal-parent-watch", daemon=True).start()
 
 
 def reconstruct_campaign(

@@ -1,0 +1,137 @@
+"""Benchmark: many calibrations spread over a local Dask cluster of 1, 2 and 4 workers.
+
+A production batch is many actuators, each with its own campaign. Here every job is one
+campaign of the `campaign` preset's rig (a tare and eight runs of 0.5 s; noise redrawn per
+job), calibrated as ``forcecal calibrate RIG MODEL --manifest M1 M2 ... --workers W`` does
+(:func:`forcecal.cluster.run_jobs` with the CLI's own job function). Reported for each W:
+the wall time (cluster start included), the cluster's start alone, the speed-up over the serial
+path, and the overhead per job (the worker time a job costs beyond its serial compute:
+``(W (wall - start) - serial) / jobs``). The results are checked identical to the serial ones.
+
+From the measured figures: what a 10,000-actuator batch would cost on a cluster of C cores,
+``10000 * serial_per_job / (C * efficiency) + start``.
+
+Run:  .venv/bin/python benchmarks/cluster.py [--jobs 8] [--workers 1 2 4]
+Writes benchmarks/results/cluster.json.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from forcecal.cli import _calibrate_job
+from forcecal.cluster import _client, run_jobs
+from forcecal.io.manifest import write_manifest
+from forcecal.io.run_files import write_run_csv
+from forcecal.simulate.magnet import Drive
+from forcecal.simulate.presets import RunSpec, get_preset
+from forcecal.simulate.virtual_rig import (
+    build_model,
+    measure_run,
+    public_rig,
+    record_scan,
+    simulate_response,
+)
+from forcecal.spatial import build_spatial_model
+
+RESULTS = Path(__file__).resolve().parent / "results" / "cluster.json"
+BATCH = 10_000
+"""Actuators of the batch whose cost is extrapolated."""
+
+
+def campaigns(folder: Path, n_jobs: int):
+    """``n_jobs`` campaigns of one rig (physics simulated once, noise redrawn per campaign):
+    the rig, the model and the manifests."""
+    base = get_preset("campaign")
+    f = base.runs[0].drives[0].frequency
+    specs = [RunSpec("tare", drives=(Drive("current", 0.0, 0.0, f),), gap=1.0e-3, duration=0.5,
+                     tare=True)]
+    specs += [RunSpec(f"g{g * 1e6:04.0f}_dc{dc * 10:02.0f}", drives=(Drive("current", dc, 0.2, f),),
+                      gap=g, duration=0.5) for g in (0.8e-3, 1.0e-3, 1.2e-3) for dc in (0.4, 0.8)]
+    specs += [RunSpec("g1000_dc06", drives=(Drive("current", 0.6, 0.2, f),), gap=1.0e-3,
+                      duration=0.5)]
+    preset = dataclasses.replace(base, runs=tuple(specs))
+    beam = build_model(preset)
+    rig = public_rig(preset)
+    model = build_spatial_model(rig, record_scan(preset, np.random.default_rng(0), beam))
+    responses = {s.name: simulate_response(preset, s.drives, s.gap, s.duration, beam)
+                 for s in specs}
+    manifests = []
+    for j in range(n_jobs):
+        rng = np.random.default_rng(100 + j)
+        rows = []
+        for s in specs:
+            run = measure_run(preset, s, beam, responses[s.name], rng)
+            write_run_csv(run, folder / f"unit{j:02d}" / f"{s.name}.csv")
+            rows.append({"run": f"{s.name}.csv", "gap": s.gap, "tare": s.tare})
+        manifests.append(str(write_manifest(folder / f"unit{j:02d}" / "manifest.csv", rows)))
+    return rig, model, manifests
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--jobs", type=int, default=8, help="campaigns (default 8)")
+    ap.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4])
+    args = ap.parse_args(argv)
+    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+    with tempfile.TemporaryDirectory(prefix="forcecal-cluster-") as tmp:
+        print(f"simulating {args.jobs} campaigns", flush=True)
+        rig, model, manifests = campaigns(Path(tmp), args.jobs)
+        jobs = [(rig, model, m, False) for m in manifests]
+        print("serial", flush=True)
+        t0 = time.perf_counter()
+        serial = run_jobs(_calibrate_job, jobs, workers=1)
+        t_serial = time.perf_counter() - t0
+        reference = [r.calibration.params.tolist() for r in serial]
+        rows = []
+        for w in args.workers:
+            print(f"local cluster of {w} workers", flush=True)
+            t0 = time.perf_counter()
+            with _client(w, None):
+                pass
+            start = time.perf_counter() - t0
+            t0 = time.perf_counter()
+            out = run_jobs(_calibrate_job, jobs, workers=w) if w > 1 else None
+            wall = time.perf_counter() - t0 if w > 1 else t_serial
+            same = out is None or [r.calibration.params.tolist() for r in out] == reference
+            rows.append({"workers": w, "seconds_wall": wall, "seconds_start": start if w > 1
+                         else 0.0, "speed_up": t_serial / wall, "identical": same,
+                         "overhead_per_job_s": (w * (wall - start) - t_serial) / args.jobs
+                         if w > 1 else 0.0})
+    per_job = t_serial / args.jobs
+    best = max(rows, key=lambda r: r["speed_up"])
+    efficiency = best["speed_up"] / min(best["workers"], os.cpu_count() or 1)
+    batch = {f"{c}_cores_hours": (BATCH * per_job / (c * efficiency) + best["seconds_start"])
+             / 3600 for c in (2, 64, 512)}
+    res = {"machine": {"python": platform.python_version(), "cores": os.cpu_count(),
+                       "load_average": os.getloadavg()},
+           "jobs": args.jobs, "runs_per_job": 8, "serial_seconds": t_serial,
+           "serial_seconds_per_job": per_job, "by_workers": rows,
+           "efficiency_per_core": efficiency, "batch_10000": batch}
+    RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    RESULTS.write_text(json.dumps(res, indent=2) + "\n")
+    print(f"\n{args.jobs} campaigns of 8 runs (+ tare), {os.cpu_count()} cores; serial "
+          f"{t_serial:.1f} s ({per_job:.2f} s per campaign)")
+    print(f"{'workers':>8}{'wall s':>9}{'start s':>9}{'speed-up':>10}{'overhead/job s':>16}"
+          f"{'identical':>11}")
+    for r in rows:
+        print(f"{r['workers']:>8}{r['seconds_wall']:9.2f}{r['seconds_start']:9.2f}"
+              f"{r['speed_up']:10.2f}{r['overhead_per_job_s']:16.3f}{r['identical']!s:>11}")
+    print(f"10,000 actuators at {per_job:.2f} s each and {efficiency:.0%} efficiency per core: "
+          + ", ".join(f"{k.split('_')[0]} cores {v:.2f} h" for k, v in batch.items()))
+    print(f"\nwritten: {RESULTS}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
