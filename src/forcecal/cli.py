@@ -343,6 +343,7 @@ def _cmd_calibrate(args) -> int:
                            names=[f.name for f in folders],
                            workers=_workers(args, len(manifests)),
                            scheduler=args.scheduler, progress=_progress)
+    origin = _provenance(args)
     with staged_folder(args.output) as stage:
         for result, folder in zip(results, folders, strict=True):
             where = stage / folder.relative_to(args.output)
@@ -351,7 +352,7 @@ def _cmd_calibrate(args) -> int:
             if not args.no_report:
                 from .report.pipeline import calibration_report
 
-                calibration_report(rig, model, result, where)
+                calibration_report(rig, model, result, where, provenance=origin)
             _print(folder / path.name)
     return 0
 

@@ -165,6 +165,9 @@ class Rig:
     """``acquisition.group``: the TDMS group the runs are read from."""
     type_b: TypeB = field(default_factory=TypeB)
     """``[uncertainty]``: the type-B standard uncertainties (defaults when not declared)."""
+    temperature: float | None = None
+    """``acquisition.temperature`` [°C]: the ambient temperature of the measurements, stated in
+    the calibration certificate's conditions; None when the rig does not give it."""
 
     @property
     def gauge_names(self) -> list[str]:
@@ -291,6 +294,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     acq = r.table(doc, "acquisition", required=False)
     frequency = r.number(acq, "frequency", "acquisition", required=False, positive=True)
     group = r.text(acq, "group", "acquisition", required=False, default=None)
+    temperature = _temperature(r, acq)
     _check_names(r, gauges, forces, sensors, actuator)
     _check_statics(r, structure, gauges, forces, sensors)
     names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
@@ -299,7 +303,22 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     type_b = _type_b(r, r.table(doc, "uncertainty", required=False), "uncertainty" in doc)
     return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,
                forces=forces, sensors=sensors, actuator=actuator, frequency=frequency,
-               source=source, channel_map=channels, run_group=group, type_b=type_b)
+               source=source, channel_map=channels, run_group=group, type_b=type_b,
+               temperature=temperature)
+
+
+_TEMPERATURE_RANGE_C = (-100.0, 200.0)
+"""Ambient temperatures ``acquisition.temperature`` may give [°C]; beyond is probably kelvin."""
+
+
+def _temperature(r: TableReader, acq: dict[str, Any]) -> float | None:
+    """``acquisition.temperature`` [°C], or None when absent."""
+    value = r.number(acq, "temperature", "acquisition", required=False)
+    lo, hi = _TEMPERATURE_RANGE_C
+    if value is not None and not lo <= value <= hi:
+        raise r.fail("acquisition.temperature", f"= {value!r} °C is not an ambient temperature "
+                     f"between {lo:g} and {hi:g} °C (23.0 for 23 °C; not in kelvin)")
+    return value
 
 
 def _type_b(r: TableReader, table: dict[str, Any], declared: bool) -> TypeB:
@@ -513,6 +532,8 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         acquisition["frequency"] = rig.frequency
     if rig.run_group is not None:
         acquisition["group"] = rig.run_group
+    if rig.temperature is not None:
+        acquisition["temperature"] = rig.temperature
     if acquisition:
         doc["acquisition"] = acquisition
     if rig.channel_map:

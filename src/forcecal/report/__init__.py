@@ -2,7 +2,10 @@
 
 The core stages never import this package; it draws their results. Every figure function is
 pure, ``(data...) -> matplotlib.figure.Figure``, built without pyplot (no global figure state),
-and :func:`build_report` assembles one self-contained HTML page.
+and :func:`build_report` assembles one self-contained HTML page. A campaign's calibration
+certificate is :func:`forcecal.report.certificate.calibration_certificate`, rendered from the
+package's Jinja2 templates (``templates/``) with the same style sheet; the reports of the user's
+data are assembled in :mod:`forcecal.report.pipeline`.
 """
 
 from .figures import (

@@ -2,7 +2,9 @@
 
 Figures are embedded as base64 PNG data URIs, the style sheet is inline: the page needs no
 other file and no network. Every text is escaped with :func:`html.escape`, so a run or channel
-name can never inject markup.
+name can never inject markup. The page around the sections is the package's template
+``templates/page.html.j2`` with its style sheet ``templates/style.css``, which the calibration
+certificate (:mod:`forcecal.report.certificate`) shares.
 
 A page is a title and a sequence of :class:`Section`; a section's content is a sequence of
 blocks:
@@ -27,11 +29,13 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from markupsafe import Markup
 from matplotlib.figure import Figure
 
 from .._atomic import write_text_atomic
 from ..errors import InputError
 from ..forces import ForceEstimate
+from ._templates import render
 from .figures import png_bytes
 
 __all__ = [
@@ -46,22 +50,6 @@ __all__ = [
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 
-_STYLE = """
-body { font-family: system-ui, sans-serif; max-width: 75em; margin: 2em auto; padding: 0 1em;
-       color: #222; line-height: 1.45; }
-h1 { border-bottom: 2px solid #444; padding-bottom: .2em; }
-h2 { border-bottom: 1px solid #bbb; padding-bottom: .1em; margin-top: 2em; }
-table { border-collapse: collapse; margin: 1em 0; font-size: .92em; }
-caption { text-align: left; font-weight: bold; padding-bottom: .3em; }
-th, td { border: 1px solid #ccc; padding: .25em .6em; }
-th { background: #f0f0f0; text-align: left; }
-td.num { text-align: right; font-variant-numeric: tabular-nums; }
-figure { margin: 1em 0; }
-figure img { max-width: 100%; height: auto; border: 1px solid #ddd; }
-figcaption { font-size: .92em; color: #444; }
-pre { background: #f7f7f7; border: 1px solid #ddd; padding: .6em; overflow-x: auto; }
-footer { margin-top: 3em; font-size: .85em; color: #777; }
-""".strip()
 
 
 @dataclass(frozen=True)
@@ -248,23 +236,7 @@ def build_report(title: str, sections: Sequence[Section]) -> str:
         A complete, self-contained HTML5 document (UTF-8).
     """
     body = [_section(s, 2) if isinstance(s, Section) else _block(s, 1) for s in sections]
-    return "\n".join([
-        "<!DOCTYPE html>",
-        '<html lang="en">',
-        "<head>",
-        '<meta charset="utf-8">',
-        '<meta name="viewport" content="width=device-width, initial-scale=1">',
-        f"<title>{_e(title)}</title>",
-        f"<style>\n{_STYLE}\n</style>",
-        "</head>",
-        "<body>",
-        f"<h1>{_e(title)}</h1>",
-        *body,
-        "<footer>written by forcecal</footer>",
-        "</body>",
-        "</html>",
-        "",
-    ])
+    return render("page.html.j2", {"title": title, "body": Markup("\n".join(body))})
 
 
 def write_report(path: str | Path, title: str, sections: Sequence[Section]) -> Path:

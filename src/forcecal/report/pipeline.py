@@ -2,7 +2,8 @@
 
 ``run_report``: spatial model, forces of every run (with the truth overlaid when a folder of
 ``NAME.forces.csv`` ground truth is given), figures as PNG and one self-contained HTML page.
-``calibration_report``: the campaign's fig. 9, the candidate laws and the repeatability.
+``calibration_report``: the campaign's calibration certificate (:mod:`.certificate`) with
+fig. 9.
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ from .html import Image, Preformatted, Section, Table, estimate_table, write_rep
 if TYPE_CHECKING:
     from ..campaign import CampaignResult
 
-__all__ = ["calibration_report", "run_report"]
+__all__ = ["calibration_report", "campaign_inputs", "run_report"]
 
 _SHAPE_FIGURES: dict[int, Callable[[HarmonicShapes, SpatialModel], Figure]] = {
     1: fig_shapes, 2: fig_shapes_2d, 3: fig_shapes_body,
@@ -280,9 +281,53 @@ def provenance_section(prov: dict) -> Section:
     ])
 
 
+def campaign_inputs(rig: Rig, model: SpatialModel, result: CampaignResult) -> list[str]:
+    """Every input file of a campaign's calibration: the rig, the model's scans, the manifest
+    and every run it lists (the tare records too), in that order, each once.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel
+    result : CampaignResult
+
+    Returns
+    -------
+    list of str
+        The paths (those that are not files are kept: the provenance says so).
+    """
+    from ..errors import ForcecalError
+    from ..io.manifest import read_manifest
+
+    runs = [str(r.entry.run) for r in result.runs]
+    try:
+        runs = [str(e.run) for e in read_manifest(result.manifest)]
+    except ForcecalError:  # the manifest is no longer there: the runs calibrated are
+        pass
+    return list(dict.fromkeys([rig.source, *(model.scans or [model.source]), result.manifest,
+                               *runs]))
+
+
+def _with_inputs(prov: dict, paths: Sequence[str]) -> dict:
+    """The provenance with the files of ``paths`` it does not list yet added."""
+    from ..provenance import provenance as make
+
+    listed = {Path(f["path"]).resolve() for f in prov["inputs"]}
+    missing = [p for p in paths if Path(p).resolve() not in listed]
+    if not missing:
+        return prov
+    return {**prov, "inputs": [*prov["inputs"], *make(missing, argv=[])["inputs"]]}
+
+
 def calibration_report(rig: Rig, model: SpatialModel, result: CampaignResult,
-                       out_dir: str | Path) -> Path:
-    """Fig. 9 and the calibration tables of a campaign result as ``OUT/report.html``.
+                       out_dir: str | Path, provenance: dict | None = None) -> Path:
+    """The calibration certificate of a campaign as ``OUT/report.html``, fig. 9 as a PNG.
+
+    The page is :func:`forcecal.report.certificate.calibration_certificate`: the law, its
+    parameters with standard and expanded uncertainties, their correlation, the calibrated
+    range and conditions, the uncertainty budget, the candidate laws, the reactions-only
+    comparison, the repeatability, the runs, fig. 9 and the provenance. When
+    ``OUT/calibration.json`` is already written, its SHA-256 ties the certificate to it.
 
     Parameters
     ----------
@@ -294,22 +339,29 @@ def calibration_report(rig: Rig, model: SpatialModel, result: CampaignResult,
         The campaign's calibration.
     out_dir : str or pathlib.Path
         The output folder: ``figures/calibration.png`` and ``report.html``.
+    provenance : dict, optional
+        :func:`forcecal.provenance.provenance` of the inputs (default: of
+        :func:`campaign_inputs`, with this process's command line); the campaign's files it
+        does not list are added.
 
     Returns
     -------
     pathlib.Path
         The path of ``report.html``.
     """
-    from ..campaign import report_text
+    from .._atomic import write_text_atomic
+    from ..provenance import file_digest
+    from ..provenance import provenance as make
+    from .certificate import calibration_certificate
+    from .html import data_uri
 
     out = Path(out_dir)
     fig = fig_calibration(CalibrationPoints.from_campaign(result), result.calibration)
     png = save_png(fig, out / "figures" / "calibration.png")
-    sections = [
-        Section("Calibration", [
-            Preformatted(report_text(result)),
-            Image(fig, caption="Fig. 9: force against DC current for each gap and AC amplitude, "
-                               f"runs as markers, the calibrated law as curves ({png.name})."),
-        ]),
-    ]
-    return write_report(out / "report.html", f"forcecal: calibration of {rig.name}", sections)
+    inputs = campaign_inputs(rig, model, result)
+    prov = make(inputs) if provenance is None else _with_inputs(provenance, inputs)
+    written = out / "calibration.json"
+    page = calibration_certificate(
+        rig, result, prov, model=model, figure=data_uri(png.read_bytes()),
+        calibration_file=((written.name, file_digest(written)) if written.is_file() else None))
+    return write_text_atomic(out / "report.html", page)

@@ -1,0 +1,350 @@
+"""Tests of the calibration certificate (``forcecal.report.certificate``, ``calibration_report``).
+
+A small campaign is simulated and calibrated once per module: three static gaps at one DC
+current (AC 0.2 A, 0.3 s records), one repeat and a zero-current tare, on a rig file whose
+``[uncertainty]`` table declares two type-B keys (the others take the documented defaults).
+The certificate is checked against ``calibration.json`` and the campaign's runs, never against
+the code that formats it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import html
+import json
+import re
+from dataclasses import dataclass
+from html.parser import HTMLParser
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+
+from forcecal.campaign import (
+    CampaignResult,
+    calibrate_runs,
+    reconstruct_campaign,
+    write_calibration,
+)
+from forcecal.errors import RigError
+from forcecal.io.manifest import write_manifest
+from forcecal.io.run_files import write_run_csv
+from forcecal.provenance import provenance
+from forcecal.report.certificate import calibration_certificate
+from forcecal.report.pipeline import calibration_report
+from forcecal.rig import Rig, load_rig, rig_to_dict
+from forcecal.simulate.magnet import Drive
+from forcecal.simulate.presets import Preset, RunSpec, get_preset
+from forcecal.simulate.virtual_rig import build_model, public_rig, record_run, record_scan
+from forcecal.spatial import SpatialModel, build_spatial_model
+
+GAPS = (0.8e-3, 1.0e-3, 1.2e-3)  # [m]
+DC = 0.6  # [A]
+AC = 0.2  # [A]
+DURATION = 0.3  # [s]
+DECLARED = {"current_scale": 0.002, "gap": 5e-6}  # the rig's [uncertainty] table
+HOSTILE = "<script>alert('x')</script>&\"r\""
+
+RANGE_RTOL = 5e-6  # the certificate's ranges carry six significant digits
+FREQUENCY_ATOL = 1e-6  # [Hz] its frequencies eight (20.014123)
+CORRELATION_ATOL = 5e-5  # its correlations four decimals
+VALUE_ROUNDING = 0.06  # a value is rounded to the digit of u's second significant one
+
+
+@dataclass(frozen=True)
+class Certified:
+    folder: Path
+    rig: Rig
+    model: SpatialModel
+    result: CampaignResult
+    page: str
+    doc: dict
+
+
+def _preset() -> Preset:
+    base = get_preset("campaign")
+    f = base.runs[0].drives[0].frequency
+    runs = [RunSpec("tare", drives=(Drive("current", 0.0, 0.0, f),), gap=1.0e-3,
+                    duration=DURATION, tare=True, labels={"repeat": "1"})]
+    runs += [RunSpec(f"g{gap * 1e6:04.0f}", drives=(Drive("current", DC, AC, f),), gap=gap,
+                     duration=DURATION, labels={"repeat": "1"}) for gap in GAPS]
+    runs.append(RunSpec("g1000_r2", drives=(Drive("current", DC, AC, f, phase=1.3),),
+                        gap=1.0e-3, duration=DURATION, labels={"repeat": "2"}))
+    return dataclasses.replace(base, name="certificate campaign", runs=tuple(runs),
+                               scan=dataclasses.replace(base.scan, n_points=41, record=0.3))
+
+
+def _rig_file(path: Path, rig: Rig, acquisition: dict | None = None,
+              uncertainty: dict | None = None) -> Rig:
+    """The rig written as a lab would, with the given extra keys, and read back."""
+    doc = rig_to_dict(rig)
+    doc.pop("uncertainty", None)
+    if uncertainty is not None:
+        doc["uncertainty"] = uncertainty
+    doc["acquisition"] = {**doc.get("acquisition", {}), **(acquisition or {})}
+    path.write_text(tomli_w.dumps(doc), encoding="utf-8")
+    return load_rig(path)
+
+
+@pytest.fixture(scope="module")
+def certified(tmp_path_factory) -> Certified:
+    folder = tmp_path_factory.mktemp("certificate")
+    preset = _preset()
+    rng = np.random.default_rng(3)
+    beam = build_model(preset)
+    rig = _rig_file(folder / "rig.toml", public_rig(preset), uncertainty=DECLARED)
+    model = build_spatial_model(rig, record_scan(preset, rng, beam))
+    rows = []
+    for spec in preset.runs:
+        run, _ = record_run(preset, spec, rng, beam)
+        write_run_csv(run, folder / "runs" / f"{spec.name}.csv")
+        rows.append({"run": f"runs/{spec.name}.csv", "gap": spec.gap, "tare": spec.tare,
+                     **spec.labels})
+    manifest = write_manifest(folder / "manifest.csv", rows)
+    results = reconstruct_campaign(rig, model, manifest, workers=1)
+    result = calibrate_runs(rig, results, manifest=str(manifest))
+    out = folder / "out"
+    write_calibration(result, out)
+    page = calibration_report(rig, model, result, out).read_text(encoding="utf-8")
+    doc = json.loads((out / "calibration.json").read_text(encoding="utf-8"))
+    return Certified(folder, rig, model, result, page, doc)
+
+
+class _Tables(HTMLParser):
+    """Every table of a page by caption: rows of cell texts (a cell's lines joined by \\n)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.tables: dict[str, list[list[str]]] = {}
+        self._rows: list[list[str]] | None = None
+        self._text: list[str] | None = None
+        self._caption = ""
+
+    def handle_starttag(self, tag: str, attrs: list) -> None:
+        if tag == "table":
+            self._rows, self._caption = [], ""
+        elif tag == "tr" and self._rows is not None:
+            self._rows.append([])
+        elif tag in ("td", "th", "caption"):
+            self._text = []
+        elif tag == "span" and self._text:
+            self._text.append("\n")
+
+    def handle_endtag(self, tag: str) -> None:
+        if tag in ("td", "th") and self._rows is not None and self._text is not None:
+            self._rows[-1].append("".join(self._text).strip())
+            self._text = None
+        elif tag == "caption" and self._text is not None:
+            self._caption, self._text = "".join(self._text).strip(), None
+        elif tag == "table" and self._rows is not None:
+            self.tables[self._caption] = self._rows
+            self._rows = None
+
+    def handle_data(self, data: str) -> None:
+        if self._text is not None:
+            self._text.append(data)
+
+
+def _tables(page: str) -> dict[str, list[list[str]]]:
+    parser = _Tables()
+    parser.feed(page)
+    return parser.tables
+
+
+def _table(page: str, caption: str) -> list[list[str]]:
+    """The table whose caption starts with ``caption``: header row first."""
+    found = [rows for cap, rows in _tables(page).items() if cap.startswith(caption)]
+    assert len(found) == 1, f"one table '{caption}...' expected, found {len(found)}"
+    return found[0]
+
+
+def _by_first(rows: list[list[str]]) -> dict[str, list[str]]:
+    return {row[0]: row for row in rows[1:]}
+
+
+def _numbers(cells: list[str]) -> list[float]:
+    return [float(c) for c in cells]
+
+
+def _two_digits(values: list[float]) -> list[float]:
+    """What an uncertainty shows: two significant digits."""
+    return [float(f"{v:.2g}") for v in values]
+
+
+# --------------------------------------------------------------------------------------------
+# the law and its uncertainties
+
+
+def test_parameters_state_u_and_u_expanded_with_k2(certified):
+    doc = certified.doc
+    rows = _table(certified.page, "Calibrated parameters")
+    header, params = rows[0], _by_first(rows)
+    assert doc["uncertainty"]["coverage_factor"] == 2
+    assert "expanded uncertainty U (k = 2)" in header
+    u_col, big_u_col = header.index("standard uncertainty u"), header.index(
+        "expanded uncertainty U (k = 2)")
+    assert set(doc["param_names"]) <= set(params)
+    for name in doc["param_names"]:
+        row = params[name]
+        u = doc["stderr"][name]
+        assert float(row[1]) == pytest.approx(doc["params"][name], abs=VALUE_ROUNDING * u)
+        assert float(row[u_col]) == float(f"{u:.2g}")
+        assert float(row[big_u_col]) == float(f"{2 * u:.2g}")
+        assert float(row[big_u_col]) == pytest.approx(2 * float(row[u_col]), rel=0.06)
+    kt = params["K_total = 2 K"]
+    assert float(kt[u_col]) == float(f"{doc['k_total']['stderr']:.2g}")
+    assert float(kt[big_u_col]) == float(f"{doc['k_total']['expanded']:.2g}")
+    assert "coverage factor k = 2" in certified.page
+    assert "f = K i² / (s + s_fe)²" in certified.page
+
+
+def test_correlation_matrix_is_the_calibrations(certified):
+    rows = _table(certified.page, "Correlation matrix")
+    names = certified.doc["uncertainty"]["param_names"]
+    corr = np.array(certified.doc["uncertainty"]["correlation"])
+    assert rows[0][1:] == names
+    assert 0 < abs(corr[0, 1]) < 1
+    for i, row in enumerate(rows[1:]):
+        assert row[0] == names[i]
+        np.testing.assert_allclose([float(c) for c in row[1:]], corr[i], atol=CORRELATION_ATOL)
+
+
+def test_calibrated_range_is_the_campaigns_min_and_max(certified):
+    runs = certified.doc["runs"]
+    rows = _by_first(_table(certified.page, "Calibrated range"))
+    expected = {
+        "coil current i": (min(r["current_range"][0] for r in runs),
+                           max(r["current_range"][1] for r in runs)),
+        "static air gap (every pole)": (min(min(r["static_gap"]) for r in runs),
+                                        max(max(r["static_gap"]) for r in runs)),
+        "instantaneous air gap s": (min(r["gap_range"][0] for r in runs),
+                                    max(r["gap_range"][1] for r in runs)),
+        "drive frequency (refined, every run)": (min(r["f0_hz"] for r in runs),
+                                                 max(r["f0_hz"] for r in runs)),
+        "total actuator force": (min(r["force_range"][0] for r in runs),
+                                 max(r["force_range"][1] for r in runs)),
+    }
+    assert expected["static air gap (every pole)"] == pytest.approx((min(GAPS), max(GAPS)))
+    for label, (lo, hi) in expected.items():
+        tol = {"abs": FREQUENCY_ATOL} if "frequency" in label else {"rel": RANGE_RTOL}
+        assert float(rows[label][1]) == pytest.approx(lo, **tol), label
+        assert float(rows[label][2]) == pytest.approx(hi, **tol), label
+    assert tuple(certified.doc["current_range"]) == pytest.approx(
+        expected["coil current i"], rel=RANGE_RTOL)
+
+
+def test_budget_rows_are_the_sources_of_calibration_json(certified):
+    unc = certified.doc["uncertainty"]
+    names = unc["param_names"]
+    rows = _table(certified.page, "Uncertainty budget")
+    body = _by_first(rows)
+    cols = [rows[0].index(next(h for h in rows[0] if h.startswith(f"u({n})"))) for n in names]
+    assert len(unc["budget"]) >= 6
+    assert {k["kind"] for k in unc["budget"].values()} == {"statistical", "type B"}
+    for source, entry in unc["budget"].items():
+        row = body[source]
+        assert row[1].startswith(entry["kind"]), source
+        assert _numbers([row[c] for c in cols]) == _two_digits([entry[n] for n in names]), source
+    for label, part in (("statistical, combined", unc["statistical"]["stderr"]),
+                        ("type B, combined", unc["type_b"]["stderr"]),
+                        ("combined standard uncertainty u", unc["stderr"]),
+                        ("expanded uncertainty U = k u (k = 2)", unc["expanded"])):
+        assert _numbers([body[label][c] for c in cols]) == _two_digits([part[n] for n in names])
+
+
+def test_budget_says_which_type_b_inputs_are_defaults(certified):
+    body = _by_first(_table(certified.page, "Uncertainty budget"))
+    assert body["current scale"][2:4] == ["0.2 % (relative)", "declared by the rig"]
+    assert body["static gaps"][2:4] == ["5 µm", "declared by the rig"]
+    assert body["gauge sensitivity"][2:4] == ["0.5 % (relative)", "documented default"]
+    assert body["masses"][3] == "documented default"
+    assert ("declares current_scale, gap; forcecal's documented defaults are used for "
+            "gauge_scale, probe_scale, position, mass.") in html.unescape(certified.page)
+
+
+def test_budget_without_an_uncertainty_table_says_every_input_is_a_default(certified, tmp_path):
+    rig = _rig_file(tmp_path / "rig.toml", certified.rig)
+    assert not rig.type_b.declared
+    unc = dataclasses.replace(certified.result.uncertainty, type_b_used=rig.type_b)
+    page = calibration_certificate(rig, dataclasses.replace(certified.result, uncertainty=unc),
+                                   provenance([]))
+    body = _by_first(_table(page, "Uncertainty budget"))
+    origins = {body[s][3] for s in ("current scale", "static gaps", "gauge sensitivity",
+                                    "probe sensitivity", "positions", "masses")}
+    assert origins == {"documented default"}
+    assert "every type-B input above is forcecal's documented default" in html.unescape(page)
+
+
+# --------------------------------------------------------------------------------------------
+# the rest of the page
+
+
+def test_candidate_laws_are_a_table_and_nothing_is_preformatted(certified):
+    page = certified.page
+    assert "<pre" not in page
+    rows = _table(page, "Candidate laws fitted to the reconstructed force")
+    laws = {row["law"] for row in certified.doc["candidates"] if "skipped" not in row}
+    assert {row[0] for row in rows[1:]} == laws
+    chosen = [row[0] for row in rows[1:] if row[-1] == "chosen"]
+    assert chosen == [certified.doc["chosen"]["law"]]
+    assert _table(page, "Reactions only (inertia ignored)")[1][2] == (
+        certified.doc["reactions_only"]["chosen"])
+    assert _table(page, "Repeated setpoints")[1][1].split("\n") == ["g1000", "g1000_r2"]
+    assert not re.search(r'(src|href)="(?!data:)', page)  # self-contained
+    assert page.count('src="data:image/png;base64,') == 1  # fig. 9
+
+
+def test_provenance_gives_the_sha256_of_every_input(certified):
+    inputs = _by_first(_table(certified.page, "Input files"))
+    files = [certified.folder / "rig.toml", certified.folder / "manifest.csv",
+             *sorted((certified.folder / "runs").glob("*.csv"))]
+    assert len(files) == 2 + 1 + len(GAPS) + 1  # the tare and the repeat too
+    digests = {row[2] for row in inputs.values()}
+    for f in files:
+        assert hashlib.sha256(f.read_bytes()).hexdigest() in digests, f.name
+    own = hashlib.sha256((certified.folder / "out" / "calibration.json").read_bytes())
+    assert own.hexdigest() in certified.page
+    assert "Command" in certified.page and "forcecal" in certified.page
+
+
+def test_a_hostile_run_name_and_label_are_escaped(certified):
+    result = certified.result
+    first = result.runs[0]
+    hostile = dataclasses.replace(
+        first, estimate=dataclasses.replace(first.estimate, run_name=HOSTILE),
+        entry=dataclasses.replace(first.entry, labels={"operator": HOSTILE}))
+    page = calibration_certificate(
+        certified.rig, dataclasses.replace(result, runs=(hostile, *result.runs[1:])),
+        provenance([]))
+    assert "<script>" not in page
+    assert "&lt;script&gt;alert(&#39;x&#39;)&lt;/script&gt;&amp;&#34;r&#34;" in page
+    runs = _by_first(_table(page, "The campaign's runs"))
+    assert HOSTILE in runs
+    assert runs[HOSTILE][-1] == f"operator = {HOSTILE}"
+
+
+def test_temperature_is_stated_when_the_rig_gives_it(certified, tmp_path):
+    warm = _rig_file(tmp_path / "warm.toml", certified.rig, acquisition={"temperature": 23.4},
+                     uncertainty=DECLARED)
+    assert warm.temperature == 23.4
+    page = calibration_certificate(warm, certified.result, provenance([]))
+    conditions = _by_first([[], *_table(page, "Conditions of the measurements")])
+    assert conditions["ambient temperature"][1].startswith("23.4 °C")
+    assert conditions["nominal drive frequency"][1].startswith(f"{certified.rig.frequency:g} Hz")
+    assert certified.rig.temperature is None
+    plain = _by_first([[], *_table(certified.page, "Conditions of the measurements")])
+    assert "ambient temperature" not in plain
+    assert "°C" not in certified.page
+
+
+def test_rig_temperature_is_read_checked_and_written_back(certified, tmp_path):
+    warm = _rig_file(tmp_path / "warm.toml", certified.rig, acquisition={"temperature": -5})
+    assert warm.temperature == -5.0
+    assert rig_to_dict(warm)["acquisition"]["temperature"] == -5.0
+    assert "temperature" not in rig_to_dict(certified.rig)["acquisition"]
+    with pytest.raises(RigError, match=r"key 'acquisition.temperature' = 296.15 °C .*kelvin"):
+        _rig_file(tmp_path / "kelvin.toml", certified.rig, acquisition={"temperature": 296.15})
+    with pytest.raises(RigError, match=r"acquisition\.temperature' must be a number"):
+        _rig_file(tmp_path / "text.toml", certified.rig, acquisition={"temperature": "warm"})
