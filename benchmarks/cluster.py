@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from forcecal.cli import _calibrate_job
 from forcecal.cluster import _client, run_jobs
 from forcecal.io.manifest import write_manifest
 from forcecal.io.run_files import write_run_csv
+from forcecal.jobs import calibrate_job as _calibrate_job
 from forcecal.simulate.magnet import Drive
 from forcecal.simulate.presets import RunSpec, get_preset
 from forcecal.simulate.virtual_rig import (

@@ -22,6 +22,7 @@ from .cli_parser import PROG, build_parser
 from .cli_parser import ArgumentError as _ArgumentError
 from .cluster import run_jobs
 from .errors import DataError, ForcecalError, InputError
+from .jobs import calibrate_job, campaign_folders, reconstruct_job
 
 __all__ = ["main"]
 
@@ -244,7 +245,7 @@ def _cmd_reconstruct(args) -> int:
     model = _model_for(args, rig)
     runs = _read_runs(args.runs, rig)
     tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
-    estimates = run_jobs(_reconstruct_job,
+    estimates = run_jobs(reconstruct_job,
                          [(rig, model, run, tare, args.ac_coupled, args.monte_carlo)
                           for run in runs],
                          names=[run.name for run in runs], workers=_workers(args, len(runs)),
@@ -266,16 +267,6 @@ def _cmd_reconstruct(args) -> int:
     for line in lines:
         _print(line)
     return 0
-
-
-def _reconstruct_job(job):
-    """One run's estimate (a job of :func:`forcecal.cluster.run_jobs`): ``job`` is ``(rig,
-    model, run, tare, ac_coupled, monte_carlo draws)``."""
-    from .forces import reconstruct
-
-    rig, model, run, tare, ac_coupled, n_draws = job
-    est = reconstruct(rig, model, run, tare=tare, ac_coupled=ac_coupled)
-    return _with_monte_carlo(rig, model, run, est, tare, n_draws) if n_draws else est
 
 
 def _workers(args, n_jobs: int) -> int:
@@ -311,18 +302,7 @@ def _largest(est) -> str:
     return max(est.budget, key=lambda src: float(np.sum(est.budget[src][k, 1:] ** 2)))
 
 
-def _with_monte_carlo(rig, model, run, est, tare, n_draws: int):
-    """The estimate with the standard deviations of a Monte Carlo of its inputs (GUM S1)."""
-    import dataclasses
 
-    import numpy as np
-
-    from .budget import draw_std, monte_carlo
-    from .forces import solve_inputs
-
-    rng = np.random.default_rng(20260101)
-    draws = monte_carlo(rig, model, solve_inputs(rig, model, run, est, tare), n_draws, rng)
-    return dataclasses.replace(est, monte_carlo_std=draw_std(draws), monte_carlo_draws=n_draws)
 
 
 def _cmd_calibrate(args) -> int:
@@ -338,8 +318,8 @@ def _cmd_calibrate(args) -> int:
                                     workers=None if args.workers is None else args.workers)
         results, folders = [result], [Path(args.output)]
     else:
-        folders = _campaign_folders(args.output, manifests)
-        results = run_jobs(_calibrate_job, [(rig, model, m, args.ac_coupled) for m in manifests],
+        folders = campaign_folders(args.output, manifests)
+        results = run_jobs(calibrate_job, [(rig, model, m, args.ac_coupled) for m in manifests],
                            names=[f.name for f in folders],
                            workers=_workers(args, len(manifests)),
                            scheduler=args.scheduler, progress=_progress)
@@ -355,29 +335,6 @@ def _cmd_calibrate(args) -> int:
                 calibration_report(rig, model, result, where, provenance=origin)
             _print(folder / path.name)
     return 0
-
-
-def _campaign_folders(output: str, manifests: list[str]) -> list[Path]:
-    """OUT/NAME for each of several manifests, NAME the manifest's file name without suffix;
-    two manifests of one NAME are refused (their outputs would overwrite each other)."""
-    seen: dict[str, str] = {}
-    for m in manifests:
-        name = Path(m).stem
-        if name in seen:
-            raise InputError(f"manifest '{m}': its calibration would be written to "
-                             f"{Path(output) / name} like that of manifest '{seen[name]}'; "
-                             "rename one of them")
-        seen[name] = m
-    return [Path(output) / Path(m).stem for m in manifests]
-
-
-def _calibrate_job(job):
-    """One campaign's calibration (a job of :func:`forcecal.cluster.run_jobs`): ``job`` is
-    ``(rig, model, manifest, ac_only)``; its runs are reconstructed serially."""
-    from .campaign import calibrate_campaign
-
-    rig, model, manifest, ac_only = job
-    return calibrate_campaign(rig, model, manifest, workers=1, ac_only=ac_only)
 
 
 def _cmd_predict(args) -> int:

@@ -24,11 +24,9 @@ to the digit of their standard uncertainty's second; ranges with six significant
 
 from __future__ import annotations
 
-import math
 import re
 import tomllib
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -38,6 +36,7 @@ from ..actuator import Candidate, Law, Selection
 from ..campaign.statistics import COVERAGE_FACTOR, METHOD, TYPE_B_SOURCES
 from ..rig import Rig, TypeB
 from ._templates import render
+from .cells import NONE, Grid, math_text, num, pct, rel, unc, value
 
 if TYPE_CHECKING:
     from ..campaign import CampaignResult
@@ -67,7 +66,6 @@ _SYMBOL_MEANING = {
 }
 """The variables of the laws' formulas, in words."""
 
-_MATH = (("mu0", "μ₀"), ("phi", "φ"), ("^2", "²"), ("^a", "ᵃ"), ("^b", "ᵇ"), (" * ", " · "))
 """Plain-text formula -> math text."""
 
 _TYPE_B_INPUT = {
@@ -79,86 +77,6 @@ _TYPE_B_INPUT = {
     "masses": ("mass", "relative"),
 }
 """The rig's ``[uncertainty]`` key behind each type-B source of the budget, and its kind."""
-
-_NONE = "—"
-
-
-@dataclass(frozen=True)
-class Grid:
-    """A table of the certificate, formatted.
-
-    Attributes
-    ----------
-    caption : str
-        Its title.
-    header : tuple of str
-        The column names.
-    rows : tuple of tuple
-        Cells: a str, or a tuple of str shown as lines of one cell.
-    marks : tuple of str
-        A CSS class per row (``""`` for none; ``chosen``, ``subtotal``, ``total``).
-    """
-
-    caption: str
-    header: tuple[str, ...]
-    rows: tuple[tuple[str | tuple[str, ...], ...], ...]
-    marks: tuple[str, ...] = ()
-
-    def mark(self, k: int) -> str:
-        """The CSS class of row ``k``."""
-        return self.marks[k] if k < len(self.marks) else ""
-
-
-# --------------------------------------------------------------------------------------------
-# numbers
-
-
-def _unc(u: float) -> str:
-    """An uncertainty: two significant digits."""
-    if not math.isfinite(u):
-        return "n/a"
-    if u == 0:
-        return "0"
-    text = f"{u:#.2g}"                          # keeps a trailing zero: 1.0e-05
-    return text.replace(".e", "e").rstrip(".")
-
-
-def _value(x: float, u: float) -> str:
-    """A value to the digit of its uncertainty's second significant one (GUM 7.2.6)."""
-    if not math.isfinite(x):
-        return "n/a"
-    if x == 0 or not (math.isfinite(u) and u > 0):
-        return f"{x:.6g}"
-    digits = math.floor(math.log10(abs(x))) - math.floor(math.log10(u)) + 2
-    text = f"{x:#.{min(max(digits, 2), 12)}g}"    # keeps trailing zeros: 5.0e-05
-    return text.replace(".e", "e").rstrip(".")
-
-
-def _num(x: float | None, digits: int = 6) -> str:
-    """A number with ``digits`` significant digits; a dash for None or not finite."""
-    if x is None or not math.isfinite(x):
-        return _NONE
-    return f"{x:.{digits}g}"
-
-
-def _pct(x: float | None, decimals: int = 3, sign: bool = False) -> str:
-    """A fraction as a percentage."""
-    if x is None or not math.isfinite(x):
-        return _NONE
-    return f"{100 * x:{'+' if sign else ''}.{decimals}f} %"
-
-
-def _rel(x: float) -> str:
-    """A relative uncertainty as a percentage, two significant digits."""
-    return f"{100 * x:.2g} %" if math.isfinite(x) else _NONE
-
-
-def _math(text: str) -> str:
-    """A plain-text formula or unit as math text: ``K i^2 / s^2`` -> ``K i² / s²``."""
-    for plain, pretty in _MATH:
-        text = text.replace(plain, pretty)
-    return text
-
 
 # --------------------------------------------------------------------------------------------
 # the law and its parameters
@@ -173,9 +91,9 @@ def _law(result: CampaignResult) -> dict[str, Any]:
     return {
         "name": law.name,
         "formula": law.formula,
-        "math": _math(law.formula),
-        "symbols": [(_math(s), _SYMBOL_MEANING[s]) for s in symbols],
-        "parameters": [(n, _PARAMETER_MEANING.get(n, n), _math(u))
+        "math": math_text(law.formula),
+        "symbols": [(math_text(s), _SYMBOL_MEANING[s]) for s in symbols],
+        "parameters": [(n, _PARAMETER_MEANING.get(n, n), math_text(u))
                        for n, u in zip(law.param_names, law.param_units, strict=True)],
         "n_poles": result.n_poles,
         "ac_only": result.ac_only,
@@ -186,12 +104,12 @@ def _law(result: CampaignResult) -> dict[str, Any]:
 def _std_parts(result: CampaignResult) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
     """Combined, statistical and type-B standard uncertainties of the parameters (the parts
     None without a budget)."""
-    unc = result.uncertainty
-    if unc is None:
+    pu = result.uncertainty
+    if pu is None:
         return result.calibration.stderr, None, None
-    stat = np.sqrt(np.maximum(np.diag(unc.statistical), 0.0))
-    tb = np.sqrt(np.maximum(np.diag(unc.type_b), 0.0))
-    return unc.stderr, stat, tb
+    stat = np.sqrt(np.maximum(np.diag(pu.statistical), 0.0))
+    tb = np.sqrt(np.maximum(np.diag(pu.type_b), 0.0))
+    return pu.stderr, stat, tb
 
 
 def coverage_factor(result: CampaignResult) -> float:
@@ -216,19 +134,19 @@ def _parameters(result: CampaignResult) -> Grid:
     rows: list[tuple[str | tuple[str, ...], ...]] = []
     for j, (name, unit) in enumerate(zip(law.param_names, law.param_units, strict=True)):
         x = float(result.calibration.params[j])
-        rows.append((name, _value(x, u[j]), _math(unit), _unc(u[j]),
-                     _NONE if stat is None else _unc(stat[j]),
-                     _NONE if tb is None else _unc(tb[j]), _unc(k * u[j]),
-                     _rel(k * u[j] / abs(x)) if x else _NONE))
+        rows.append((name, value(x, u[j]), math_text(unit), unc(u[j]),
+                     NONE if stat is None else unc(stat[j]),
+                     NONE if tb is None else unc(tb[j]), unc(k * u[j]),
+                     rel(k * u[j] / abs(x)) if x else NONE))
     marks = [""] * len(rows)
     if result.k_total is not None and result.k_total_std is not None:
         kt, ukt = result.k_total, result.k_total_std
         j = law.param_names.index("K")
         n = result.n_poles
-        rows.append((f"K_total = {n} K", _value(kt, ukt), "N m²/A²", _unc(ukt),
-                     _NONE if stat is None else _unc(n * stat[j]),
-                     _NONE if tb is None else _unc(n * tb[j]), _unc(k * ukt),
-                     _rel(k * ukt / abs(kt)) if kt else _NONE))
+        rows.append((f"K_total = {n} K", value(kt, ukt), "N m²/A²", unc(ukt),
+                     NONE if stat is None else unc(n * stat[j]),
+                     NONE if tb is None else unc(n * tb[j]), unc(k * ukt),
+                     rel(k * ukt / abs(kt)) if kt else NONE))
         marks.append("subtotal")
     return Grid(
         caption="Calibrated parameters",
@@ -305,7 +223,7 @@ _RANGE_ROWS = (
 def _range(result: CampaignResult) -> Grid:
     """:func:`calibrated_range` as a table."""
     ranges = calibrated_range(result)
-    rows = tuple((label, _num(ranges[key][0], digits), _num(ranges[key][1], digits), unit)
+    rows = tuple((label, num(ranges[key][0], digits), num(ranges[key][1], digits), unit)
                  for key, label, unit, digits in _RANGE_ROWS if key in ranges)
     return Grid(caption="Calibrated range (minimum and maximum over the campaign's runs)",
                 header=("quantity", "minimum", "maximum", "unit"), rows=rows)
@@ -371,10 +289,10 @@ def declared_type_b(rig: Rig, used: TypeB) -> frozenset[str]:
     return frozenset(TypeB.KEYS)
 
 
-def _type_b_input(key: str, kind: str, used: TypeB) -> str:
+def _type_b_input(key: str, measure: str, used: TypeB) -> str:
     """A type-B input standard uncertainty, in its unit."""
     v = float(getattr(used, key))
-    if kind == "relative":
+    if measure == "relative":
         return f"{100 * v:.3g} % (relative)"
     return f"{v * 1e6:.3g} µm" if key == "gap" else f"{v * 1e3:.3g} mm"
 
@@ -382,39 +300,39 @@ def _type_b_input(key: str, kind: str, used: TypeB) -> str:
 def _budget(rig: Rig, result: CampaignResult) -> tuple[Grid | None, str]:
     """Every source's standard uncertainty of each parameter, the totals, and the sentence on
     the type-B inputs' origin."""
-    unc = result.uncertainty
-    if unc is None:
+    pu = result.uncertainty
+    if pu is None:
         return None, ("No uncertainty budget: the standard uncertainties are those of the fit's "
                       "residuals.")
     law = result.calibration.law_object
-    used = unc.type_b_used
+    used = pu.type_b_used
     declared = declared_type_b(rig, used)
     zero = ("0",) * len(law.param_names)
     rows: list[tuple[str | tuple[str, ...], ...]] = []
-    for source, std in unc.budget.items():
-        if unc.kinds.get(source) == "statistical":
-            rows.append((source, "statistical (type A)", "this campaign's records", _NONE,
-                         *(_unc(v) for v in std)))
+    for source, std in pu.budget.items():
+        if pu.kinds.get(source) == "statistical":
+            rows.append((source, "statistical (type A)", "this campaign's records", NONE,
+                         *(unc(v) for v in std)))
     for source in TYPE_B_SOURCES:
         key, kind = _TYPE_B_INPUT.get(source, ("", ""))
-        given = _type_b_input(key, kind, used) if key else _NONE
-        origin = (_NONE if not key else "declared by the rig" if key in declared
+        given = _type_b_input(key, kind, used) if key else NONE
+        origin = (NONE if not key else "declared by the rig" if key in declared
                   else "documented default")
-        cells = (tuple(_unc(v) for v in unc.budget[source]) if source in unc.budget
-                 else zero if key and getattr(used, key) == 0 else (_NONE,) * len(zero))
+        cells = (tuple(unc(v) for v in pu.budget[source]) if source in pu.budget
+                 else zero if key and getattr(used, key) == 0 else (NONE,) * len(zero))
         rows.append((source, "type B", given, origin, *cells))
     u, stat, tb = _std_parts(result)
     assert stat is not None and tb is not None  # with a budget
-    k = unc.coverage_factor
+    k = pu.coverage_factor
     totals = (("statistical, combined", stat, "subtotal"), ("type B, combined", tb, ""),
               ("combined standard uncertainty u", u, "total"),
               (f"expanded uncertainty U = k u (k = {k:g})", k * u, "total"))
     marks = [""] * len(rows)
     for label, values, mark in totals:
-        rows.append((label, "", "", "", *(_unc(v) for v in values)))
+        rows.append((label, "", "", "", *(unc(v) for v in values)))
         marks.append(mark)
     header = ("source", "evaluation", "input standard uncertainty", "origin",
-              *(f"u({n}) [{_math(unit)}]" for n, unit in zip(law.param_names, law.param_units,
+              *(f"u({n}) [{math_text(unit)}]" for n, unit in zip(law.param_names, law.param_units,
                                                              strict=True)))
     grid = Grid(caption="Uncertainty budget: each source's standard uncertainty of each "
                         "parameter", header=header, rows=tuple(rows), marks=tuple(marks))
@@ -437,15 +355,15 @@ def _origin_sentence(used: TypeB, declared: frozenset[str]) -> str:
 
 def _cross_check(result: CampaignResult) -> Grid | None:
     """The combined u beside the fit's residual one and the run-clustered scatter."""
-    unc = result.uncertainty
-    if unc is None:
+    pu = result.uncertainty
+    if pu is None:
         return None
     names = result.calibration.law_object.param_names
-    res = np.sqrt(np.maximum(np.diag(unc.residual), 0.0))
-    scatter = (None if unc.run_scatter is None
-               else np.sqrt(np.maximum(np.diag(unc.run_scatter), 0.0)))
-    rows = tuple((n, _unc(unc.stderr[j]), _unc(res[j]),
-                  _NONE if scatter is None else _unc(scatter[j])) for j, n in enumerate(names))
+    res = np.sqrt(np.maximum(np.diag(pu.residual), 0.0))
+    scatter = (None if pu.run_scatter is None
+               else np.sqrt(np.maximum(np.diag(pu.run_scatter), 0.0)))
+    rows = tuple((n, unc(pu.stderr[j]), unc(res[j]),
+                  NONE if scatter is None else unc(scatter[j])) for j, n in enumerate(names))
     return Grid(caption="Cross-check of the standard uncertainties",
                 header=("parameter", "u (this budget)", "fit residuals (samples independent)",
                         "scatter between runs"), rows=rows)
@@ -456,8 +374,8 @@ def _cross_check(result: CampaignResult) -> Grid | None:
 
 
 def _param_lines(law: Law, params: np.ndarray, std: np.ndarray) -> tuple[str, ...]:
-    return tuple(f"{n} = {_value(float(v), float(e))} ± {_unc(float(e))}"
-                 + ("" if unit == "-" else f" {_math(unit)}")
+    return tuple(f"{n} = {value(float(v), float(e))} ± {unc(float(e))}"
+                 + ("" if unit == "-" else f" {math_text(unit)}")
                  for n, v, e, unit in zip(law.param_names, params, std, law.param_units,
                                           strict=True))
 
@@ -466,8 +384,8 @@ def _candidates(selection: Selection, caption: str) -> tuple[Grid, list[tuple[st
     """Every candidate law with its scores, the chosen one marked; the laws skipped."""
     def row(c: Candidate) -> tuple[str | tuple[str, ...], ...]:
         fit = c.fit
-        return (c.name, _math(fit.law.formula), _param_lines(fit.law, fit.params, fit.stderr),
-                str(c.n_params), _pct(fit.rms_residual, 4), _pct(c.held_out.rms, 4),
+        return (c.name, math_text(fit.law.formula), _param_lines(fit.law, fit.params, fit.stderr),
+                str(c.n_params), pct(fit.rms_residual, 4), pct(c.held_out.rms, 4),
                 f"{fit.aic:.1f}", f"{fit.bic:.1f}",
                 "chosen" if c.name == selection.chosen else "")
 
@@ -490,14 +408,14 @@ def _reactions(result: CampaignResult) -> dict[str, Any]:
         ("law chosen", result.law, ro.selection.chosen, ""),
     ]
     if result.k_total is not None:
-        rows.append(("K_total [N m²/A²]", _num(result.k_total), _num(ro.k_total),
-                     _pct(ro.k_total_error, 2, sign=True)))
+        rows.append(("K_total [N m²/A²]", num(result.k_total), num(ro.k_total),
+                     pct(ro.k_total_error, 2, sign=True)))
     if result.s_fe is not None:
         diff = None if ro.s_fe is None else ro.s_fe - result.s_fe
-        rows.append(("s_fe [m]", _num(result.s_fe), _num(ro.s_fe),
-                     _NONE if diff is None else f"{diff:+.3g} m"))
+        rows.append(("s_fe [m]", num(result.s_fe), num(ro.s_fe),
+                     NONE if diff is None else f"{diff:+.3g} m"))
     rows.append(("force predicted with the chosen law: RMS relative difference", "", "",
-                 _pct(ro.force_error, 2)))
+                 pct(ro.force_error, 2)))
     summary = Grid(caption="Reactions only (inertia ignored) against this calibration",
                    header=("", "this calibration", "reactions only", "difference"),
                    rows=tuple(rows))
@@ -522,13 +440,13 @@ def _repeatability(result: CampaignResult) -> tuple[Grid | None, Grid | None]:
     pooled = Grid(caption=f"Repeatability, pooled over {len(rep.groups)} repeated setpoint(s): "
                           "relative standard deviation",
                   header=("quantity", "relative standard deviation"),
-                  rows=(("K_total refitted to each run", _pct(rep.k_total_rel_std)),
-                        ("mean force", _pct(rep.mean_force_rel_std)),
-                        ("amplitude of the fundamental", _pct(rep.amplitude_rel_std))))
+                  rows=(("K_total refitted to each run", pct(rep.k_total_rel_std)),
+                        ("mean force", pct(rep.mean_force_rel_std)),
+                        ("amplitude of the fundamental", pct(rep.amplitude_rel_std))))
     groups = Grid(caption="Repeated setpoints",
                   header=("setpoint", "runs", "K_total", "mean force", "amplitude"),
-                  rows=tuple((_setpoint(g), tuple(g["runs"]), _pct(g.get("k_total_rel_std")),
-                              _pct(g.get("mean_force_rel_std")), _pct(g.get("amplitude_rel_std")))
+                  rows=tuple((_setpoint(g), tuple(g["runs"]), pct(g.get("k_total_rel_std")),
+                              pct(g.get("mean_force_rel_std")), pct(g.get("amplitude_rel_std")))
                              for g in rep.groups))
     return pooled, groups
 
@@ -539,12 +457,12 @@ def _runs(result: CampaignResult) -> Grid:
     for k, r in enumerate(result.runs):
         smp, est = r.samples, r.estimate
         static = np.unique(np.round(smp.motion.static_gap, 12))
-        rows.append((r.name, " / ".join(_num(float(g)) for g in static),
-                     f"{_num(float(smp.current.min()), 4)} to {_num(float(smp.current.max()), 4)}",
-                     _num(est.f0), _num(float(est.total[0].real), 5),
-                     _num(float(abs(est.total[1])), 5) if est.total.size > 1 else _NONE,
-                     _pct(float(result.run_residual[k]), 3),
-                     ", ".join(f"{a} = {b}" for a, b in r.entry.labels.items()) or _NONE))
+        rows.append((r.name, " / ".join(num(float(g)) for g in static),
+                     f"{num(float(smp.current.min()), 4)} to {num(float(smp.current.max()), 4)}",
+                     num(est.f0), num(float(est.total[0].real), 5),
+                     num(float(abs(est.total[1])), 5) if est.total.size > 1 else NONE,
+                     pct(float(result.run_residual[k]), 3),
+                     ", ".join(f"{a} = {b}" for a, b in r.entry.labels.items()) or NONE))
     return Grid(caption="The campaign's runs",
                 header=("run", "static gap [m]", "coil current [A]", "refined f0 [Hz]",
                         "mean force [N]", "fundamental [N]", "RMS residual to the law",
@@ -556,13 +474,13 @@ def _runs(result: CampaignResult) -> Grid:
 
 
 def _provenance(prov: Mapping[str, Any]) -> dict[str, Any]:
-    rows = tuple((str(f["path"]), str(f.get("bytes", _NONE)), str(f.get("sha256", "not a file")))
+    rows = tuple((str(f["path"]), str(f.get("bytes", NONE)), str(f.get("sha256", "not a file")))
                  for f in prov.get("inputs", ()))
     return {
-        "version": str(prov.get("forcecal_version", _NONE)),
-        "created": str(prov.get("created_utc", _NONE)),
-        "command": str(prov.get("command", _NONE)),
-        "python": str(prov.get("python", _NONE)),
+        "version": str(prov.get("forcecal_version", NONE)),
+        "created": str(prov.get("created_utc", NONE)),
+        "command": str(prov.get("command", NONE)),
+        "python": str(prov.get("python", NONE)),
         "inputs": Grid(caption="Input files", header=("input", "bytes", "SHA-256"), rows=rows),
     }
 
@@ -608,7 +526,7 @@ def calibration_certificate(rig: Rig, result: CampaignResult, provenance: Mappin
         "parameters": _parameters(result),
         "coverage": f"{k:g}",
         "ideal_k": None if result.ideal_k is None or result.k_total is None else {
-            "value": _num(result.ideal_k), "ratio": f"{result.k_total / result.ideal_k:.4f}"},
+            "value": num(result.ideal_k), "ratio": f"{result.k_total / result.ideal_k:.4f}"},
         "correlation": _correlation(result),
         "range": _range(result),
         "conditions": _conditions(rig, result, model),
