@@ -173,3 +173,13 @@ def test_calibration_prints_its_law(chain):
         assert f"{name} = {value:.6g} ± {std:.2g}" in text
     html = cal._repr_html_()
     assert html.count("<tr>") == len(cal.params) + 1
+
+
+def test_a_campaign_prints_its_law_not_its_runs(chain):
+    result = chain.result
+    text = repr(result)
+    _check_short(text)                                  # was the whole dataclass, 13,000 lines
+    assert f"'{result.law}'" in text and f"{len(result.runs)} runs" in text
+    for (name, value), std in zip(result.params.items(), result.calibration.stderr, strict=True):
+        assert f"{name} = {value:.6g} ± {std:.2g}" in text
+    assert repr(result) in result._repr_html_() or "&#x27;" in result._repr_html_()

@@ -168,6 +168,20 @@ class CampaignResult:
         """The chosen law's iron-path offset ``s_fe`` [m], when it has one."""
         return self.params.get("s_fe")
 
+    def __repr__(self) -> str:
+        """One line: the law, its parameters with standard uncertainties, the runs."""
+        std = self.calibration.stderr
+        params = ", ".join(f"{n} = {v:.6g} ± {s:.2g}" for (n, v), s
+                           in zip(self.params.items(), std, strict=True))
+        return (f"CampaignResult(law '{self.law}': {params}; {len(self.runs)} runs from "
+                f"'{self.manifest}')")
+
+    def _repr_html_(self) -> str:
+        """The same line for notebooks."""
+        from html import escape
+
+        return f"<p>{escape(repr(self))}</p>"
+
     def to_json(self) -> dict[str, Any]:
         """The calibration file's content.
 
