@@ -96,7 +96,7 @@ def test_every_toml_block_parses_and_every_rig_loads(tmp_path):
 
 
 # --------------------------------------------------------------------------------------------
-# polytec.md: a scan exported in time mode; spectra and FRFs refused
+# polytec.md: a scan exported in time mode or as spectra; FRFs refused
 
 
 def set_function_type(path: Path, func_type: int) -> Path:
@@ -148,11 +148,20 @@ def test_polytec_second_vibration_record_on_a_node_is_refused(tmp_path):
         forcecal.read_scan(psv_scan(tmp_path / "scan.uff", twice=4))
 
 
-@pytest.mark.parametrize("func_type", [12, 4], ids=["spectra", "frf"])
-def test_polytec_spectrum_and_frf_exports_are_refused(tmp_path, func_type):
-    path = psv_scan(tmp_path / "scan_fft.uff", func_type=func_type)
-    with pytest.raises(InputError, match=r"scan '.*scan_fft.uff': none of the 26 dataset-58 "
-                                         r"records is a time record \(function type 1\)"):
+def test_polytec_spectrum_export_is_read_as_spectra(tmp_path):
+    scan = forcecal.read_scan(psv_scan(tmp_path / "scan_fft.uff", func_type=12))
+    assert isinstance(scan, forcecal.ScanSpectra)
+    assert scan.points.shape == (13, 1) and scan.quantity == "velocity"
+    assert scan.amplitude == "peak"                     # no 'RMS' in the records' labels
+
+
+def test_polytec_frf_export_is_refused_saying_why(tmp_path):
+    path = psv_scan(tmp_path / "scan_frf.uff", func_type=4)
+    with pytest.raises(InputError, match=r"scan '.*scan_frf.uff': none of the 26 dataset-58 "
+                                         r"records is a time record \(function type 1\) or a "
+                                         r"spectrum \(function type 12\); found 26 frequency "
+                                         r"response functions .* relative to the drive's "
+                                         r"fundamental, which the method needs, are lost"):
         forcecal.read_scan(path)
 
 

@@ -26,7 +26,7 @@ from .errors import (
     InputError,
     RigError,
 )
-from .records import Run, Scan
+from .records import Run, Scan, ScanSpectra
 from .rig import Rig, load_rig
 
 if TYPE_CHECKING:
@@ -55,6 +55,7 @@ __all__ = [
     "RigError",
     "Run",
     "Scan",
+    "ScanSpectra",
     "__version__",
     "build_spatial_model",
     "calibrate",

@@ -28,7 +28,7 @@ from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
 from .forces import reconstruct
 from .io.run_files import read_run
 from .io.scan_files import read_scan as _read_scan
-from .records import Scan
+from .records import Scan, ScanSpectra
 from .rig import Rig, load_rig
 from .spatial import SpatialModel, build_spatial_model, load_model
 
@@ -45,7 +45,8 @@ __all__ = [
 ]
 
 
-def read_scan(path: str | Path, rig: Rig | None = None, reference_label: str = "Ref") -> Scan:
+def read_scan(path: str | Path, rig: Rig | None = None,
+              reference_label: str = "Ref") -> Scan | ScanSpectra:
     """Read an SLDV scan, choosing the reader from the file suffix.
 
     Parameters
@@ -61,8 +62,9 @@ def read_scan(path: str | Path, rig: Rig | None = None, reference_label: str = "
 
     Returns
     -------
-    Scan
-        The records in SI units, ``source`` = ``str(path)``.
+    Scan or ScanSpectra
+        The records in SI units, ``source`` = ``str(path)``: time records per point, or (a
+        Universal File of spectra, function type 12) complex spectra per point.
 
     Raises
     ------

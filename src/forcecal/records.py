@@ -1,6 +1,7 @@
-"""Containers for recorded data: an SLDV scan and a run recording.
+"""Containers for recorded data: an SLDV scan (time records, or the spectra of a frequency-domain
+export) and a run recording.
 
-Both hold SI values (conversion happens once, in :mod:`forcecal.io`), time on the last axis.
+All hold SI values (conversion happens once, in :mod:`forcecal.io`), time on the last axis.
 """
 
 from __future__ import annotations
@@ -12,7 +13,11 @@ import numpy as np
 
 from .errors import DataError, DimensionError
 
-__all__ = ["Run", "Scan"]
+__all__ = ["Run", "Scan", "ScanSpectra"]
+
+SPECTRUM_AMPLITUDES = ("peak", "rms")
+"""What a spectrum line holds for a sinusoid A cos(2 pi f t + phi) on it: A exp(j phi) (peak) or
+(A / sqrt 2) exp(j phi) (rms)."""
 
 
 @dataclass(frozen=True)
@@ -77,6 +82,94 @@ class Scan:
     def n_samples(self) -> int:
         """Number of samples per record."""
         return self.response.shape[1]
+
+
+@dataclass(frozen=True)
+class ScanSpectra:
+    """A sequential SLDV scan exported as spectra: per point the complex spectrum of the response
+    and of the reference, both from one acquisition.
+
+    The lines are one-sided and follow the forward transform exp(-j 2 pi f t) of the usual FFT:
+    a sinusoid A cos(2 pi f t + phi) lying on the line at f gives that line the value
+    A exp(j phi) when ``amplitude`` is "peak", (A / sqrt 2) exp(j phi) when it is "rms", with
+    the phase phi referred to the record's first sample. The values are kept in the file's
+    convention; :mod:`forcecal.scan_spectra` applies it.
+
+    Attributes
+    ----------
+    points : (n_points, n_dim) array [m]
+        Coordinates of the scan points, as for :class:`Scan`.
+    frequencies : (n_lines,) array [Hz]
+        The spectral lines, evenly spaced and increasing, at least 0 Hz.
+    response : (n_points, n_lines) complex array [m/s] or [m]
+        The spectrum of each vibration record, velocity or displacement as ``quantity`` says.
+    reference : (n_points, n_lines) complex array [A]
+        The spectrum of the coil current acquired with each response.
+    quantity : {"velocity", "displacement"}
+        What the response spectra hold.
+    amplitude : {"peak", "rms"}
+        The spectra's amplitude convention (see above).
+    source : str
+        Where the scan was read from, for messages.
+    """
+
+    points: np.ndarray
+    frequencies: np.ndarray
+    response: np.ndarray
+    reference: np.ndarray
+    quantity: str = "velocity"
+    amplitude: str = "peak"
+    source: str = "<scan>"
+
+    def __post_init__(self) -> None:
+        where = f"scan '{self.source}'"
+        pts = np.asarray(self.points, dtype=float)
+        if pts.ndim == 1:
+            pts = pts[:, None]
+        object.__setattr__(self, "points", pts)
+        freq = np.asarray(self.frequencies, dtype=float)
+        resp = np.atleast_2d(np.asarray(self.response, dtype=complex))
+        ref = np.atleast_2d(np.asarray(self.reference, dtype=complex))
+        object.__setattr__(self, "frequencies", freq)
+        object.__setattr__(self, "response", resp)
+        object.__setattr__(self, "reference", ref)
+        if (freq.ndim != 1 or resp.shape != ref.shape or resp.shape != (pts.shape[0], freq.size)):
+            raise DimensionError(
+                f"{where}: {pts.shape[0]} points, {freq.size} lines, response {resp.shape}, "
+                f"reference {ref.shape}; expected one response and one reference spectrum of "
+                "every line per point")
+        step = np.diff(freq)
+        if (freq.size < 2 or not np.all(np.isfinite(freq)) or freq[0] < 0 or step[0] <= 0
+                or np.max(np.abs(step - step[0])) > 1e-6 * step[0]):
+            raise DimensionError(f"{where}: the spectral lines must be at least 2, evenly spaced, "
+                                 f"increasing and from 0 Hz up; found {freq.size} lines from "
+                                 f"{freq[0] if freq.size else float('nan'):.6g} Hz")
+        if self.quantity not in ("velocity", "displacement"):
+            raise DimensionError(f"{where}: quantity '{self.quantity}' is neither velocity nor "
+                                 "displacement")
+        if self.amplitude not in SPECTRUM_AMPLITUDES:
+            raise DimensionError(f"{where}: amplitude convention '{self.amplitude}' is neither "
+                                 "'peak' nor 'rms'")
+
+    @property
+    def x(self) -> np.ndarray:
+        """(n_points,) first coordinate of every point [m]."""
+        return self.points[:, 0]
+
+    @property
+    def n_points(self) -> int:
+        """Number of scan points (records)."""
+        return self.points.shape[0]
+
+    @property
+    def n_lines(self) -> int:
+        """Number of spectral lines per spectrum."""
+        return self.frequencies.size
+
+    @property
+    def spacing(self) -> float:
+        """The line spacing [Hz]."""
+        return float(self.frequencies[1] - self.frequencies[0])
 
 
 @dataclass(frozen=True)

@@ -6,6 +6,10 @@ jointly. SLDV velocity becomes displacement, U_n = V_n / (j n w0). Points are me
 another, each record starting at its own phase theta_k = arg I_1(k), so harmonic n is aligned by
 exp(-j n theta_k) (the corrected eq. 13), and normalized by the record's drive amplitude
 |I_1(k)| relative to the mean, which removes a drift of the drive between points.
+
+A scan exported as spectra (:class:`~forcecal.records.ScanSpectra`) gives the same phasors read
+off its lines (:mod:`forcecal.scan_spectra`); the conversion, alignment and normalization that
+follow are the same, in :func:`aligned_shapes`.
 """
 
 from __future__ import annotations
@@ -17,10 +21,11 @@ import numpy as np
 from .checks import check_scan_length
 from .errors import DataError
 from .harmonics import fit_harmonics, refine_fundamental
-from .records import Scan
+from .records import Scan, ScanSpectra
+from .scan_spectra import spectrum_phasors
 from .screening import record_weights
 
-__all__ = ["HarmonicShapes", "harmonic_shapes"]
+__all__ = ["HarmonicShapes", "aligned_shapes", "harmonic_shapes"]
 
 
 @dataclass(frozen=True)
@@ -79,13 +84,16 @@ class HarmonicShapes:
         return ratio
 
 
-def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> HarmonicShapes:
-    """Fit, convert and phase-align the harmonics of every scan record.
+def harmonic_shapes(scan: Scan | ScanSpectra, f0_nominal: float,
+                    n_harmonics: int = 6) -> HarmonicShapes:
+    """Fit (or read off the lines), convert and phase-align the harmonics of every scan record.
 
     Parameters
     ----------
-    scan : Scan
-        The SLDV scan (velocity or displacement records plus current references).
+    scan : Scan or ScanSpectra
+        The SLDV scan (velocity or displacement records plus current references), as time
+        records or as spectra (:func:`forcecal.scan_spectra.spectrum_phasors` says how the
+        lines are read).
     f0_nominal : float
         Nominal drive frequency [Hz]; the fundamental is refined from the references.
     n_harmonics : int
@@ -102,8 +110,12 @@ def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> Harm
         Records shorter than 5 periods, references whose fundamental cannot be refined, or
         more than half of the reference records without the drive (a record whose reference
         shows no drive is kept and flagged in ``reference_ok``; the spatial model sets it
-        aside, :mod:`forcecal.screening`).
+        aside, :mod:`forcecal.screening`); spectra whose harmonics are not on lines.
     """
+    if isinstance(scan, ScanSpectra):
+        lines = spectrum_phasors(scan, f0_nominal, n_harmonics)
+        return aligned_shapes(scan.points, lines.f0, lines.response, lines.response_std,
+                              lines.drive, lines.drive_std, scan.quantity, scan.source)
     check_scan_length(scan, f0_nominal)
     try:
         f0 = refine_fundamental(scan.reference, scan.fs, f0_nominal, n_harmonics)
@@ -112,29 +124,68 @@ def harmonic_shapes(scan: Scan, f0_nominal: float, n_harmonics: int = 6) -> Harm
                         f"{f0_nominal:g} Hz)") from None
     ref = fit_harmonics(scan.reference, scan.fs, f0, n_harmonics)
     resp = fit_harmonics(scan.response, scan.fs, f0, n_harmonics)
-    i1 = ref.phasors[:, 1]
-    amp = np.abs(i1)
-    weak = ~(amp >= 10 * ref.phasor_std[:, 1])
+    return aligned_shapes(scan.points, f0, resp.phasors[:, 1:], resp.phasor_std[:, 1:],
+                          ref.phasors[:, 1], ref.phasor_std[:, 1], scan.quantity, scan.source)
+
+
+def aligned_shapes(points: np.ndarray, f0: float, response: np.ndarray,
+                   response_std: np.ndarray, drive: np.ndarray, drive_std: np.ndarray,
+                   quantity: str, source: str) -> HarmonicShapes:
+    """The harmonic shapes from every record's measured phasors: velocity to displacement,
+    U_n = V_n / (j n w0); aligned, U_n exp(-j n theta_k) with theta_k = arg I_1(k); scaled by
+    mean |I_1| / |I_1(k)| (eq. 11-13).
+
+    Parameters
+    ----------
+    points : (n_points, n_dim) array [m]
+        The scan points.
+    f0 : float [Hz]
+        The fundamental.
+    response : (n_points, H) complex array [m/s] or [m]
+        Harmonics 1..H of every response record.
+    response_std : (n_points, H) array [m/s] or [m]
+        Standard uncertainty of Re and of Im of ``response``.
+    drive : (n_points,) complex array [A]
+        I_1, the fundamental of every reference record.
+    drive_std : (n_points,) array [A]
+        Standard uncertainty of Re and of Im of ``drive``.
+    quantity : {"velocity", "displacement"}
+        What ``response`` holds.
+    source : str
+        The scan, for messages.
+
+    Returns
+    -------
+    HarmonicShapes
+
+    Raises
+    ------
+    DataError
+        More than half of the references show no drive (|I_1| below 10 times its noise).
+    """
+    n_harmonics = response.shape[1]
+    amp = np.abs(drive)
+    weak = ~(amp >= 10 * drive_std)
     if np.count_nonzero(weak) > 0.5 * len(weak):
         k = int(np.flatnonzero(weak)[0])
         raise DataError(
-            f"scan '{scan.source}': {np.count_nonzero(weak)} of {len(weak)} reference records "
+            f"scan '{source}': {np.count_nonzero(weak)} of {len(weak)} reference records "
             f"show no drive at {f0:.4g} Hz, the first of point {k + 1} (x = "
-            f"{scan.points[k, 0]:.4g} m: |I_1| = {amp[k]:.3g} A, noise "
-            f"{ref.phasor_std[k, 1]:.2g} A); check the reference label and channel")
+            f"{points[k, 0]:.4g} m: |I_1| = {amp[k]:.3g} A, noise "
+            f"{drive_std[k]:.2g} A); check the reference label and channel")
     n = np.arange(1, n_harmonics + 1)
-    u = resp.phasors[:, 1:]
-    u_std = resp.phasor_std[:, 1:]
-    if scan.quantity == "velocity":
+    u = response
+    u_std = response_std
+    if quantity == "velocity":
         jw = 1j * n * 2 * np.pi * f0
         u = u / jw
         u_std = u_std / np.abs(jw)
-    theta = np.angle(i1)
+    theta = np.angle(drive)
     # records whose reference shows no drive are kept (with their phase unknown) so that the
     # screening lists them; their scale is 1
     scale = np.where(weak, 1.0, amp[~weak].mean() / np.where(weak, 1.0, amp))
     values = u * np.exp(-1j * np.outer(theta, n)) * scale[:, None]
     std = u_std * scale[:, None]
-    return HarmonicShapes(points=scan.points, harmonics=n, values=values.T, std=std.T, f0=f0,
-                          drive_amplitude=amp, drive_phase=theta, source=scan.source,
+    return HarmonicShapes(points=points, harmonics=n, values=values.T, std=std.T, f0=f0,
+                          drive_amplitude=amp, drive_phase=theta, source=source,
                           reference_ok=~weak)

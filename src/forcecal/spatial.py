@@ -23,9 +23,10 @@ from ._schema import check_model_document, reject_constant
 from .basis import PolynomialBasis, ShapeFit, shape_similarity
 from .errors import DataError, InputError
 from .inertia import mass_coupling
-from .records import Scan
+from .records import Scan, ScanSpectra
 from .rig import Rig, rig_to_dict
 from .scan import HarmonicShapes, harmonic_shapes
+from .scan_spectra import unusable_spectra
 from .screening import Screening, record_weights, screen_records, unusable_records
 from .vector_basis import AXES, VectorShapeFit
 
@@ -299,7 +300,8 @@ def load_model(path: str | Path) -> SpatialModel:
     return SpatialModel.from_json(doc, source=str(path))
 
 
-def build_spatial_model(rig: Rig, scan: Scan | Sequence[Scan], n_harmonics: int = 6,
+def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | Sequence[Scan | ScanSpectra],
+                        n_harmonics: int = 6,
                         criterion: str = "gcv", shapes: HarmonicShapes | None = None,
                         basis: str = "polynomial") -> SpatialModel:
     """Fit a shape per supported harmonic and its mass couplings; from several scans of the
@@ -309,9 +311,10 @@ def build_spatial_model(rig: Rig, scan: Scan | Sequence[Scan], n_harmonics: int 
     ----------
     rig : Rig
         The rig (structure extent, mass distribution, gauges).
-    scan : Scan or sequence of Scan
-        The SLDV scan, or several scans of the rig under different loads (each harmonic then
-        holds the shapes of every scan that adds to its span); points on the structure.
+    scan : Scan, ScanSpectra or a sequence of them
+        The SLDV scan (time records or spectra), or several scans of the rig under different
+        loads (each harmonic then holds the shapes of every scan that adds to its span); points
+        on the structure.
     n_harmonics : int
         H: harmonics 1..H are considered; those below ``MIN_SNR`` are dropped.
     criterion : str
@@ -328,9 +331,9 @@ def build_spatial_model(rig: Rig, scan: Scan | Sequence[Scan], n_harmonics: int 
     -------
     SpatialModel
     """
-    if not isinstance(scan, Scan):
+    if not isinstance(scan, Scan | ScanSpectra):
         scans = list(scan)
-        if not scans or not all(isinstance(s, Scan) for s in scans):
+        if not scans or not all(isinstance(s, Scan | ScanSpectra) for s in scans):
             raise InputError("build_spatial_model: 'scan' must be a Scan or a non-empty list of "
                              "Scans (from forcecal.read_scan)")
         if len(scans) > 1:
@@ -372,14 +375,15 @@ def build_spatial_model(rig: Rig, scan: Scan | Sequence[Scan], n_harmonics: int 
                         rig=rig_keys(rig), set_aside=dict(sorted(screening.reasons.items())))
 
 
-def _screened_fits(rig: Rig, scan: Scan, hs: HarmonicShapes, points: np.ndarray,
+def _screened_fits(rig: Rig, scan: Scan | ScanSpectra, hs: HarmonicShapes, points: np.ndarray,
                    criterion: str, basis: str) -> tuple[dict[int, Fit], Screening, np.ndarray]:
     """Every resolved harmonic's shape fitted over the records that survive the screening
     (:mod:`forcecal.screening`), with the records' floored weights; the screening; every
     harmonic's signal-to-noise ratio over the records kept."""
     st = rig.structure
-    reasons = unusable_records(scan, hs.reference_ok if hs.reference_ok is not None
-                               else np.ones(scan.n_points, dtype=bool))
+    ok = (hs.reference_ok if hs.reference_ok is not None
+          else np.ones(scan.n_points, dtype=bool))
+    reasons = unusable_records(scan, ok) if isinstance(scan, Scan) else unusable_spectra(scan, ok)
     usable = np.ones(scan.n_points, dtype=bool)
     usable[list(reasons)] = False
     snr = hs.snr(usable)
@@ -406,7 +410,7 @@ def _screened_fits(rig: Rig, scan: Scan, hs: HarmonicShapes, points: np.ndarray,
     return fits, screening, snr
 
 
-def _set_aside_notes(scan: Scan, reasons: dict[int, str]) -> tuple[str, ...]:
+def _set_aside_notes(scan: Scan | ScanSpectra, reasons: dict[int, str]) -> tuple[str, ...]:
     """One note per record set aside, naming it by its number and position."""
     notes = []
     for k, why in sorted(reasons.items()):
@@ -415,7 +419,7 @@ def _set_aside_notes(scan: Scan, reasons: dict[int, str]) -> tuple[str, ...]:
     return tuple(notes)
 
 
-def _check_points_on_structure(rig: Rig, scan: Scan) -> None:
+def _check_points_on_structure(rig: Rig, scan: Scan | ScanSpectra) -> None:
     st = rig.structure
     pts = np.asarray(scan.points, dtype=float).reshape(scan.n_points, -1)
     st.coordinates(pts, source=f"scan '{scan.source}'")

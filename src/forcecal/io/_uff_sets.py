@@ -14,11 +14,13 @@ from ..errors import InputError
 
 __all__ = [
     "COORDINATE_SETS",
+    "FREQUENCY_ABSCISSA",
     "GENERAL_ORDINATE",
     "ORDINATE_OF_QUANTITY",
     "PLUS_Z",
     "QUANTITY_OF_ORDINATE",
     "RATE_DIGITS",
+    "SPECTRUM",
     "TIME_ABSCISSA",
     "TIME_RESPONSE",
     "first_line",
@@ -32,6 +34,7 @@ __all__ = [
 ]
 
 TIME_RESPONSE = 1  # dataset 58 function type "time response"
+SPECTRUM = 12  # dataset 58 function type "spectrum" (complex lines over frequency)
 QUANTITY_OF_ORDINATE = {11: "velocity", 8: "displacement"}
 ORDINATE_OF_QUANTITY = {
     "velocity": (11, "m/s", "Velocity"),
@@ -39,6 +42,7 @@ ORDINATE_OF_QUANTITY = {
 }
 COORDINATE_SETS = (2411, 15)
 TIME_ABSCISSA = 17  # abscissa specific data type "time"
+FREQUENCY_ABSCISSA = 18  # abscissa specific data type "frequency"
 GENERAL_ORDINATE = 0  # ordinate specific data type "general" (used for the current)
 PLUS_Z = 3
 RATE_DIGITS = 6  # significant digits of the abscissa increment as a UFF stores it (E13.5)

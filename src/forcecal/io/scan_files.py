@@ -5,6 +5,9 @@ HDF5 and NPZ hold the same content under the same names: ``x`` (n_points,) or (n
 scalar ``fs`` [Hz] and the string ``quantity`` ("velocity" or "displacement"). A scan of a 3-D
 body gives ``x`` as (n_records, 3) and ``direction`` (n_records, 3), the measuring direction of
 every record (default +z); a point measured along three axes is three records.
+
+A Universal File may instead hold the scan as spectra (dataset 58, function type 12): it is then
+read as a :class:`~forcecal.records.ScanSpectra` (see :mod:`forcecal.io.uff`).
 """
 
 from __future__ import annotations
@@ -20,7 +23,7 @@ import numpy as np
 from .._atomic import atomic_path
 from ..checks import check_scan_values
 from ..errors import DataError, InputError
-from ..records import Scan
+from ..records import Scan, ScanSpectra
 from .uff import read_scan_uff
 
 __all__ = ["SCAN_SUFFIXES", "read_scan", "write_scan_hdf5", "write_scan_npz"]
@@ -30,7 +33,8 @@ _KEYS = ("x", "response", "reference", "fs", "quantity")
 _OPTIONAL = ("direction",)
 
 
-def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = False) -> Scan:
+def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = False
+              ) -> Scan | ScanSpectra:
     """Read a scan, choosing the reader from the file suffix.
 
     Parameters
@@ -44,27 +48,30 @@ def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = 
 
     Returns
     -------
-    Scan
-        The records in SI units, ``source`` = ``str(path)``.
+    Scan or ScanSpectra
+        The records in SI units, ``source`` = ``str(path)``; a ScanSpectra for a Universal File
+        of spectra (function type 12).
 
     Raises
     ------
     InputError
-        An unknown suffix, a missing or unreadable file, or a missing or malformed array.
+        An unknown suffix, a missing or unreadable file, or a missing or malformed array; a
+        Universal File of FRFs only, or of time records and spectra together.
     DataError
         Records that do not pair up or disagree (see :func:`forcecal.io.uff.read_scan_uff`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    scan: Scan | None = None
+    scan: Scan | ScanSpectra | None = None
     if suffix in (".uff", ".unv"):
         scan = read_scan_uff(path, reference_label=reference_label, locations=locations)
     elif suffix in (".h5", ".hdf5"):
         scan = read_scan_hdf5(path, locations)
     elif suffix == ".npz":
         scan = read_scan_npz(path, locations)
-    if scan is not None:
+    if isinstance(scan, Scan):  # spectra are checked as they are read
         check_scan_values(scan)
+    if scan is not None:
         return scan
     raise InputError(
         f"scan '{path}': unknown file type '{path.suffix}'; accepted: {', '.join(SCAN_SUFFIXES)}"

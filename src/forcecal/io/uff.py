@@ -5,14 +5,23 @@ dataset-58 time records (function type 1) whose response node is that point: the
 (velocity, ordinate type 11, or displacement, ordinate type 8) and the reference, the coil
 current, recognised by its id line 2 (``Ref1  Current``). See INTERFACES.md section 2.
 
+A frequency-domain export holds instead, per point, the complex spectra (dataset 58, function
+type 12) of the vibration and of the reference, paired and recognised the same way, over one
+common set of evenly spaced lines [Hz]; it is read as a :class:`~forcecal.records.ScanSpectra`.
+FRFs (function type 4), cross spectra (3) and auto spectra (2, 9) are refused: an FRF's phase at
+a line is relative to the reference at that line, so the harmonics' phases relative to the
+drive's fundamental (and their amplitudes relative to each other) cannot be recovered.
+
 Precision of what pyuff writes: coordinates 17 significant digits (exact in float64); ASCII
 record values ``%20.11e`` (12 significant digits, relative error at most 5e-12); binary
 (58b) record values float64, exact; the abscissa increment ``%13.5e`` (6 significant digits) in
 both forms, from which :func:`read_scan_uff` recovers the sampling rate exactly whenever it has
 at most 6 significant digits.
 
-The work is done in three private modules: ``_uff_sets`` (datasets, codes, units and node
-coordinates), ``_uff_read`` (a scan from its time records) and ``_uff_write``.
+The work is done in private modules: ``_uff_sets`` (datasets, codes, units and node
+coordinates), ``_uff_pairs`` (records paired by node), ``_uff_read`` (a scan from its time
+records; which kind of records a file holds), ``_uff_spectra`` (a scan from its spectra) and
+``_uff_write`` (time records only).
 """
 
 from __future__ import annotations

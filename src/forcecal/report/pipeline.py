@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from ..forces import ForceEstimate, reconstruct
 from ..io.results import write_estimate
 from ..io.run_files import read_table_csv
-from ..records import Run, Scan
+from ..records import Run, Scan, ScanSpectra
 from ..rig import Rig
 from ..scan import HarmonicShapes, harmonic_shapes
 from ..spatial import SpatialModel, build_spatial_model, check_model_rig
@@ -51,12 +51,12 @@ def _pct(x: float) -> str:
     return f"{100 * x:.3g} %"
 
 
-def _scan_shapes(rig: Rig, scan: Scan, n_harmonics: int) -> HarmonicShapes:
+def _scan_shapes(rig: Rig, scan: Scan | ScanSpectra, n_harmonics: int) -> HarmonicShapes:
     """The scan's harmonic shapes at the rig's nominal drive frequency."""
     return harmonic_shapes(scan, rig.drive_frequency, n_harmonics)
 
 
-def _model_scan(model: SpatialModel, rig: Rig) -> Scan | None:
+def _model_scan(model: SpatialModel, rig: Rig) -> Scan | ScanSpectra | None:
     """The model's first scan, read again for fig. 3 (None when it is no longer there)."""
     from ..errors import ForcecalError
     from ..io.scan_files import read_scan
@@ -193,7 +193,8 @@ def _run_section(rig: Rig, est: ForceEstimate, run: Run, truth: dict[str, np.nda
     return Section(f"Run {run.name}", blocks)
 
 
-def run_report(rig: Rig, scan: Scan | SpatialModel, runs: Sequence[Run], out_dir: str | Path,
+def run_report(rig: Rig, scan: Scan | ScanSpectra | SpatialModel, runs: Sequence[Run],
+               out_dir: str | Path,
                truth_dir: str | Path | None = None, n_harmonics: int = 6,
                criterion: str = "gcv", basis: str = "polynomial",
                provenance: dict | None = None,

@@ -1,0 +1,322 @@
+"""Spectrum scan -> the measured phasors of every point's harmonics (METHOD.md section 3, step 1,
+from a frequency-domain export; :func:`forcecal.scan.harmonic_shapes` aligns them).
+
+A :class:`~forcecal.records.ScanSpectra` holds per point the complex spectrum of the response
+and of the reference. The phasors are read off the lines:
+
+1. **Amplitude.** Lines in the "rms" convention are multiplied by sqrt 2, so that every line
+   holds the one-sided peak phasor of :mod:`forcecal.harmonics` (a unit cosine on a line reads
+   1). The displacement amplitude in metres depends on this; the referencing does not.
+2. **Fundamental.** Its line is the peak of the reference power, each record's normalized and
+   summed over the records, within +-5 % of the nominal frequency. The drive's offset
+   ``delta`` from that line, in lines, is Jacobsen's three-line estimate
+   ``Re[(X[k-1] - X[k+1]) / (2 X[k] - X[k-1] - X[k+1])]``, the median over the records whose
+   reference shows the drive (exact for the rectangular window of a synchronous export; a Hann
+   window reads half the offset). f0 = (first line) + (k + delta) * (line spacing).
+3. **Harmonics on lines.** Harmonic n is the line nearest n f0. It must lie within
+   :data:`LINE_TOLERANCE` of a line spacing of n f0, else the scan is refused (DataError): a
+   line beside a tone holds neither its amplitude nor, in a zoomed band, its phase, and the
+   window that would say by how much is not in the file. Within the tolerance a rectangular or
+   Hann window loses at most 0.1 % of the amplitude; the line is multiplied by
+   exp(-j pi eps_n), eps_n the offset of n f0 from it, the phase of a symmetric window's kernel
+   (from lines starting at 0 Hz this shift is n times the fundamental's and cancels in the
+   referencing anyway). What the other harmonics, off their lines, leak onto the line is
+   bounded by the rectangular window's kernel, sum_m |A_m sinc(k_n - p_m)| over the other
+   harmonics and the images of all at -m f0 (p_m the tone's position in lines), and added to
+   the line's uncertainty as a phase-random error (variance bound^2 / 2 in Re and in Im);
+   on a line it is zero. Export spectra whose line spacing divides the drive frequency (a
+   whole number of periods per record), as SLDV software does with its own generator.
+4. **Noise.** The standard uncertainty of Re and of Im of a harmonic's line, per record and
+   harmonic, comes from the noise lines around it: those within half a harmonic spacing of
+   the harmonic's line, leaving out :data:`GUARD` lines either side of every harmonic's line
+   (a Hann window spreads a tone over +-1 line; a flat-top window spreads it wider and
+   inflates the estimate). Noise of locally flat spectrum has at every line
+   var Re = var Im = E|X|^2 / 2. E|X|^2 is modelled as the record's level times the
+   harmonic's profile (the noise's colour, common to the records), each estimated by the median
+   of |X|^2 over its lines divided by the expected median of as many unit exponential
+   variables: unbiased for Gaussian noise, hardly moved by a stray line such as the mains, and
+   pooled so that a few lines per harmonic still give a steady estimate (as the residual of a
+   time record's fit pools the whole record).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from fractions import Fraction
+
+import numpy as np
+
+from .errors import DataError
+from .records import ScanSpectra
+
+__all__ = ["GUARD", "LINE_TOLERANCE", "MIN_NOISE_LINES", "LinePhasors", "spectrum_phasors",
+           "unusable_spectra"]
+
+LINE_TOLERANCE = 0.02
+"""Largest offset of a harmonic n f0 from its line, as a share of the line spacing."""
+GUARD = 2
+"""Lines either side of every harmonic's line left out of its noise estimate."""
+MIN_NOISE_LINES = 4
+"""Fewest lines a noise estimate is made from (a harmonic spacing of at least 8 lines)."""
+SEARCH = 0.05
+"""Half-width of the fundamental's search band, relative to the nominal frequency (as for
+time records, :func:`forcecal.harmonics.refine_fundamental`)."""
+PEAK_FACTOR = {"peak": 1.0, "rms": float(np.sqrt(2.0))}
+"""Multiplier from a convention's line value to the peak phasor."""
+
+
+@dataclass(frozen=True)
+class LinePhasors:
+    """The phasors read off a spectrum scan's lines, before alignment.
+
+    Attributes
+    ----------
+    f0 : float [Hz]
+        The fundamental.
+    response : (n_points, H) complex array [m/s] or [m]
+        Harmonics 1..H of each response, peak phasors, phase referred to each record's start.
+    response_std : (n_points, H) array [m/s] or [m]
+        Standard uncertainty of Re and of Im of ``response``.
+    drive : (n_points,) complex array [A]
+        The reference's fundamental I_1 of each record.
+    drive_std : (n_points,) array [A]
+        Standard uncertainty of Re and of Im of ``drive``.
+    offset : float [lines]
+        The drive's offset from its line (step 2 of the module docstring).
+    """
+
+    f0: float
+    response: np.ndarray
+    response_std: np.ndarray
+    drive: np.ndarray
+    drive_std: np.ndarray
+    offset: float
+
+
+def spectrum_phasors(scan: ScanSpectra, f0_nominal: float, n_harmonics: int) -> LinePhasors:
+    """Read harmonics 1..H of every response and the fundamental of every reference off the
+    lines (the method of the module docstring).
+
+    Parameters
+    ----------
+    scan : ScanSpectra
+        The spectra.
+    f0_nominal : float
+        Nominal drive frequency [Hz] (the rig's ``acquisition.frequency``).
+    n_harmonics : int
+        H, at least 1.
+
+    Returns
+    -------
+    LinePhasors
+
+    Raises
+    ------
+    DataError
+        The nominal frequency outside the lines; the drive at the band's edge; a harmonic
+        beyond the last line or off its line by more than :data:`LINE_TOLERANCE`; lines too
+        coarse for :data:`MIN_NOISE_LINES` noise lines beside a harmonic.
+    """
+    where = f"scan '{scan.source}'"
+    factor = PEAK_FACTOR[scan.amplitude]
+    ref = scan.reference * factor
+    resp = scan.response * factor
+    df, first = scan.spacing, float(scan.frequencies[0])
+    k1 = _drive_line(ref, scan, f0_nominal)
+    spacing = (first + k1 * df) / df  # the harmonics' spacing in lines
+    if spacing < 2 * (GUARD + 2):
+        raise DataError(f"{where}: the drive near {first + k1 * df:.6g} Hz lies only "
+                        f"{spacing:.3g} line spacings ({df:.6g} Hz) above 0 Hz; at least "
+                        f"{2 * (GUARD + 2)} are needed to tell the harmonics from the noise "
+                        "between them (a finer line spacing: a longer record)")
+    windows = _noise_windows(_harmonic_lines(first, first + k1 * df, df, 1), spacing,
+                             scan.n_lines, scan.source)
+    strong = np.abs(ref[:, k1]) >= 10 * _noise_std(ref, windows)[:, 0]
+    delta = _offset(ref[strong] if strong.any() else ref, k1)
+    f0 = first + (k1 + delta) * df
+    position = (np.arange(1, n_harmonics + 1) * f0 - first) / df
+    lines = np.rint(position).astype(int)
+    eps = position - lines
+    _check_on_lines(scan, f0, lines, eps, delta)
+    windows = _noise_windows(_harmonic_lines(first, f0, df, n_harmonics), f0 / df,
+                             scan.n_lines, scan.source)
+    u = resp[:, lines] * np.exp(-1j * np.pi * eps)
+    drive = ref[:, lines[0]] * np.exp(-1j * np.pi * eps[0])
+    leak = _leakage(np.abs(u), lines, f0 / df, first / df)
+    u_std = np.sqrt(_noise_std(resp, windows) ** 2 + leak**2 / 2)
+    return LinePhasors(f0=float(f0), response=u, response_std=u_std, drive=drive,
+                       drive_std=_noise_std(ref, windows)[:, 0], offset=float(delta))
+
+
+def unusable_spectra(scan: ScanSpectra, reference_ok: np.ndarray) -> dict[int, str]:
+    """Records set aside before any fit: those whose reference shows no drive (the lines were
+    checked finite on reading; clipping cannot be told from a spectrum).
+
+    Parameters
+    ----------
+    scan : ScanSpectra
+    reference_ok : (n_points,) bool ndarray
+        Whether each record's reference shows the drive.
+
+    Returns
+    -------
+    dict
+        Record index -> reason, worded as :func:`forcecal.screening.unusable_records` does.
+    """
+    return {int(k): "its reference shows no drive (the record's phase is unknown)"
+            for k in np.flatnonzero(~np.asarray(reference_ok))}
+
+
+def _drive_line(ref: np.ndarray, scan: ScanSpectra, f0_nominal: float) -> int:
+    """Index of the line of largest summed normalized reference power near ``f0_nominal``."""
+    f = scan.frequencies
+    band = np.flatnonzero(np.abs(f - f0_nominal) <= SEARCH * f0_nominal)
+    if band.size == 0:
+        raise DataError(f"scan '{scan.source}': the spectra's lines ({f[0]:.6g} to {f[-1]:.6g} "
+                        f"Hz every {scan.spacing:.6g} Hz) hold none within {100 * SEARCH:g} % of "
+                        f"the drive's nominal {f0_nominal:g} Hz (the rig's "
+                        "'acquisition.frequency')")
+    power = np.abs(ref[:, band]) ** 2
+    total = power.sum(axis=1, keepdims=True)
+    k = int(band[np.argmax(np.sum(power / np.where(total > 0, total, 1.0), axis=0))])
+    if not 0 < k < scan.n_lines - 1:
+        raise DataError(f"scan '{scan.source}': the drive's line ({f[k]:.6g} Hz) is the "
+                        "spectra's first or last line; export a band that holds it inside")
+    return k
+
+
+def _offset(ref: np.ndarray, k: int) -> float:
+    """Median over the records of Jacobsen's offset [lines] of the tone near line ``k``."""
+    lo, mid, hi = ref[:, k - 1], ref[:, k], ref[:, k + 1]
+    den = 2 * mid - lo - hi
+    ok = den != 0
+    if not ok.any():
+        return 0.0
+    delta = np.real((lo[ok] - hi[ok]) / den[ok])
+    return float(np.clip(np.median(delta), -0.5, 0.5))
+
+
+def _check_on_lines(scan: ScanSpectra, f0: float, lines: np.ndarray, eps: np.ndarray,
+                    delta: float) -> None:
+    """DataError when a harmonic lies beyond the last line or between lines."""
+    where = f"scan '{scan.source}'"
+    df = scan.spacing
+    beyond = np.flatnonzero(lines > scan.n_lines - 1)
+    if beyond.size:
+        n = int(beyond[0]) + 1
+        raise DataError(f"{where}: harmonic {n} at {n * f0:.6g} Hz lies beyond the spectra's "
+                        f"last line ({scan.frequencies[-1]:.6g} Hz); export a wider band or ask "
+                        f"for fewer harmonics (--harmonics {n - 1})")
+    off = np.flatnonzero(np.abs(eps) > LINE_TOLERANCE)
+    if off.size:
+        n = int(off[0]) + 1
+        raise DataError(f"{where}: the drive at {f0:.6g} Hz lies {abs(delta):.3g} of a line "
+                        f"spacing ({df:.6g} Hz) from its line, so harmonic {n} at "
+                        f"{n * f0:.6g} Hz falls {abs(eps[n - 1]):.3g} of a spacing between "
+                        f"lines (at most {LINE_TOLERANCE:g} accepted), where a line holds neither "
+                        "its amplitude nor its phase; export spectra whose line spacing divides "
+                        "the drive frequency (a whole number of periods per record), or the "
+                        "time records")
+
+
+def _leakage(amplitude: np.ndarray, lines: np.ndarray, f0_lines: float, first_lines: float
+             ) -> np.ndarray:
+    """(n_records, H) bound of what the other harmonics (and the images of all, at -n f0) put
+    on every harmonic's line when they lie off their lines: sum_m |A_m sinc(k_n - p_m)|, p_m
+    the position of tone m in lines (step 3 of the module docstring; the rectangular
+    window's kernel, whose sidelobes no common window exceeds).
+
+    Parameters
+    ----------
+    amplitude : (n_records, H) array
+        |A_m| of every harmonic of every record.
+    lines : (H,) int array
+        The harmonics' lines.
+    f0_lines : float
+        f0 in line spacings.
+    first_lines : float
+        The first line's frequency in line spacings.
+    """
+    n = np.arange(1, lines.size + 1)
+    tones = np.concatenate([n * f0_lines - first_lines, -n * f0_lines - first_lines])
+    kernel = np.abs(np.sinc(lines[:, None] - tones[None, :]))       # (H, 2H)
+    kernel[np.arange(lines.size), np.arange(lines.size)] = 0.0      # a tone's own line
+    bound: np.ndarray = np.concatenate([amplitude, amplitude], axis=1) @ kernel.T
+    return bound
+
+
+def _harmonic_lines(first: float, f0: float, df: float, n_harmonics: int) -> np.ndarray:
+    """Lines nearest 0 Hz and every harmonic 1..H+1 (the noise estimates keep clear of them)."""
+    return np.rint((np.arange(n_harmonics + 2) * f0 - first) / df).astype(int)
+
+
+def _noise_windows(harmonics: np.ndarray, spacing: float, n_lines: int, source: str
+                   ) -> list[np.ndarray]:
+    """The noise lines of harmonics 1..H: those within half a harmonic spacing of the
+    harmonic's line and more than :data:`GUARD` lines from every line of ``harmonics``
+    (0 Hz and harmonics 1..H+1), inside the band.
+
+    Parameters
+    ----------
+    harmonics : (H + 2,) int array
+        The lines of 0 Hz and of harmonics 1..H+1 (:func:`_harmonic_lines`).
+    spacing : float
+        The harmonics' spacing in lines, f0 / df.
+    n_lines : int
+        The spectra's number of lines.
+    source : str
+        The scan, for messages.
+
+    Returns
+    -------
+    list of int arrays
+        One per harmonic 1..H.
+    """
+    windows = []
+    for n, k in enumerate(harmonics[1:-1], start=1):
+        near = np.arange(int(np.ceil(k - spacing / 2)), int(np.floor(k + spacing / 2)) + 1)
+        near = near[(near >= 0) & (near < n_lines)]
+        noise = near[np.all(np.abs(near[:, None] - harmonics[None, :]) > GUARD, axis=1)]
+        if noise.size < MIN_NOISE_LINES:
+            raise DataError(f"scan '{source}': harmonic {n} has {noise.size} lines of noise "
+                            f"beside it, at least {MIN_NOISE_LINES} are needed (a finer line "
+                            "spacing, or a band reaching half a harmonic spacing beyond the last "
+                            "harmonic)")
+        windows.append(noise)
+    return windows
+
+
+def _noise_std(lines: np.ndarray, windows: list[np.ndarray]) -> np.ndarray:
+    """(n_records, H) standard uncertainty of Re and of Im of every record's line of every
+    harmonic, from the noise lines ``windows`` (step 4 of the module docstring).
+
+    The noise power is modelled as a record's level times a harmonic's profile,
+    var(k, n) = a_k b_n: a record's level (its speckle, its distance) from its noise lines at
+    every harmonic, the profile (the noise's colour) from every record's lines at that
+    harmonic; each a median over its lines, scaled by the expected median of as many
+    exponential variables, alternated three times from a white profile.
+    """
+    power = [np.abs(lines[:, w]) ** 2 for w in windows]          # (n_records, q_n) each
+    n_records = lines.shape[0]
+    q = sum(p.shape[1] for p in power)
+    profile = np.ones(len(power))
+    level = np.zeros(n_records)
+    for _ in range(3):
+        pooled = np.concatenate([p / b for p, b in zip(power, profile, strict=True)], axis=1)
+        level = np.median(pooled, axis=1) / _expected_median(q)
+        unit = np.where(level > 0, level, 1.0)[:, None]
+        profile = np.array([np.median(p / unit) / _expected_median(p.size) for p in power])
+        profile = np.where(profile > 0, profile, 1.0)
+    std: np.ndarray = np.sqrt(np.outer(level, profile) / 2)
+    return std
+
+
+def _expected_median(q: int) -> float:
+    """Expected sample median of ``q`` independent unit-mean exponential variables (numpy's
+    median: the mean of the two middle values when q is even)."""
+
+    def order(r: int) -> Fraction:  # E of the r-th smallest of q: sum_{i=q-r+1..q} 1/i
+        return sum((Fraction(1, i) for i in range(q - r + 1, q + 1)), Fraction(0))
+
+    middle = order((q + 1) // 2) if q % 2 else (order(q // 2) + order(q // 2 + 1)) / 2
+    return float(middle)
