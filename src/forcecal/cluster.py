@@ -22,6 +22,7 @@ when their parent does.
 from __future__ import annotations
 
 import contextlib
+import importlib
 import logging
 import multiprocessing
 import os
@@ -203,4 +204,5 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
+        client.run(importlib.import_module, "forcecal.jobs")  # imports paid at the start
         yield client
