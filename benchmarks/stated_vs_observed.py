@@ -57,9 +57,10 @@ excluding 95 %), with a ``?`` when it is within the sampling scatter of the seed
 declaring the same type-B uncertainties): pink, hum, adc, sensitivity, offset, gravity, walk,
 drift; for diagnosing a ratio off target.
 
-Usage: python benchmarks/coverage.py [--seeds 20] [--cases paper resonance campaign plate body]
-       [--seeds-for body=10 ...] [--off pink hum ...] [--out coverage.json]
-(prints a table, writes benchmarks/results/coverage.json or NAME.json)
+Usage: python benchmarks/stated_vs_observed.py [--seeds 20]
+       [--cases paper resonance campaign plate body] [--seeds-for body=10 ...]
+       [--off pink hum ...] [--out stated_vs_observed.json]
+(prints a table, writes benchmarks/results/stated_vs_observed.json or NAME.json)
 """
 
 from __future__ import annotations
@@ -520,7 +521,8 @@ def main() -> None:
                     help="fewer (or more) seeds for a slow preset")
     ap.add_argument("--off", nargs="*", default=[],
                     help="realism components switched off in the simulated rig (diagnosis)")
-    ap.add_argument("--out", default="coverage.json", help="file name in benchmarks/results")
+    ap.add_argument("--out", default="stated_vs_observed.json",
+                    help="file name in benchmarks/results")
     args = ap.parse_args()
     override = {k: int(v) for k, v in (s.split("=") for s in args.seeds_for)}
     t0 = time.perf_counter()
@@ -534,7 +536,7 @@ def main() -> None:
         out.write_text(json.dumps({
             "description": "observed error / stated standard uncertainty and k=2 coverage per "
                            "preset, force (and total) and harmonic, lab realism, type-B errors "
-                           "and noise redrawn per seed (see benchmarks/coverage.py)",
+                           "and noise redrawn per seed (see benchmarks/stated_vs_observed.py)",
             "complete": complete, "seeds": args.seeds, "seeds_for": override,
             "base_seed": BASE_SEED, "off": args.off, "realism": declared.describe(),
             "targets": {"ratio": RATIO_TARGET, "coverage_k2": COVERAGE_TARGET},
