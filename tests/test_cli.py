@@ -20,9 +20,7 @@ import pytest
 import tomli_w
 
 import forcecal
-from forcecal._atomic import atomic_path
 from forcecal.cli import main
-from forcecal.io import run_files
 from forcecal.io.run_files import (
     read_run,
     read_table_csv,
@@ -217,12 +215,17 @@ def test_tdms_and_hdf5_runs_give_the_csv_forces(lab, model_json, short_run, csv_
 
 def test_interrupted_write_leaves_no_file(lab, model_json, short_run, tmp_path, capsys,
                                           monkeypatch):
-    def half_then_interrupt(target, text):
-        with atomic_path(target) as tmp:
-            tmp.write_text(text[: len(text) // 2], encoding="utf-8")
-            raise KeyboardInterrupt
+    from forcecal.io import table_writer
 
-    monkeypatch.setattr(run_files, "write_text_atomic", half_then_interrupt)
+    real = table_writer.TableWriter.write
+
+    def half_then_interrupt(self, time, columns):
+        half = time.size // 2                      # half the rows reach the file, then Ctrl-C
+        real(self, time[:half], columns[:, :half])
+        self.flush()
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(table_writer.TableWriter, "write", half_then_interrupt)
     out = tmp_path / "out"
     code = cli("reconstruct", lab / "rig.toml", model_json, short_run, "-o", out)
     err = capsys.readouterr().err
