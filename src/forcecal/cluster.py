@@ -45,6 +45,10 @@ THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"
 CONNECT_TIMEOUT_S = 20.0
 """How long to wait for an existing Dask scheduler [s]."""
 
+_QUIET_WORKERS = {"distributed.worker.profile.enabled": False}
+"""Dask settings of a local cluster's workers: no statistical profiler sampling every task's
+stack (forcecal's jobs are many small NumPy calls, which it slows)."""
+
 _PARENT_POLL_S = 0.5
 """How often a pool worker checks that its parent is alive [s]."""
 
@@ -200,7 +204,9 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
         with client:
             yield client
         return
-    with single_threaded_workers():
+    import dask
+
+    with single_threaded_workers(), dask.config.set(_QUIET_WORKERS):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
