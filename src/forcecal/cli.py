@@ -76,8 +76,8 @@ and gaps, and refuses beyond."""
 MAX_HARMONICS = 100
 """Most harmonics ``--harmonics`` may ask for."""
 MANY_JOBS = 4
-"""Runs or campaigns from which ``reconstruct`` and ``calibrate`` start a local cluster when
-``--workers`` is not given (fewer are done serially: the cluster's start would cost more)."""
+"""Campaigns from which ``calibrate`` starts a local cluster when ``--workers`` is not given
+(fewer are done serially: the cluster's start would cost more)."""
 
 
 _STARTED = [time.perf_counter()]
@@ -248,7 +248,8 @@ def _cmd_reconstruct(args) -> int:
     estimates = run_jobs(reconstruct_job,
                          [(rig, model, run, tare, args.ac_coupled, args.monte_carlo)
                           for run in runs],
-                         names=[run.name for run in runs], workers=_workers(args, len(runs)),
+                         names=[run.name for run in runs],
+                         workers=1 if args.workers is None else _workers(args, len(runs)),
                          scheduler=args.scheduler,
                          progress=_progress if len(runs) > 1 else None)
     lines = []
@@ -271,7 +272,9 @@ def _cmd_reconstruct(args) -> int:
 
 def _workers(args, n_jobs: int) -> int:
     """Local workers for ``n_jobs`` jobs: ``--workers``, else one per core when there are
-    several jobs (and a local cluster is worth its start, about two seconds), else 1."""
+    several jobs (and a local cluster is worth its start, about a second, and its overhead,
+    about 0.75 s per job), else 1. ``reconstruct`` runs serially unless given ``--workers``
+    (a run of a few seconds' record costs less than a job's overhead)."""
     if args.workers is not None:
         if args.workers < 1:
             raise _ArgumentError(f"{PROG} {args.command}: argument --workers: {args.workers} is "

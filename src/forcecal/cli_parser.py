@@ -176,7 +176,8 @@ def build_parser() -> argparse.ArgumentParser:
         jobs.add_argument(
             "--workers", type=int, metavar="N", default=None,
             help="processes of a local Dask cluster over which several runs or campaigns are "
-                 "spread (default: one per core when there are several; 1: serially)")
+                 "spread (default: calibrate, one per core from 4 campaigns; reconstruct, "
+                 "serially)")
         jobs.add_argument(
             "--scheduler", metavar="ADDRESS",
             help="an existing Dask scheduler (tcp://host:8786) whose workers run the jobs")
