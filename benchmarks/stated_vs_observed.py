@@ -31,8 +31,11 @@ once per preset, see ``checks`` in the JSON), and the run and scan interpolation
 against a direct simulation at seed 0's drawn drives.
 
 The estimate is what a user gets: the public rig file (its declared type-B uncertainties; a
-campaign run's static gap), ``build_spatial_model(rig, scan)`` and ``reconstruct(rig, model,
-run, tare=tare)``.
+campaign run's static gap) as a lab would declare it, its geometry and masses drawn about the
+true ones from their declared uncertainties (:func:`forcecal.budget.drawn_rig`, from a second
+generator per seed, ``default_rng([BASE_SEED + seed, 1])``, so that the draws above stay those
+of the simulator), then ``build_spatial_model(rig, scan)`` and ``reconstruct(rig, model, run,
+tare=tare)``.
 
 What is compared, per force and for the total, per harmonic: DC (n = 0) when the estimate
 observes it, and every harmonic n = 1..H the estimate keeps. The truth's phasors are those of
@@ -55,7 +58,7 @@ excluding 95 %), with a ``?`` when it is within the sampling scatter of the seed
 
 ``--off NAME ...`` switches realism components off in the simulated rig only (the rig file keeps
 declaring the same type-B uncertainties): pink, hum, adc, sensitivity, offset, gravity, walk,
-drift; for diagnosing a ratio off target.
+drift, and geometry (the declared rig is the true one); for diagnosing a ratio off target.
 
 Usage: python benchmarks/stated_vs_observed.py [--seeds 20]
        [--cases paper resonance campaign plate body] [--seeds-for body=10 ...]
@@ -76,7 +79,7 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from forcecal.budget import SOURCES
+from forcecal.budget import SOURCES, drawn_rig
 from forcecal.forces import reconstruct
 from forcecal.harmonics import fit_harmonics
 from forcecal.records import Run, Scan
@@ -142,6 +145,8 @@ def _off_realism(lab: Realism, off: list[str]) -> Realism:
             changes.update(scan_level_step=0.0, scan_frequency_step=0.0)
         elif name == "drift":
             changes.update(run_level_drift=0.0, run_frequency_drift=0.0)
+        elif name == "geometry":
+            pass                     # the declared rig is the true one (see study)
         else:
             raise SystemExit(f"--off: unknown component '{name}'")
     return dataclasses.replace(lab, **changes)
@@ -384,8 +389,10 @@ def study(name: str, run_name: str, seeds: int, off: list[str]) -> dict:
         scan = lab_scan(preset, stable, rng, errors)
         run, pole_force, (drift, chirp) = lab_run(preset, spec, rtable, rng, errors)
         tare, _, _ = lab_run(preset, tare_spec, ttable, rng, errors)
-        spatial = build_spatial_model(rig, scan)
-        est = reconstruct(rig, spatial, run, tare=tare)
+        mine = rig if "geometry" in off else drawn_rig(
+            rig, np.random.default_rng([BASE_SEED + seed, 1]))
+        spatial = build_spatial_model(mine, scan)
+        est = reconstruct(mine, spatial, run, tare=tare)
         h = len(est.harmonics) - 1
         truth_f = fit_harmonics(pole_force, preset.fs, est.f0, h).phasors
         truth = {n: truth_f[pole_names.index(n)] for n in rig.force_names}

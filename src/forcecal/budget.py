@@ -39,7 +39,7 @@ from .spatial import SpatialModel
 from .uncertainty import combinations
 
 __all__ = ["MONTE_CARLO_SOURCES", "SOURCES", "Parameter", "SolveInputs", "combination_phasors",
-           "draw_std", "monte_carlo", "parameters", "type_b_variance"]
+           "draw_std", "drawn_rig", "monte_carlo", "parameters", "type_b_variance"]
 
 SOURCES = ("gauge sensitivity", "probe sensitivity", "positions", "masses")
 """The budget's type-B sources, in the order reported."""
@@ -260,7 +260,6 @@ def monte_carlo(rig: Rig, model: SpatialModel, inputs: SolveInputs, n_draws: int
     (n_draws, n_combinations, H+1) complex ndarray [N]
     """
     tb = rig.type_b
-    st = rig.structure
     draws = []
     for _ in range(n_draws):
         g = 1.0 + tb.gauge_scale * rng.standard_normal(len(rig.gauges))
@@ -270,15 +269,26 @@ def monte_carlo(rig: Rig, model: SpatialModel, inputs: SolveInputs, n_draws: int
         if noise:
             inp = dataclasses.replace(inp, gauges=_jitter(inp.gauges, inp.gauge_std, rng),
                                       sensors=_jitter(inp.sensors, inp.sensor_std, rng))
-        moved: dict[str, Any] = {group: tuple(dataclasses.replace(p, **{
-                     ax: getattr(p, ax) + tb.position * rng.standard_normal()
-                     for ax in st.axes}) for p in getattr(rig, group))
-                 for group in ("gauges", "forces", "sensors")}
-        masses = st.with_masses(1.0 + tb.mass * rng.standard_normal(),
-                                (1.0 + tb.mass * rng.standard_normal(len(st.masses))).tolist())
-        cur = dataclasses.replace(rig, structure=masses, **moved)
+        cur = drawn_rig(rig, rng)
         draws.append(combination_phasors(cur, model, inp, model_couplings(cur, model)))
     return np.array(draws)
+
+
+def drawn_rig(rig: Rig, rng: np.random.Generator) -> Rig:
+    """The rig with its geometry and masses drawn from their declared type-B uncertainties:
+    every coordinate of every gauge, force point and sensor moved by N(0, u_position), the
+    distributed mass and each lumped mass scaled by 1 + N(0, u_mass) (in that order of draws).
+    A Monte Carlo draw of :func:`monte_carlo`; in a study, the rig a lab would declare for the
+    true one."""
+    tb = rig.type_b
+    st = rig.structure
+    moved: dict[str, Any] = {group: tuple(dataclasses.replace(p, **{
+                 ax: getattr(p, ax) + tb.position * rng.standard_normal()
+                 for ax in st.axes}) for p in getattr(rig, group))
+             for group in ("gauges", "forces", "sensors")}
+    masses = st.with_masses(1.0 + tb.mass * rng.standard_normal(),
+                            (1.0 + tb.mass * rng.standard_normal(len(st.masses))).tolist())
+    return dataclasses.replace(rig, structure=masses, **moved)
 
 
 def draw_std(draws: np.ndarray) -> np.ndarray:

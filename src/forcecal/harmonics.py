@@ -22,12 +22,15 @@ The fundamental itself is refined by :func:`refine_fundamental` (:mod:`forcecal.
 For white noise of standard deviation sigma over N samples spanning a whole number of periods,
 Re and Im of every harmonic n >= 1 have variance 2 sigma^2 / N and the mean has sigma^2 / N
 (METHOD.md section 6, :func:`noise_bound`); for other record lengths the exact diagonal of
-(A^T A)^-1 is used.
+(A^T A)^-1 is used. For coloured noise sigma is the level at each harmonic's own frequency,
+read off the residual's spectrum around it, and tones leaking into it are counted
+(:mod:`forcecal.harmonic_noise`).
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -35,6 +38,7 @@ from scipy.linalg import solve_triangular
 
 from .errors import DataError
 from .fundamental import LONG_RECORD, fundamental_uncertainty, refine_fundamental
+from .harmonic_noise import phasor_noise
 from .harmonic_sums import (
     CHUNK,
     checked_samples,
@@ -70,8 +74,10 @@ class HarmonicFit:
     phasor_std : (..., H+1) array [unit of x]
         Standard uncertainty of Re X_n and of Im X_n. For n = 0 it is the uncertainty of the
         mean; for n >= 1 the root mean square of the two exact values
-        sigma * sqrt(diag (A^T A)^-1), which are equal (sqrt(2 / N) sigma) for a whole number
-        of periods.
+        sigma_n * sqrt(diag (A^T A)^-1), which are equal (sqrt(2 / N) sigma_n) for a whole
+        number of periods; sigma_n is the noise level at n f0 from the residual's spectrum
+        around it (:mod:`forcecal.harmonic_noise`): coloured noise and hum lines away from n f0 do
+        not count, as they do not disturb X_n.
     unscaled_covariance : (2H+1, 2H+1) array [1]
         (A^T A)^-1 of the design matrix, coefficient order [X_0, Re X_1, Im X_1, Re X_2, ...];
         multiply by ``residual_std**2`` for the covariance of one channel (see
@@ -215,18 +221,51 @@ def fit_harmonics(
     phasors = np.empty((n_harmonics + 1, coef.shape[1]), dtype=complex)
     phasors[0] = coef[0]
     phasors[1:] = coef[1::2] + 1j * coef[2::2]
+    respond = _tone_response(t0 + np.arange(n_samples) / fs, f0, n_harmonics) \
+        if n_samples <= LONG_RECORD else None
+    std = phasor_noise(_residual_segments(x.reshape(-1, n_samples), resid, phasors.T, fs, f0,
+                                          t0), n_samples, fs, f0, unit_std, sigma, respond)
 
     return HarmonicFit(
         f0=float(f0),
         phasors=phasors.T.reshape(*lead, n_harmonics + 1),
         residual_std=sigma.reshape(lead),
-        phasor_std=(sigma[:, None] * unit_std).reshape(*lead, n_harmonics + 1),
+        phasor_std=std.reshape(*lead, n_harmonics + 1),
         unscaled_covariance=cov,
         fs=float(fs),
         samples=x,
         t0=float(t0),
         _residuals=resid,
     )
+
+
+def _tone_response(t: np.ndarray, f0: float, n_harmonics: int
+                   ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
+    """``respond(freqs)``: the phasors X_0 .. X_H (n_freqs, H+1) the fit gives unit cosines and
+    unit sines at ``freqs`` sampled at times ``t``."""
+    def respond(freqs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        arg = 2 * np.pi * np.outer(t, freqs)
+        tone = qr_fit(np.hstack([np.cos(arg), np.sin(arg)]), t, f0, n_harmonics).coef
+        z = np.vstack([tone[:1], tone[1::2] + 1j * tone[2::2]]).T    # (2 n_freqs, H+1)
+        return z[:len(freqs)], z[len(freqs):]
+    return respond
+
+
+def _residual_segments(records: np.ndarray, resid: np.ndarray | None, phasors: np.ndarray,
+                       fs: float, f0: float, t0: float) -> Callable[[int, int], np.ndarray]:
+    """``segment(a, b)``: samples a..b-1 of the fit's residual, from the residuals when held,
+    else computed from the records and the phasors (n_records, H+1)."""
+    if resid is not None:
+        flat = resid.reshape(records.shape)
+        return lambda a, b: flat[:, a:b]
+    def segment(a: int, b: int) -> np.ndarray:
+        out = np.array(records[:, a:b], dtype=float)
+        step = CHUNK // 4                       # the series a block at a time: memory bounded
+        for c in range(a, b, step):
+            d = min(c + step, b)
+            out[:, c - a:d - a] -= series_at(phasors, f0, t0 + np.arange(c, d) / fs)
+        return out
+    return segment
 
 
 def _unit_phasor_std(cov: np.ndarray, n_harmonics: int) -> np.ndarray:

@@ -42,11 +42,11 @@ and of the reference. The phasors are read off the lines:
 from __future__ import annotations
 
 from dataclasses import dataclass
-from fractions import Fraction
 
 import numpy as np
 
 from .errors import DataError
+from .line_noise import GUARD, noise_power, noise_windows
 from .records import ScanSpectra
 
 __all__ = ["GUARD", "LINE_TOLERANCE", "MIN_NOISE_LINES", "LinePhasors", "spectrum_phasors",
@@ -54,8 +54,6 @@ __all__ = ["GUARD", "LINE_TOLERANCE", "MIN_NOISE_LINES", "LinePhasors", "spectru
 
 LINE_TOLERANCE = 0.02
 """Largest offset of a harmonic n f0 from its line, as a share of the line spacing."""
-GUARD = 2
-"""Lines either side of every harmonic's line left out of its noise estimate."""
 MIN_NOISE_LINES = 4
 """Fewest lines a noise estimate is made from (a harmonic spacing of at least 8 lines)."""
 SEARCH = 0.05
@@ -252,71 +250,23 @@ def _harmonic_lines(first: float, f0: float, df: float, n_harmonics: int) -> np.
 
 def _noise_windows(harmonics: np.ndarray, spacing: float, n_lines: int, source: str
                    ) -> list[np.ndarray]:
-    """The noise lines of harmonics 1..H: those within half a harmonic spacing of the
-    harmonic's line and more than :data:`GUARD` lines from every line of ``harmonics``
-    (0 Hz and harmonics 1..H+1), inside the band.
-
-    Parameters
-    ----------
-    harmonics : (H + 2,) int array
-        The lines of 0 Hz and of harmonics 1..H+1 (:func:`_harmonic_lines`).
-    spacing : float
-        The harmonics' spacing in lines, f0 / df.
-    n_lines : int
-        The spectra's number of lines.
-    source : str
-        The scan, for messages.
-
-    Returns
-    -------
-    list of int arrays
-        One per harmonic 1..H.
-    """
-    windows = []
-    for n, k in enumerate(harmonics[1:-1], start=1):
-        near = np.arange(int(np.ceil(k - spacing / 2)), int(np.floor(k + spacing / 2)) + 1)
-        near = near[(near >= 0) & (near < n_lines)]
-        noise = near[np.all(np.abs(near[:, None] - harmonics[None, :]) > GUARD, axis=1)]
+    """The noise lines of harmonics 1..H (:func:`forcecal.line_noise.noise_windows`: within
+    half a harmonic spacing, clear of 0 Hz and of harmonics 1..H+1 by :data:`GUARD` lines);
+    fewer than :data:`MIN_NOISE_LINES` beside a harmonic is a DataError naming the scan
+    ``source``. ``harmonics`` holds the lines of 0 Hz and of harmonics 1..H+1
+    (:func:`_harmonic_lines`), ``spacing`` is f0 / df."""
+    windows = noise_windows(harmonics[1:-1], harmonics, spacing, n_lines)
+    for n, noise in enumerate(windows, start=1):
         if noise.size < MIN_NOISE_LINES:
             raise DataError(f"scan '{source}': harmonic {n} has {noise.size} lines of noise "
                             f"beside it, at least {MIN_NOISE_LINES} are needed (a finer line "
                             "spacing, or a band reaching half a harmonic spacing beyond the last "
                             "harmonic)")
-        windows.append(noise)
     return windows
 
 
 def _noise_std(lines: np.ndarray, windows: list[np.ndarray]) -> np.ndarray:
     """(n_records, H) standard uncertainty of Re and of Im of every record's line of every
-    harmonic, from the noise lines ``windows`` (step 4 of the module docstring).
-
-    The noise power is modelled as a record's level times a harmonic's profile,
-    var(k, n) = a_k b_n: a record's level (its speckle, its distance) from its noise lines at
-    every harmonic, the profile (the noise's colour) from every record's lines at that
-    harmonic; each a median over its lines, scaled by the expected median of as many
-    exponential variables, alternated three times from a white profile.
-    """
-    power = [np.abs(lines[:, w]) ** 2 for w in windows]          # (n_records, q_n) each
-    n_records = lines.shape[0]
-    q = sum(p.shape[1] for p in power)
-    profile = np.ones(len(power))
-    level = np.zeros(n_records)
-    for _ in range(3):
-        pooled = np.concatenate([p / b for p, b in zip(power, profile, strict=True)], axis=1)
-        level = np.median(pooled, axis=1) / _expected_median(q)
-        unit = np.where(level > 0, level, 1.0)[:, None]
-        profile = np.array([np.median(p / unit) / _expected_median(p.size) for p in power])
-        profile = np.where(profile > 0, profile, 1.0)
-    std: np.ndarray = np.sqrt(np.outer(level, profile) / 2)
+    harmonic, from the noise lines ``windows`` (step 4 of the module docstring)."""
+    std: np.ndarray = np.sqrt(noise_power(np.abs(lines) ** 2, windows) / 2)
     return std
-
-
-def _expected_median(q: int) -> float:
-    """Expected sample median of ``q`` independent unit-mean exponential variables (numpy's
-    median: the mean of the two middle values when q is even)."""
-
-    def order(r: int) -> Fraction:  # E of the r-th smallest of q: sum_{i=q-r+1..q} 1/i
-        return sum((Fraction(1, i) for i in range(q - r + 1, q + 1)), Fraction(0))
-
-    middle = order((q + 1) // 2) if q % 2 else (order(q // 2) + order(q // 2 + 1)) / 2
-    return float(middle)
