@@ -12,10 +12,12 @@ import pytest
 
 import forcecal
 from forcecal import forces, spatial
-from forcecal.campaign import calibrate_campaign, write_calibration
+from forcecal.actuator import predict
+from forcecal.campaign import calibrate_campaign
 
 STEPS = ("load_rig", "read_scan", "read_run", "build_spatial_model", "load_model",
-         "reconstruct", "calibrate", "load_calibration")
+         "reconstruct", "calibrate", "write_calibration", "load_calibration", "predict",
+         "predict_flux")
 MAX_REPR = 400
 """A repr longer than this is a dump, not a summary."""
 
@@ -31,7 +33,7 @@ def chain(paper_dir, tmp_path_factory):
     run = forcecal.read_run(paper_dir / "runs" / "paper.csv")
     est = forcecal.reconstruct(rig, model, run)
     result = forcecal.calibrate(rig, model, paper_dir / "manifest.csv", workers=1)
-    write_calibration(result, out)
+    forcecal.write_calibration(result, out)
     cal = forcecal.load_calibration(out / "calibration.json")
     return SimpleNamespace(rig=rig, scan=scan, built=built, model=model, run=run, est=est,
                            result=result, cal=cal, out=out, paper_dir=paper_dir)
@@ -183,3 +185,12 @@ def test_a_campaign_prints_its_law_not_its_runs(chain):
     for (name, value), std in zip(result.params.items(), result.calibration.stderr, strict=True):
         assert f"{name} = {value:.6g} ± {std:.2g}" in text
     assert repr(result) in result._repr_html_() or "&#x27;" in result._repr_html_()
+
+
+def test_predict_at_the_top_level_is_the_actuator_s(chain):
+    current = np.linspace(*chain.cal.current_range, 3)
+    gap = float(np.mean(chain.cal.gap_range))
+    top = forcecal.predict(chain.cal, current=current, gaps=gap)
+    own = predict(chain.cal, current=current, gaps=gap)
+    np.testing.assert_array_equal(top.total, own.total)
+    assert forcecal.predict is predict

@@ -8,7 +8,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from forcecal.errors import DataError
+from forcecal.diagnostics import mains_notes
+from forcecal.errors import DataError, RigError
 from forcecal.forces import implied_phasors, reconstruct
 from forcecal.records import Run
 from forcecal.rig import parse_rig, rig_to_dict
@@ -130,3 +131,37 @@ def test_a_load_changed_since_the_scan_is_noticed(two_coils):
     rig, model, run = two_coils
     notes = self_check_notes(reconstruct(rig, model, run))
     assert any("disagree with the scan model's shape" in n for n in notes), notes
+
+
+# --------------------------------------------------------------------------------------------
+# a drive harmonic on a mains harmonic
+
+
+def test_a_harmonic_on_a_mains_harmonic_is_noted():
+    kept = np.array([True, True, True, True])
+    notes = mains_notes(50.0, 149.94, kept, 1.0, "run 'body'")
+    assert len(notes) == 3                  # 149.94, 299.88, 449.82 Hz: 150, 300, 450 Hz
+    assert "harmonic 1 (149.94 Hz) lies 0.06 Hz from the mains' harmonic 3 (150 Hz)" in notes[0]
+    assert "not in its uncertainty" in notes[0]
+    assert mains_notes(50.0, 149.0, kept, 0.1, "run 'x'") == []     # 1 Hz away, 3 lines 0.3 Hz
+    assert mains_notes(None, 150.0, kept, 1.0, "run 'x'") == []
+    assert mains_notes(50.0, 150.0, np.array([True, False]), 1.0, "run 'x'") == []  # not kept
+
+
+def test_reconstruct_notes_the_mains_the_rig_declares(paper, tmp_path):
+    rig, _, model, run = paper
+    doc = rig_to_dict(rig)
+    doc.setdefault("acquisition", {})["mains"] = 60.0
+    sixty = parse_rig(doc, source="sixty.toml")
+    assert sixty.mains == 60.0 and rig_to_dict(sixty)["acquisition"]["mains"] == 60.0
+    notes = reconstruct(sixty, model, run).notes
+    assert [n for n in notes if "mains' harmonic 1 (60 Hz)" in n and "harmonic 3 " in n]
+    assert not [n for n in reconstruct(rig, model, run).notes if "mains" in n]
+    doc["acquisition"]["mains"] = 0.05
+    with pytest.raises(RigError, match=r"acquisition\.mains' = 0.05 Hz is not a mains"):
+        parse_rig(doc, source="bad.toml")
+
+
+def test_the_lab_rig_declares_its_mains():
+    assert public_rig(get_preset("paper", "lab")).mains == 50.0
+    assert public_rig(get_preset("paper")).mains is None

@@ -35,13 +35,16 @@ if TYPE_CHECKING:
         calibrate,
         load_calibration,
         load_model,
+        predict,
+        predict_flux,
         read_run,
         read_scan,
         reconstruct,
+        write_calibration,
     )
 
-_LAZY = ("build_spatial_model", "calibrate", "load_calibration", "load_model", "read_run",
-         "read_scan", "reconstruct")
+_LAZY = ("build_spatial_model", "calibrate", "load_calibration", "load_model", "predict",
+         "predict_flux", "read_run", "read_scan", "reconstruct", "write_calibration")
 """Names of :mod:`forcecal.api` imported on first use (they import SciPy's statistics)."""
 
 __all__ = [
@@ -62,9 +65,12 @@ __all__ = [
     "load_calibration",
     "load_model",
     "load_rig",
+    "predict",
+    "predict_flux",
     "read_run",
     "read_scan",
     "reconstruct",
+    "write_calibration",
 ]
 
 

@@ -1,7 +1,7 @@
 """The method's steps as a Python API: thin wrappers re-exported at the package's top level.
 
 Each function is one step of the command line (INTERFACES.md section 5) and takes or returns
-the stage objects (SI units); none writes a file. The chain, on a rig file, a scan, a run and a
+the stage objects (SI units). The chain, on a rig file, a scan, a run and a
 campaign manifest::
 
     import forcecal
@@ -11,7 +11,11 @@ campaign manifest::
     model = forcecal.build_spatial_model(rig, scan)
     est = forcecal.reconstruct(rig, model, forcecal.read_run("runs/r01.csv"))
     result = forcecal.calibrate(rig, model, "manifest.csv")
+    forcecal.write_calibration(result, "out")        # calibration.json, certificate, figures
     cal = forcecal.load_calibration("out/calibration.json")
+    forcecal.predict(cal, current=[1.0, 2.0], gaps=1.0e-3)    # the law, with its uncertainty
+
+Of these, only :func:`write_calibration` writes files (where it is told).
 
 Like the command line, this module sits outside the core: it reads files (:mod:`forcecal.io`).
 """
@@ -21,8 +25,8 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from .actuator import Calibration, Law
-from .campaign import CampaignResult, calibrate_campaign
+from .actuator import Calibration, Law, predict, predict_flux
+from .campaign import CampaignResult, calibrate_campaign, write_calibration
 from .campaign import load_calibration as _load_calibration
 from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
 from .forces import reconstruct
@@ -39,9 +43,12 @@ __all__ = [
     "load_calibration",
     "load_model",
     "load_rig",
+    "predict",
+    "predict_flux",
     "read_run",
     "read_scan",
     "reconstruct",
+    "write_calibration",
 ]
 
 

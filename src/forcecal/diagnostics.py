@@ -25,6 +25,7 @@ import scipy.stats
 
 from .coordinates import Coordinates
 from .harmonics import fit_harmonics
+from .line_noise import GUARD
 from .spatial import SpatialModel
 
 __all__ = [
@@ -35,6 +36,7 @@ __all__ = [
     "PUSH_SIGMAS",
     "dc_vs_ac_notes",
     "drift_notes",
+    "mains_notes",
     "probe_misfit_notes",
     "pull_only_notes",
     "span_notes",
@@ -235,3 +237,45 @@ def drift_notes(current: np.ndarray, fs: float, f0: float, what: str,
                 "batch estimate assumes a steady drive: follow it with 'forcecal stream' or cut "
                 "the record into steady pieces"]
     return []
+
+
+MAINS_HARMONICS = 10
+"""The mains harmonics :func:`mains_notes` checks (hum above the 10th is rarely above noise)."""
+
+
+def mains_notes(mains: float | None, f0: float, kept: np.ndarray, resolution: float,
+                what: str) -> list[str]:
+    """A kept harmonic n f0 within :data:`~forcecal.line_noise.GUARD` + 1 lines of one of the
+    first :data:`MAINS_HARMONICS` harmonics of the mains: hum there is one with the harmonic,
+    in its estimate and not in its uncertainty (:mod:`forcecal.harmonic_noise` sees tones only
+    beside the harmonics).
+
+    Parameters
+    ----------
+    mains : float or None [Hz]
+        ``acquisition.mains``; None: nothing to check.
+    f0 : float [Hz]
+    kept : (H+1,) bool array
+    resolution : float [Hz]
+        The record's line spacing, fs / n_samples.
+    what : str
+        The run, for the note.
+
+    Returns
+    -------
+    list of str
+    """
+    if mains is None:
+        return []
+    reach = (GUARD + 1) * resolution
+    notes = []
+    for n in np.flatnonzero(kept):
+        m = int(round(n * f0 / mains))
+        gap = abs(n * f0 - m * mains)
+        if n >= 1 and 1 <= m <= MAINS_HARMONICS and gap <= reach:
+            notes.append(
+                f"{what}: harmonic {n} ({n * f0:.6g} Hz) lies {gap:.3g} Hz from the mains' "
+                f"harmonic {m} ({m * mains:g} Hz), within {reach:.3g} Hz ({GUARD + 1} lines of "
+                "the record): hum there cannot be told from the force and is not in its "
+                "uncertainty (drive at a frequency whose harmonics keep clear of the mains')")
+    return notes

@@ -25,6 +25,7 @@ from .coordinates import Coordinates, deflection, generalized_coordinates
 from .diagnostics import (
     dc_vs_ac_notes,
     drift_notes,
+    mains_notes,
     probe_misfit_notes,
     pull_only_notes,
     span_notes,
@@ -343,6 +344,8 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     noise = {"gauge noise": np.repeat(gauge_variance(a_r, g_fit)[:, :, None], 2, axis=2),
              "probe noise": var_probes, "scan shapes": var_shapes,
              "unresolved harmonics": np.zeros_like(var_probes)}
+    notes += mains_notes(rig.mains, f0, kept, run.fs / rec.gauges.shape[-1],
+                         f"run '{run.source}'")
     notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0,
                          noise["unresolved harmonics"])
     var = sum(noise.values(), start=np.zeros_like(var_probes))

@@ -124,7 +124,7 @@ def _leakage(tones: list[list[tuple[float, float]]], segment: int, n_samples: in
     if not any(tones):
         return var
     # a tone seen on several records at positions differing in the noise counts once
-    grid = np.array(sorted({round(pos * 64) for rec in tones for pos, _ in rec})) / 64
+    grid = np.array(sorted({round(pos * 16) for rec in tones for pos, _ in rec})) / 16
     freqs = grid * fs / segment
     if respond is not None:
         p_c, p_s = respond(freqs)

@@ -221,7 +221,7 @@ def fit_harmonics(
     phasors = np.empty((n_harmonics + 1, coef.shape[1]), dtype=complex)
     phasors[0] = coef[0]
     phasors[1:] = coef[1::2] + 1j * coef[2::2]
-    respond = _tone_response(t0 + np.arange(n_samples) / fs, f0, n_harmonics) \
+    respond = _tone_response(t0 + np.arange(n_samples) / fs, f0, n_harmonics, cov) \
         if n_samples <= LONG_RECORD else None
     std = phasor_noise(_residual_segments(x.reshape(-1, n_samples), resid, phasors.T, fs, f0,
                                           t0), n_samples, fs, f0, unit_std, sigma, respond)
@@ -239,13 +239,15 @@ def fit_harmonics(
     )
 
 
-def _tone_response(t: np.ndarray, f0: float, n_harmonics: int
+def _tone_response(t: np.ndarray, f0: float, n_harmonics: int, cov: np.ndarray
                    ) -> Callable[[np.ndarray], tuple[np.ndarray, np.ndarray]]:
     """``respond(freqs)``: the phasors X_0 .. X_H (n_freqs, H+1) the fit gives unit cosines and
-    unit sines at ``freqs`` sampled at times ``t``."""
+    unit sines at ``freqs`` sampled at times ``t``: (A^T A)^-1 A^T of them, ``cov`` being
+    (A^T A)^-1."""
     def respond(freqs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        a = design_matrix(t, f0, n_harmonics)
         arg = 2 * np.pi * np.outer(t, freqs)
-        tone = qr_fit(np.hstack([np.cos(arg), np.sin(arg)]), t, f0, n_harmonics).coef
+        tone = cov @ (a.T @ np.hstack([np.cos(arg), np.sin(arg)]))
         z = np.vstack([tone[:1], tone[1::2] + 1j * tone[2::2]]).T    # (2 n_freqs, H+1)
         return z[:len(freqs)], z[len(freqs):]
     return respond

@@ -168,6 +168,9 @@ class Rig:
     temperature: float | None = None
     """``acquisition.temperature`` [°C]: the ambient temperature of the measurements, stated in
     the calibration certificate's conditions; None when the rig does not give it."""
+    mains: float | None = None
+    """``acquisition.mains`` [Hz]: the mains frequency (50 or 60); a drive harmonic on one of
+    the mains' is then noted (:func:`forcecal.diagnostics.mains_notes`)."""
 
     @property
     def gauge_names(self) -> list[str]:
@@ -295,6 +298,9 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     frequency = r.number(acq, "frequency", "acquisition", required=False, positive=True)
     group = r.text(acq, "group", "acquisition", required=False, default=None)
     temperature = _temperature(r, acq)
+    mains = r.number(acq, "mains", "acquisition", required=False, positive=True)
+    if mains is not None and not 10.0 <= mains <= 1000.0:
+        raise r.fail("acquisition.mains", f"= {mains!r} Hz is not a mains frequency (50 or 60)")
     _check_names(r, gauges, forces, sensors, actuator)
     _check_statics(r, structure, gauges, forces, sensors)
     names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
@@ -304,7 +310,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,
                forces=forces, sensors=sensors, actuator=actuator, frequency=frequency,
                source=source, channel_map=channels, run_group=group, type_b=type_b,
-               temperature=temperature)
+               temperature=temperature, mains=mains)
 
 
 _TEMPERATURE_RANGE_C = (-100.0, 200.0)
@@ -534,6 +540,8 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         acquisition["group"] = rig.run_group
     if rig.temperature is not None:
         acquisition["temperature"] = rig.temperature
+    if rig.mains is not None:
+        acquisition["mains"] = rig.mains
     if acquisition:
         doc["acquisition"] = acquisition
     if rig.channel_map:

@@ -170,6 +170,7 @@ def public_rig(preset: Preset) -> Rig:
     b = preset.beam
     mag = preset.magnets[0]
     type_b = TypeB.none() if preset.realism is None else preset.realism.type_b
+    mains = None if preset.realism is None or not preset.realism.hum else preset.realism.mains
     if isinstance(b, BodySpec):
         return Rig(
             name=f"virtual {preset.name} rig",
@@ -185,7 +186,7 @@ def public_rig(preset: Preset) -> Rig:
                           for n, x, y, z, *d in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
-            frequency=preset.nominal_frequency, type_b=type_b,
+            frequency=preset.nominal_frequency, type_b=type_b, mains=mains,
         )
     if isinstance(b, PlateSpec):
         return Rig(
@@ -199,7 +200,7 @@ def public_rig(preset: Preset) -> Rig:
             sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
-            frequency=preset.nominal_frequency, type_b=type_b,
+            frequency=preset.nominal_frequency, type_b=type_b, mains=mains,
         )
     return Rig(
         name=f"virtual {preset.name} rig",
@@ -211,7 +212,7 @@ def public_rig(preset: Preset) -> Rig:
         sensors=tuple(Sensor(name=n, x=x) for n, x in _rows(preset.sensors)),
         actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                           turns=mag.turns, pole_area=mag.pole_area),
-        frequency=preset.nominal_frequency, type_b=type_b,
+        frequency=preset.nominal_frequency, type_b=type_b, mains=mains,
     )
 
 
