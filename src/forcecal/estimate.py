@@ -21,30 +21,68 @@ class ForceEstimate:
 
     Attributes
     ----------
-    f0 : [Hz] refined fundamental of the run; f0_std : [Hz] its standard uncertainty
-    harmonics : (H+1,) int 0..H; phasors follow the convention of :mod:`forcecal.harmonics`
-    force : (n_forces, H+1) complex [N]; force_std : (n_forces, H+1) [N] (Re and Im each)
-    total : (H+1,) complex [N]; total_std : (H+1,) [N]
-    static : (n_forces, H+1) complex [N]: reactions-only phasors
-    inertia : (n_gauges, H+1) complex [N]: J_{r,n}
-    reactions : (n_gauges, H+1) complex [N]
-    with_inertia : (H+1,) bool: harmonics whose inertia came from the scan model
-    kept : (H+1,) bool: harmonics the data support (a shape in the model, or reactions above
-        five times their noise); the others are set to zero
-    time : (n_samples,) [s]; series : (n_forces, n_samples) [N];
-    static_series : (n_forces, n_samples) [N] -Psi^+ R(t) sample by sample
-    combination_names, combination, combination_std : every force, the total and the
-        resultant's first moments (:func:`forcecal.uncertainty.combinations`), phasors
-        (n_c, H+1) [N, N m] with their standard uncertainties: the noise and the type-B
-        parts combined
-    budget : source -> (n_c, H+1) [N, N m], each source's standard uncertainty in every
-        combination and harmonic (noise: gauges, probes and shapes, unresolved harmonics;
-        type B: :data:`forcecal.budget.SOURCES`); their root sum of squares is
-        ``combination_std``
-    type_b : the rig's type-B standard uncertainties the budget used
-    monte_carlo_std, monte_carlo_draws : (n_c, H+1) [N, N m] the standard deviation of a
-        Monte Carlo over the sources :data:`forcecal.budget.MONTE_CARLO_SOURCES`, and its
-        number of draws (None and 0 without one)
+    run_name : str
+        The run (its file's stem).
+    force_names, gauge_names : tuple of str
+        The rig's forces and gauges, in the order of the arrays' rows.
+    f0 : float [Hz]
+        The run's refined fundamental.
+    f0_std : float [Hz]
+        Its standard uncertainty.
+    harmonics : (H+1,) int array
+        0..H; phasors follow the convention of :mod:`forcecal.harmonics`.
+    force : (n_forces, H+1) complex array [N]
+        The external forces' phasors.
+    force_std : (n_forces, H+1) array [N]
+        Their standard uncertainties (of Re and of Im each).
+    total : (H+1,) complex array [N]
+        The forces' sum.
+    total_std : (H+1,) array [N]
+        Its standard uncertainty.
+    static : (n_forces, H+1) complex array [N]
+        The reactions-only phasors.
+    inertia : (n_gauges, H+1) complex array [N]
+        The inertia term J_{r,n}.
+    reactions : (n_gauges, H+1) complex array [N]
+        The gauges' phasors (the tare's DC taken off).
+    with_inertia : (H+1,) bool array
+        Harmonics whose inertia came from the scan model.
+    kept : (H+1,) bool array
+        Harmonics the data support (a shape in the model, or reactions above five times
+        their noise); the others are set to zero.
+    coordinates : Coordinates
+        The generalized coordinates of every harmonic's span.
+    time : (n_samples,) array [s]
+        The run's sample times.
+    series : (n_forces, n_samples) array [N]
+        The forces sample by sample.
+    static_series : (n_forces, n_samples) array [N]
+        -Psi^+ R(t) sample by sample.
+    psi_condition : float
+        Condition number of the force matrix Psi.
+    consistency : (H+1,) array [N]
+        |Psi f - (J - R)| per harmonic: the force solve's residual (nonzero with more gauges
+        than forces).
+    combination_names : tuple of str
+        Every force, the total and the resultant's first moments
+        (:func:`forcecal.uncertainty.combinations`).
+    combination, combination_std : (n_c, H+1) arrays [N, N m]
+        Their phasors and standard uncertainties: the noise and the type-B parts combined.
+    dc_observed : bool
+        False for AC-coupled gauges (the DC is not estimated).
+    notes : tuple of str
+        What the estimate noticed (self-checks, defaults, limits).
+    budget : dict of str to (n_c, H+1) array [N, N m]
+        Each source's standard uncertainty in every combination and harmonic (noise: gauges,
+        probes and shapes, unresolved harmonics; type B: :data:`forcecal.budget.SOURCES`);
+        their root sum of squares is ``combination_std``.
+    type_b : TypeB or None
+        The rig's type-B standard uncertainties the budget used.
+    monte_carlo_std : (n_c, H+1) array [N, N m] or None
+        The standard deviation of a Monte Carlo over the sources
+        :data:`forcecal.budget.MONTE_CARLO_SOURCES` (None without one).
+    monte_carlo_draws : int
+        Its number of draws (0 without one).
     """
 
     run_name: str

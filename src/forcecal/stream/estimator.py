@@ -124,23 +124,37 @@ class StreamEstimator:
 
     Parameters
     ----------
-    rig : the rig (channel names and scales, gauges, force points, probes)
-    model : the spatial model from the scan (shapes and mass couplings)
-    f0_guess : [Hz] the drive frequency to start from (tracked from then on)
-    fs : [Hz] sampling rate of the acquisition
-    n_harmonics : H, harmonics 0..H are tracked (default: as many as the scan was fitted with)
-    forgetting : lambda (default: a memory of ``DEFAULT_MEMORY_PERIODS`` periods,
-        lambda = 1 - f0 / (2 fs))
-    t0 : [s] absolute time of the first sample (phasors then follow the batch convention)
-    track_frequency : follow a drift of the drive frequency (phase-locked to the current)
-    sensor_std : (n_sensors,) [m] noise of each probe, weights of the Q_n fit (default: equal)
-    tare_dc : (n_gauges,) [N] gauge DC of a zero-current record, subtracted
-    ac_coupled : the gauges do not measure DC: no DC force; the static estimate is AC only
-    extra_harmonics : harmonics without a shape in the model that enter the force from the
-        start (reactions only, their inertia uncompensated); the others join once the
-        reactions show them above their noise over the window (the batch estimate's policy,
-        :func:`forcecal.forces.kept_harmonics`, checked once per drive period)
+    rig : Rig
+        The rig (channel names and scales, gauges, force points, probes).
+    model : SpatialModel
+        The spatial model from the scan (shapes and mass couplings).
+    f0_guess : float [Hz]
+        The drive frequency to start from (tracked from then on).
+    fs : float [Hz]
+        Sampling rate of the acquisition.
+    n_harmonics : int, optional
+        H: harmonics 0..H are tracked (default: as many as the scan was fitted with).
+    forgetting : float, optional
+        lambda (default: a memory of ``DEFAULT_MEMORY_PERIODS`` periods,
+        lambda = 1 - f0 / (2 fs)).
+    t0 : float [s]
+        Absolute time of the first sample (phasors then follow the batch convention).
+    track_frequency : bool
+        Follow a drift of the drive frequency (phase-locked to the current).
+    sensor_std : (n_sensors,) array [m], optional
+        Noise of each probe, the weights of the Q_n fit (default: equal).
+    tare_dc : (n_gauges,) array [N], optional
+        Gauge DC of a zero-current record, subtracted.
+    ac_coupled : bool
+        The gauges do not measure DC: no DC force; the static estimate is AC only.
+    extra_harmonics : sequence of int
+        Harmonics without a shape in the model that enter the force from the start (reactions
+        only, their inertia uncompensated); the others join once the reactions show them
+        above their noise over the window (the batch estimate's policy,
+        :func:`forcecal.forces.kept_harmonics`, checked once per drive period).
 
+    Notes
+    -----
     Channel order of an array block: :attr:`channel_names` (gauges, probes, current), raw
     values as recorded (the rig's scales are applied here).
 
