@@ -14,6 +14,7 @@ import tomllib
 import warnings
 from pathlib import Path
 
+import h5py
 import numpy as np
 import pytest
 import pyuff
@@ -259,6 +260,39 @@ def test_tdms_group_chosen_by_the_rig_or_the_caller(tmp_path):
     with pytest.raises(InputError, match=r"no group 'Raw' \(the group chosen for the runs\); "
                                          r"the file's groups: '(Meta|Data)', '(Data|Meta)'"):
         read_run(path, group="Raw")
+
+
+def test_hdf5_group_chosen_by_the_rig_or_the_caller(tmp_path):
+    """An HDF5 file written by h5py as a DAQ logger would: a setup group and one group of
+    channels per acquisition, the rate on each group."""
+    data, meta = sines(), sines(names=("temperature", "s1"))
+    path = tmp_path / "r.h5"
+    with h5py.File(path, "w") as h5:
+        h5.create_group("setup").attrs["operator"] = "J. Doe"
+        for name, channels, t0 in (("runs/Data", data, 1.5), ("runs/Meta", meta, 0.0)):
+            g = h5.create_group(name)
+            g.attrs["fs"], g.attrs["t0"] = 2000.0, t0
+            for ch, v in channels.items():
+                g.create_dataset(ch, data=v)
+    with pytest.raises(InputError, match=r"r\.h5': expected one group of channels, found "
+                                         r"'runs/Data', 'runs/Meta'; choose one with --group"):
+        read_run(path)
+    run = read_run(path, load_rig(rig_file(tmp_path, "group = \"runs/Data\"\n")))
+    assert sorted(run.channels) == sorted(data) and run.t0 == 1.5 and run.fs == 2000.0
+    np.testing.assert_array_equal(run.channels["s1"], data["s1"])
+    run = read_run(path, group="runs/Meta")
+    assert sorted(run.channels) == ["s1", "temperature"]
+    with pytest.raises(InputError, match=r"no group 'Raw' \(the group chosen for the runs\); "
+                                         r"the file's groups of datasets: 'runs/Data', "
+                                         r"'runs/Meta'"):
+        read_run(path, group="Raw")
+    single = tmp_path / "one.h5"                  # one group of channels needs no choice
+    with h5py.File(single, "w") as h5:
+        g = h5.create_group("Data")
+        g.attrs["fs"] = 2000.0
+        for ch, v in data.items():
+            g.create_dataset(ch, data=v)
+    np.testing.assert_array_equal(read_run(single).channels["R1"], data["R1"])
 
 
 def test_tdms_daq_names_mapped_by_the_rig(tmp_path):

@@ -184,8 +184,8 @@ def build_parser() -> argparse.ArgumentParser:
     for name in ("reconstruct", "calibrate", "stream", "report"):  # the commands that read runs
         sub.choices[name].add_argument(
             "--group", metavar="NAME",
-            help="TDMS group the runs are read from (default: the rig's acquisition.group, or "
-                 "the file's only group)")
+            help="TDMS group, or HDF5 group path, the runs are read from (default: the rig's "
+                 "acquisition.group, or the file's only group of channels)")
     return parser
 
 

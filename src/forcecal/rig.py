@@ -162,7 +162,8 @@ class Rig:
     """``[channels]``: (rig channel name, the file's channel) pairs; a UFF record is named
     ``"node 12 +Z"`` (see :func:`node_channel`)."""
     run_group: str | None = None
-    """``acquisition.group``: the TDMS group the runs are read from."""
+    """``acquisition.group``: the TDMS group, or the HDF5 group's path, the runs are read
+    from."""
     type_b: TypeB = field(default_factory=TypeB)
     """``[uncertainty]``: the type-B standard uncertainties (defaults when not declared)."""
     temperature: float | None = None

@@ -7,8 +7,9 @@ A run file holds uniformly sampled, named channels:
   (dialects of lab exports: see :mod:`forcecal.io.csv_runs`);
 - TDMS: one group of channels (chosen by name when the file has several), sampling from the
   ``wf_increment`` property (start from ``wf_start_offset``) or from a channel named ``time``;
-- HDF5: one root dataset per channel, the rate in the root attribute ``fs`` [Hz] (optionally
-  ``t0`` [s]), or a root dataset named ``time``;
+- HDF5: one dataset per channel at the root or in one group (chosen by path when the file
+  has several), the rate in the attribute ``fs`` [Hz] of that group or of the root
+  (optionally ``t0`` [s]), or a dataset named ``time``;
 - UFF: one dataset-58 time record per channel (see :mod:`forcecal.io.uff_runs`).
 
 Given the rig, a run's channels are renamed by its ``[channels]`` map and the units the file
@@ -92,8 +93,8 @@ def read_run(path: str | Path, rig: Rig | None = None, *, group: str | None = No
         ``acquisition.group`` chooses a TDMS file's group, and the units the file states are
         checked against its scales. Without it the channels keep the file's names.
     group : str, optional
-        The TDMS group to read (instead of the rig's ``acquisition.group``); needed when a file
-        has several groups of channels.
+        The TDMS group, or the HDF5 group's path, to read (instead of the rig's
+        ``acquisition.group``); needed when a file has several groups of channels.
 
     Returns
     -------
@@ -105,7 +106,7 @@ def read_run(path: str | Path, rig: Rig | None = None, *, group: str | None = No
     ------
     InputError
         Missing file, unknown suffix, unreadable file, missing ``time`` column or sampling,
-        several TDMS groups and none chosen.
+        several TDMS or HDF5 groups of channels and none chosen.
     DataError
         Empty, non-numeric, NaN/infinite, non-uniformly sampled or too short records; a
         channel of the rig's map missing from the file; a stated unit the rig's scale does not
@@ -130,7 +131,7 @@ def read_run(path: str | Path, rig: Rig | None = None, *, group: str | None = No
     elif suffix in (".uff", ".unv"):
         loaded = read_uff_run(path)
     else:
-        loaded = RunFile(_read_hdf5_run(path))
+        loaded = RunFile(_read_hdf5_run(path, group))
     if rig is None:
         return loaded.run
     from .run_channels import apply_rig
@@ -270,11 +271,15 @@ def _tdms_group(tdms, path: Path, group: str | None):
     return groups[0]
 
 
-def _read_hdf5_run(path: Path) -> Run:
+def _read_hdf5_run(path: Path, group: str | None) -> Run:
     try:
         with h5py.File(path, "r") as h5:
-            attrs = {key: h5.attrs[key] for key in ("fs", "t0") if key in h5.attrs}
-            data = {n: h5[n][()] for n in h5 if isinstance(h5[n], h5py.Dataset)}
+            where = _hdf5_group(h5, path, group)
+            attrs = {key: where.attrs[key] if key in where.attrs else h5.attrs[key]
+                     for key in ("fs", "t0") if key in where.attrs or key in h5.attrs}
+            data = {n: where[n][()] for n in where if isinstance(where[n], h5py.Dataset)}
+    except InputError:
+        raise
     except Exception as exc:  # h5py raises OSError, KeyError, RuntimeError... on damage
         raise InputError(f"run '{path}': not a readable HDF5 file ({first_line(exc)})") from exc
     time_name = next((n for n in data if n.strip().lower() == "time"), None)
@@ -291,6 +296,42 @@ def _read_hdf5_run(path: Path) -> Run:
             "cannot tell the sampling"
         )
     return run_from_time(path, _hdf5_values(data[time_name], time_name, path), channels)
+
+
+def _hdf5_group(h5: h5py.File, path: Path, group: str | None) -> h5py.Group:
+    """The group whose datasets are the channels: the one chosen (a path such as ``"Data"`` or
+    ``"rig1/run3"``), else the root when it holds datasets, else its only group that does."""
+    if group is not None:
+        found = h5.get(group)
+        if not isinstance(found, h5py.Group):
+            names = ", ".join(repr(n) for n in _hdf5_channel_groups(h5)) or "none"
+            raise InputError(f"run '{path}': no group {group!r} (the group chosen for the runs); "
+                             f"the file's groups of datasets: {names}")
+        return found
+    if any(isinstance(v, h5py.Dataset) for v in h5.values()):
+        return h5
+    groups = _hdf5_channel_groups(h5)
+    if len(groups) != 1:
+        names = ", ".join(repr(n) for n in groups) or "none with datasets"
+        hint = ("; choose one with --group NAME or [acquisition] group = \"NAME\" in the rig"
+                if groups else "")
+        raise InputError(f"run '{path}': expected one group of channels, found {names}{hint}")
+    found = h5[groups[0]]
+    assert isinstance(found, h5py.Group)
+    return found
+
+
+def _hdf5_channel_groups(h5: h5py.File) -> list[str]:
+    """Every group (at any depth) that holds datasets, by path."""
+    names: list[str] = []
+
+    def visit(name: str, obj: object) -> None:
+        if isinstance(obj, h5py.Group) and any(isinstance(v, h5py.Dataset)
+                                               for v in obj.values()):
+            names.append(name)
+
+    h5.visititems(visit)
+    return names
 
 
 # --------------------------------------------------------------------------------------------
