@@ -10,6 +10,7 @@ wrote. A command must exit with status 0, unless the document marks it with a tr
 from __future__ import annotations
 
 import importlib.util
+import json
 import re
 import shlex
 from dataclasses import dataclass
@@ -142,4 +143,31 @@ def test_documented_command(command, workspaces, monkeypatch, capsys):
     assert status == command.status, err
     if command.status == 2:
         assert len(err.splitlines()) == 1, err
+    if command.doc == "guide.md" and command.argv[:1] == ("calibrate",) and "-o" in command.argv:
+        out = Path(command.argv[command.argv.index("-o") + 1])
+        if (out / "calibration.json").is_file():
+            check_shown_candidates(out / "calibration.json")
     space[1] = None
+
+
+ROW = re.compile(r"^(\w+)\s+(\d+)\s+([\d.]+)\s+([\d.]+)\s+(-?[\d.]+)\s+(-?[\d.]+)(\s+<- chosen)?$")
+
+
+def check_shown_candidates(calibration: Path) -> None:
+    """The guide's table of candidate laws (section 1.4) is what its `calibrate` computes, to
+    the digits shown."""
+    shown = [ROW.match(line) for line in (DOCS / "guide.md").read_text().splitlines()]
+    rows = {m[1]: m for m in shown if m}
+    computed = json.loads(calibration.read_text())
+    table = []
+    for c in computed["candidates"]:
+        table.append(f"{c['law']:<10}{len(c['params']):>3}  {100 * c['rms_residual']:9.4f}  "
+                     f"{100 * c['held_out']:10.4f}  {c['aic']:10.1f}  {c['bic']:10.1f}")
+    assert set(rows) == {c["law"] for c in computed["candidates"]}, "\n".join(table)
+    for c in computed["candidates"]:
+        m = rows[c["law"]]
+        got = (float(m[3]), float(m[4]), float(m[5]), float(m[6]))
+        want = (100 * c["rms_residual"], 100 * c["held_out"], c["aic"], c["bic"])
+        assert all(abs(g - w) <= tol for g, w, tol in zip(got, want, (6e-5, 6e-5, 0.06, 0.06),
+                                                        strict=True)), "\n".join(table)
+        assert bool(m[7]) == (c["law"] == computed["law"]), c["law"]
