@@ -27,7 +27,7 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy import stats
+from scipy.special import gammaincinv
 
 __all__ = ["GUARD", "RUNNING", "STRONG", "expected_median", "line_power", "noise_power",
            "noise_windows", "strong_lines"]
@@ -212,7 +212,7 @@ def expected_median(q: int, segments: int = 1) -> float:
     q is even). Exact for one segment; for averages, the distribution's median (the sample
     median's expectation for many lines)."""
     if segments > 1:
-        return float(stats.gamma(segments).median()) / segments
+        return float(gammaincinv(segments, 0.5)) / segments
 
     def order(r: int) -> float:  # E of the r-th smallest of q: sum_{i=q-r+1..q} 1/i
         return float(np.sum(1.0 / np.arange(q - r + 1, q + 1)))

@@ -128,15 +128,12 @@ class StreamEstimator:
         The rig (channel names and scales, gauges, force points, probes).
     model : SpatialModel
         The spatial model from the scan (shapes and mass couplings).
-    f0_guess : float [Hz]
-        The drive frequency to start from (tracked from then on).
-    fs : float [Hz]
-        Sampling rate of the acquisition.
+    f0_guess, fs : float [Hz]
+        The drive frequency to start from (tracked from then on); the sampling rate.
     n_harmonics : int, optional
         H: harmonics 0..H are tracked (default: as many as the scan was fitted with).
     forgetting : float, optional
-        lambda (default: a memory of ``DEFAULT_MEMORY_PERIODS`` periods,
-        lambda = 1 - f0 / (2 fs)).
+        lambda (default 1 - f0 / (2 fs): a memory of ``DEFAULT_MEMORY_PERIODS`` periods).
     t0 : float [s]
         Absolute time of the first sample (phasors then follow the batch convention).
     track_frequency : bool
@@ -148,10 +145,9 @@ class StreamEstimator:
     ac_coupled : bool
         The gauges do not measure DC: no DC force; the static estimate is AC only.
     extra_harmonics : sequence of int
-        Harmonics without a shape in the model that enter the force from the start (reactions
-        only, their inertia uncompensated); the others join once the reactions show them
-        above their noise over the window (the batch estimate's policy,
-        :func:`forcecal.forces.kept_harmonics`, checked once per drive period).
+        Harmonics without a shape that enter the force from the start (reactions only); the
+        others join once the reactions show them above their noise over the window
+        (:func:`forcecal.forces.kept_harmonics`, checked once per drive period).
 
     Notes
     -----
