@@ -3,6 +3,7 @@ synthetic truths (a step in drive amplitude, a drifting drive frequency)."""
 
 from __future__ import annotations
 
+import sys
 import tracemalloc
 
 import numpy as np
@@ -523,9 +524,8 @@ def test_stream_writes_csv_to_stdout_and_nothing_on_error(paper, paper_dir, tmp_
         if len(calls) == 2:
             raise DataError("stop")
 
-    import forcecal.io.blocks as blocks_module
-
-    monkeypatch.setattr(blocks_module, "READ_BLOCK", 2000)
+    replay_module = sys.modules["forcecal.stream.replay"]   # the package's `replay` shadows it
+    monkeypatch.setattr(replay_module, "STREAM_READ", 2000)
     blocks = check_run_blocks(rig, open_run_blocks(run, rig))
     with blocks, pytest.raises(DataError, match="stop"):
         stream_table(rig, model, blocks, tmp_path / "half.csv", block=64, check=failing)

@@ -21,7 +21,6 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy.linalg import LinAlgError, cho_factor, cho_solve
-from scipy.optimize import minimize_scalar
 
 from .checks import as_records, check_periods
 from .errors import DataError
@@ -376,6 +375,8 @@ def _coarse_start(n_seg: int, width: float, fs: float, h: int, shortest: float) 
 def _bounded_minimum(objective: Callable[[float], float], bounds: tuple[float, float],
                      xatol: float) -> tuple[float, float]:
     """(f [Hz], objective) at the minimum of ``objective`` within ``bounds``."""
+    from scipy.optimize import minimize_scalar  # on first use: a stream never needs it
+
     res = minimize_scalar(objective, bounds=bounds, method="bounded",
                           options={"xatol": xatol, "maxiter": 500})
     return float(res.x), float(res.fun)
