@@ -103,14 +103,14 @@ def noise_power(power: np.ndarray, windows: list[np.ndarray], segments: int = 1,
     (n_records, m) array
     """
     parts = [power[:, w] for w in windows]
-    n_records = power.shape[0]
-    q = sum(p.shape[1] for p in parts)
-    profile = np.ones(len(parts))
-    level = np.zeros(n_records)
     if level_lines is not None:
         level = np.median(power[:, level_lines], axis=1) / expected_median(len(level_lines),
                                                                           segments)
-        return _profiled(parts, level, segments)
+        fixed: np.ndarray = np.outer(level, _profile(parts, level, segments))
+        return fixed
+    q = sum(p.shape[1] for p in parts)
+    profile = np.ones(len(parts))
+    level = np.zeros(power.shape[0])
     for _ in range(3):
         pooled = np.concatenate([p / b for p, b in zip(parts, profile, strict=True)], axis=1)
         level = np.median(pooled, axis=1) / expected_median(q, segments)
@@ -126,12 +126,6 @@ def _profile(parts: list[np.ndarray], level: np.ndarray, segments: int) -> np.nd
     profile = np.array([np.median(p / unit) / expected_median(p.size, segments)
                         if p.size else 1.0 for p in parts])
     out: np.ndarray = np.where(profile > 0, profile, 1.0)
-    return out
-
-
-def _profiled(parts: list[np.ndarray], level: np.ndarray, segments: int) -> np.ndarray:
-    """level x profile for a fixed level."""
-    out: np.ndarray = np.outer(level, _profile(parts, level, segments))
     return out
 
 
