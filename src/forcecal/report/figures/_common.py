@@ -144,6 +144,10 @@ def time_window(t: np.ndarray, f0: float, periods: float) -> slice:
     return slice(0, max(m, min(2, len(t))))
 
 
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+"""Marker of trace k (open, every few samples): traces that coincide stay distinguishable."""
+
+
 def measured_width(k: int) -> float:
     """Line width of measured trace k: wide (drawn translucent), wider for the first ones.
 

@@ -23,14 +23,13 @@ from ...forces import ForceEstimate, channels_si
 from ...harmonics import fit_harmonics
 from ...records import Run
 from ...rig import Rig
-from ._common import law_argument, law_cycle, law_harmonics, panel_title, running_max
+from ._common import MARKERS, law_argument, law_cycle, law_harmonics, panel_title, running_max
 
 if TYPE_CHECKING:
     from ...campaign import CampaignResult
 
 __all__ = ["CalibrationPoints", "CampaignSamples", "fig_calibration", "law_harmonics"]
 
-_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 _DASHES = ("-", "--", "-.", ":")
 
 
@@ -296,7 +295,7 @@ class _Group:
 
     @property
     def marker(self) -> str:
-        return _MARKERS[self.ac_index % len(_MARKERS)]
+        return MARKERS[self.ac_index % len(MARKERS)]
 
     @property
     def dash(self) -> str:
@@ -478,7 +477,7 @@ def _legend_handles(pts: CalibrationPoints, gap_id: np.ndarray, ac_id: np.ndarra
     for a in range(ac_id.max() + 1):
         amp = float(np.mean(pts.ac[ac_id == a]))
         dash = _DASHES[a % len(_DASHES)] if law is not None else "none"
-        handles.append(Line2D([], [], color="0.3", marker=_MARKERS[a % len(_MARKERS)],
+        handles.append(Line2D([], [], color="0.3", marker=MARKERS[a % len(MARKERS)],
                               mfc="none", ls=dash, label=f"AC {amp:.3g} A"))
     if law is not None:
         handles.append(Line2D([], [], color="0.3", ls="-", lw=1.2,
@@ -577,7 +576,7 @@ def _draw_collapse(ax: Axes, pts: CalibrationPoints, cal: Calibration, gap_id: n
             (np.mean(x[sel], keepdims=True), pts.force_dc[k:k + 1])
         if pts.samples is None and pts.law_dc is not None:     # x at the run's own gaps
             xs = pts.law_dc[k:k + 1] / cal.params[0]
-        ax.plot(xs * scale, ys, _MARKERS[ac_id[k] % len(_MARKERS)], mfc="none",
+        ax.plot(xs * scale, ys, MARKERS[ac_id[k] % len(MARKERS)], mfc="none",
                 color=f"C{gap_id[k] % 10}", ms=4 if pts.samples is not None else 7, mew=0.9,
                 alpha=0.8, label="measured (reactions and inertia)" if k == 0 else "_nolegend_")
     arg = law.formula.split("=", 1)[1].strip().removeprefix(law.param_names[0]).strip()

@@ -19,6 +19,7 @@ from ...errors import DimensionError
 from ...forces import ForceEstimate
 from ._common import (
     DEFAULT_PERIODS,
+    MARKERS,
     fourier_series,
     legend_right,
     measured_width,
@@ -28,7 +29,6 @@ from ._common import (
 
 __all__ = ["fig_forces", "force_sigma"]
 
-_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
 _MARKS_PER_PERIOD = 8
 
 
@@ -118,7 +118,7 @@ def _draw_gauges(ax: Axes, t: np.ndarray, estimate: ForceEstimate, phasors: np.n
     values = fourier_series(phasors, estimate.f0, t)
     for r, g in enumerate(estimate.gauge_names):
         ax.plot(t * 1e3, values[r], "-", color=f"C{(r + 4) % 10}", lw=measured_width(r),
-                alpha=0.8, marker=_MARKERS[(r + 4) % len(_MARKERS)], ms=5, mfc="none",
+                alpha=0.8, marker=MARKERS[(r + 4) % len(MARKERS)], ms=5, mfc="none",
                 markevery=(r * step // 2, step), label=g)
     ax.axhline(0.0, color="0.6", lw=0.6)
     legend_right(ax)
@@ -146,7 +146,7 @@ def _draw_forces(ax: Axes, w: slice, estimate: ForceEstimate,
     handles: list[Line2D | Patch] = []
     for k, name in enumerate(names):
         color = "C3" if name == "total" else f"C{k % 3}"
-        marker = _MARKERS[k % len(_MARKERS)]
+        marker = MARKERS[k % len(MARKERS)]
         lw = 2.0 if name == "total" else measured_width(k)
         y = series[k, w]
         ax.fill_between(tm, y - 2 * sigma[k], y + 2 * sigma[k], color=color, alpha=0.25,

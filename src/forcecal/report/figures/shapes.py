@@ -20,7 +20,7 @@ from ...basis import ShapeFit
 from ...errors import DimensionError, InputError
 from ...scan import HarmonicShapes
 from ...spatial import ONE_SHAPE_MAC, SpatialModel
-from ._common import panel_title, prefixed_unit
+from ._common import MARKERS, panel_title, prefixed_unit
 
 __all__ = ["fig_shapes", "fig_shapes_2d", "fig_shapes_body"]
 
@@ -145,14 +145,19 @@ def _draw_normalized(ax: Axes, shapes: HarmonicShapes, model: SpatialModel,
         fit = model.shape_values(n, xf)
         ref = fit[np.argmax(np.abs(fit))]
         color = f"C{j % 10}"
-        ax.plot(x * 1e3, (shapes.values[_row(shapes, n)] / ref).real, ".", ms=4, alpha=0.45,
-                color=color, label=f"_measured {n}")
         ax.plot(xf * 1e3, (fit / ref).real, "-", lw=1.6, color=color,
                 label=f"n = {n} ({n * shapes.f0:.0f} Hz)")
+        # the measured points over every line, one open marker per harmonic, staggered so that
+        # harmonics of one shape (points on the same curve) stay apart
+        ax.plot(x[j::len(harmonics)] * 1e3,
+                (shapes.values[_row(shapes, n)][j::len(harmonics)] / ref).real,
+                MARKERS[j % len(MARKERS)], ms=4, mfc="none", mew=0.9, color=color, zorder=3,
+                label=f"_measured {n}")
     ax.set_xlim(xf[0] * 1e3, xf[-1] * 1e3)
     ax.set_xlabel("x [mm]")
     ax.set_ylabel(r"Re $\varphi_n(x) / \varphi_n(x_\mathrm{peak})$ [1]")
-    panel_title(ax, "Normalized shapes (lines: fitted, dots: measured)")
+    panel_title(ax, "Normalized shapes (lines: fitted, markers: measured"
+                + (f", 1 point in {len(harmonics)})" if len(harmonics) > 1 else ")"))
     ax.grid(alpha=0.3)
     ax.legend(loc="best", fontsize="small", title=_mac_text(model, harmonics),
               title_fontsize="small", alignment="left", framealpha=0.9)

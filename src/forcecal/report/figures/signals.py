@@ -17,6 +17,7 @@ from ...records import Run
 from ...rig import Rig
 from ._common import (
     DEFAULT_PERIODS,
+    MARKERS,
     check_run,
     fourier_series,
     legend_right,
@@ -96,10 +97,16 @@ def _draw_probes(ax: Axes, t: np.ndarray, sensors: np.ndarray, fit: HarmonicFit,
                  names: list[str]) -> None:
     """The probes ``(n_sensors, n_t)`` [m] measured at times ``t`` and their Fourier series."""
     factor, unit = prefixed_unit(np.abs(sensors).max(), "m")
+    step = max(len(t) // 12, 1)
     for k, s in enumerate(names):
-        ax.plot(t * 1e3, sensors[k] * factor, "-", color=f"C{(k + 1) % 10}",
+        color = f"C{(k + 1) % 10}"
+        ax.plot(t * 1e3, sensors[k] * factor, "-", color=color,
                 lw=measured_width(k), alpha=0.55, label=f"{s} measured")
-        ax.plot(t * 1e3, fit.evaluate(t)[k] * factor, "--", color="k", lw=1.0,
+        # each fit in its probe's colour and marker, the markers staggered: probes that read
+        # alike (a symmetric rig) stay apart
+        ax.plot(t * 1e3, fit.evaluate(t)[k] * factor, "--", color=color, lw=1.2,
+                marker=MARKERS[k % len(MARKERS)], ms=5, mfc="none",
+                markevery=(k * step // max(len(names), 1), step),
                 label=f"{s} Fourier series (residual rms "
                       f"{quantity(float(fit.residual_std[k]), 'm', 2)})")
     ax.set_ylabel(f"displacement [{unit}]")
