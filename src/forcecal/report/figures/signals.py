@@ -97,20 +97,26 @@ def _draw_probes(ax: Axes, t: np.ndarray, sensors: np.ndarray, fit: HarmonicFit,
                  names: list[str]) -> None:
     """The probes ``(n_sensors, n_t)`` [m] measured at times ``t`` and their Fourier series."""
     factor, unit = prefixed_unit(np.abs(sensors).max(), "m")
-    step = max(len(t) // 12, 1)
+    series = fit.evaluate(t)
     for k, s in enumerate(names):
-        color = f"C{(k + 1) % 10}"
-        ax.plot(t * 1e3, sensors[k] * factor, "-", color=color,
-                lw=measured_width(k), alpha=0.55, label=f"{s} measured")
-        # each fit in its probe's colour and marker, the markers staggered: probes that read
-        # alike (a symmetric rig) stay apart
-        ax.plot(t * 1e3, fit.evaluate(t)[k] * factor, "--", color=color, lw=1.2,
-                marker=MARKERS[k % len(MARKERS)], ms=5, mfc="none",
-                markevery=(k * step // max(len(names), 1), step),
-                label=f"{s} Fourier series (residual rms "
-                      f"{quantity(float(fit.residual_std[k]), 'm', 2)})")
+        _probe_pair(ax, t, k, len(names), sensors[k] * factor, series[k] * factor, s,
+                    f"{s} Fourier series (residual rms "
+                    f"{quantity(float(fit.residual_std[k]), 'm', 2)})")
     ax.set_ylabel(f"displacement [{unit}]")
     panel_title(ax, "Probe displacements")
+
+
+def _probe_pair(ax: Axes, t: np.ndarray, k: int, n_probes: int, measured: np.ndarray,
+                fitted: np.ndarray, name: str, fit_label: str) -> None:
+    """Probe k's measured trace (wide, translucent) and its Fourier series (dashed, in its
+    colour, with its marker, the markers staggered between probes: probes that read alike, as
+    on a symmetric rig, stay apart), at times ``t`` [s] drawn in ms."""
+    color = f"C{(k + 1) % 10}"
+    step = max(len(t) // 12, 1)
+    ax.plot(t * 1e3, measured, "-", color=color, lw=measured_width(k), alpha=0.55,
+            label=f"{name} measured")
+    ax.plot(t * 1e3, fitted, "--", color=color, lw=1.2, marker=MARKERS[k % len(MARKERS)],
+            ms=5, mfc="none", markevery=(k * step // max(n_probes, 1), step), label=fit_label)
 
 
 # --------------------------------------------------------------------------------------------
@@ -171,10 +177,8 @@ def _draw_probes_ac(ax: Axes, t: np.ndarray, sensors: np.ndarray, fit: HarmonicF
     series = fit.evaluate(t) - mean
     factor, unit = prefixed_unit(np.abs(ac).max(), "m")
     for k, s in enumerate(names):
-        ax.plot(t * 1e3, ac[k] * factor, "-", color=f"C{(k + 1) % 10}", lw=measured_width(k),
-                alpha=0.55, label=f"{s} measured")
-        ax.plot(t * 1e3, series[k] * factor, "--", color="k", lw=1.0,
-                label=f"{s} Fourier series")
+        _probe_pair(ax, t, k, len(names), ac[k] * factor, series[k] * factor, s,
+                    f"{s} Fourier series")
     ax.set_ylabel(f"displacement − mean [{unit}]")
     panel_title(ax, "Probe displacements about their mean")
 
