@@ -39,7 +39,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .fundamental import LONG_RECORD
-from .line_noise import GUARD, line_power, noise_power, noise_windows, strong_lines
+from .line_noise import clear_lines, line_power, noise_power, noise_windows, strong_lines
 
 __all__ = ["LOWEST", "MIN_NOISE_LINES", "SEGMENT", "phasor_noise"]
 
@@ -86,7 +86,7 @@ def phasor_noise(segment_of: Callable[[int, int], np.ndarray], n_samples: int, f
     n_lines = segment // 2 + 1
     every = np.arange(int(np.ceil((n_lines - 1) / spacing)) + 1) * spacing  # harmonics, all
     windows = noise_windows(every[:n_h + 1], every, spacing, n_lines, MIN_NOISE_LINES)
-    clear = _clear_lines(n_lines, spacing)
+    clear = clear_lines(n_lines, every)
     broadband = np.repeat(np.asarray(sigma, dtype=float)[:, None], n_h + 1, axis=1)
     if min(w.size for w in windows) < MIN_NOISE_LINES or clear.size < MIN_NOISE_LINES:
         out: np.ndarray = broadband * unit_std
@@ -105,15 +105,6 @@ def phasor_noise(segment_of: Callable[[int, int], np.ndarray], n_samples: int, f
     var += _leakage(tones, segment, n_samples, fs, f0, n_h, respond)
     std: np.ndarray = np.sqrt(var)
     return std
-
-
-def _clear_lines(n_lines: int, spacing: float) -> np.ndarray:
-    """Every line more than :data:`~forcecal.line_noise.GUARD` lines from each multiple of
-    ``spacing`` (the harmonics fitted and those above): the lines of a record's level."""
-    k = np.arange(n_lines)
-    distance = np.abs(k - spacing * np.round(k / spacing))
-    out: np.ndarray = k[distance > GUARD]
-    return out
 
 
 def _leakage(tones: list[list[tuple[float, float]]], segment: int, n_samples: int, fs: float,

@@ -29,8 +29,8 @@ from collections.abc import Callable
 import numpy as np
 from scipy.special import gammaincinv
 
-__all__ = ["GUARD", "RUNNING", "STRONG", "expected_median", "line_power", "noise_power",
-           "noise_windows", "strong_lines"]
+__all__ = ["GUARD", "RUNNING", "STRONG", "clear_lines", "expected_median", "line_power",
+           "noise_power", "noise_windows", "strong_lines"]
 
 GUARD = 2
 """Lines either side of every harmonic's line left out of its noise estimate."""
@@ -39,6 +39,14 @@ STRONG = 20.0
 level: noise alone does so once in e^20 (5e8) lines."""
 RUNNING = 33
 """Lines of the blocks whose medians give the local noise level of their lines."""
+
+
+def clear_lines(n_lines: int, avoid: np.ndarray) -> np.ndarray:
+    """The lines of a spectrum of ``n_lines`` more than :data:`GUARD` lines from every position
+    in ``avoid`` (the harmonics, 0 Hz included): the lines that may hold only noise."""
+    k = np.arange(n_lines)
+    out: np.ndarray = k[_distance(k, np.sort(np.asarray(avoid, dtype=float))) > GUARD]
+    return out
 
 
 def noise_windows(centres: np.ndarray, avoid: np.ndarray, spacing: float, n_lines: int,
@@ -66,8 +74,7 @@ def noise_windows(centres: np.ndarray, avoid: np.ndarray, spacing: float, n_line
     list of int arrays
         One per centre; shorter than ``min_lines`` only when the spectrum has no more lines.
     """
-    all_lines = np.arange(n_lines)
-    usable = all_lines[_distance(all_lines, np.sort(np.asarray(avoid, dtype=float))) > GUARD]
+    usable = clear_lines(n_lines, avoid)
     windows = []
     for c in np.asarray(centres, dtype=float):
         half = spacing / 2
@@ -242,7 +249,8 @@ def strong_lines(power: np.ndarray, segments: int, avoid: np.ndarray, ratio: flo
     list (per record) of (position in lines, a L / 2) pairs
     """
     n_records, n_lines = power.shape
-    clear = _distance(np.arange(n_lines), np.sort(np.asarray(avoid, dtype=float))) > GUARD
+    clear = np.zeros(n_lines, dtype=bool)
+    clear[clear_lines(n_lines, avoid)] = True
     full = n_lines // RUNNING
     size = min(RUNNING, n_lines)
     blocks = np.median(power[:, :full * RUNNING].reshape(n_records, full, RUNNING), axis=2)
