@@ -172,6 +172,12 @@ class Rig:
     mains: float | None = None
     """``acquisition.mains`` [Hz]: the mains frequency (50 or 60); a drive harmonic on one of
     the mains' is then noted (:func:`forcecal.diagnostics.mains_notes`)."""
+    band: tuple[float, float] | None = None
+    """``acquisition.band`` [Hz]: (low, high), the band a broadband scan's drive covered; when
+    given, ``scan`` builds the shapes over that band (:mod:`forcecal.broadband`)."""
+    drive: str = "steady"
+    """``acquisition.drive``: "steady" (periodic at one fundamental, the harmonic path) or
+    "any" (swept, multi-tone or random: forces sample by sample, :mod:`forcecal.transient`)."""
 
     @property
     def gauge_names(self) -> list[str]:
@@ -302,6 +308,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     mains = r.number(acq, "mains", "acquisition", required=False, positive=True)
     if mains is not None and not 10.0 <= mains <= 1000.0:
         raise r.fail("acquisition.mains", f"= {mains!r} Hz is not a mains frequency (50 or 60)")
+    band, drive = _drive_band(r, acq)
     _check_names(r, gauges, forces, sensors, actuator)
     _check_statics(r, structure, gauges, forces, sensors)
     names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
@@ -311,7 +318,29 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,
                forces=forces, sensors=sensors, actuator=actuator, frequency=frequency,
                source=source, channel_map=channels, run_group=group, type_b=type_b,
-               temperature=temperature, mains=mains)
+               temperature=temperature, mains=mains, band=band, drive=drive)
+
+
+DRIVES = ("steady", "any")
+"""What ``acquisition.drive`` may say."""
+
+
+def _drive_band(r: TableReader, acq: dict[str, Any]) -> tuple[tuple[float, float] | None, str]:
+    """``acquisition.band`` [Hz] (None when absent) and ``acquisition.drive``."""
+    drive = r.text(acq, "drive", "acquisition", required=False, default="steady")
+    if drive not in DRIVES:
+        raise r.fail("acquisition.drive", f"= {drive!r} is not one of {', '.join(DRIVES)}")
+    band = None
+    if "band" in acq:
+        lo, hi = r.vector(acq, "band", "acquisition", 2, "a band (low, high) in Hz")
+        if not 0.0 <= lo < hi:
+            raise r.fail("acquisition.band", f"= [{lo!r}, {hi!r}] Hz is not a band "
+                         "(0 <= low < high)")
+        band = (float(lo), float(hi))
+    if drive == "any" and band is None:
+        raise r.fail("acquisition.drive", "= 'any' needs 'acquisition.band', the band a "
+                     "broadband scan covered")
+    return band, drive
 
 
 _TEMPERATURE_RANGE_C = (-100.0, 200.0)
@@ -543,6 +572,10 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         acquisition["temperature"] = rig.temperature
     if rig.mains is not None:
         acquisition["mains"] = rig.mains
+    if rig.band is not None:
+        acquisition["band"] = list(rig.band)
+    if rig.drive != "steady":
+        acquisition["drive"] = rig.drive
     if acquisition:
         doc["acquisition"] = acquisition
     if rig.channel_map:

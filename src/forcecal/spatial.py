@@ -38,6 +38,8 @@ __all__ = [
     "check_model_rig",
     "load_model",
     "rig_keys",
+    "shape_from_json",
+    "shape_to_json",
 ]
 
 MIN_SNR = 3.0
@@ -167,25 +169,7 @@ class SpatialModel:
     # ----------------------------------------------------------------- JSON
 
     def to_json(self) -> dict:
-        def shape(s: ShapeFit | VectorShapeFit) -> dict:
-            if isinstance(s, VectorShapeFit):
-                return {"components": [{"axis": AXES[a], **shape(c)}
-                                       for a, c in zip(s.axes, s.components, strict=True)]}
-            return {
-                "order": s.order,
-                "criterion": s.criterion,
-                "domain": s.basis.domain.tolist(),
-                "family": s.basis.family,
-                "basis": s.basis.coefficients.tolist(),
-                **({} if s.basis.columns is None else {"columns": s.basis.columns.tolist()}),
-                "coefficients_re": s.coefficients.real.tolist(),
-                "coefficients_im": s.coefficients.imag.tolist(),
-                "residual_std": s.residual_std,
-                "coefficient_covariance": s.coefficient_covariance.tolist(),
-                "orders": np.asarray(s.orders).tolist(),
-                "score": np.asarray(s.score).tolist(),
-            }
-
+        shape = shape_to_json
         return {
             "format": "forcecal spatial model 1",
             "source": self.source,
@@ -216,25 +200,7 @@ class SpatialModel:
     def from_json(cls, doc: dict, source: str = "<model>") -> SpatialModel:
         check_model_document(doc, source)  # the schema: format, types, sizes, finite numbers
 
-        def shape(s: dict) -> ShapeFit:
-            basis = PolynomialBasis(int(s["order"]), np.asarray(s["domain"], dtype=float),
-                                    np.asarray(s["basis"], dtype=float),
-                                    s.get("family", "legendre"),
-                                    np.asarray(s["columns"], dtype=int) if "columns" in s
-                                    else None)
-            coef = np.asarray(s["coefficients_re"]) + 1j * np.asarray(s["coefficients_im"])
-            return ShapeFit(
-                basis=basis, coefficients=coef, order=int(s["order"]),
-                orders=np.asarray(s["orders"]), score=np.asarray(s["score"]),
-                criterion=s["criterion"], residual_std=float(s["residual_std"]),
-                coefficient_covariance=np.asarray(s["coefficient_covariance"]))
-
-        def any_shape(s: dict) -> Fit:
-            if "components" in s:
-                return VectorShapeFit(tuple(AXES.index(c["axis"]) for c in s["components"]),
-                                      tuple(shape(c) for c in s["components"]))
-            return shape(s)
-
+        any_shape = shape_from_json
         try:
             shapes = [any_shape(s) for s in doc["shapes"]]
             span = doc.get("span", [])
@@ -266,6 +232,47 @@ class SpatialModel:
 
     def save(self, path: str | Path) -> Path:
         return write_text_atomic(path, json.dumps(self.to_json(), indent=1))
+
+
+def shape_to_json(s: Fit) -> dict:
+    """A fitted shape (a ShapeFit, or a body's VectorShapeFit) as JSON."""
+    if isinstance(s, VectorShapeFit):
+        return {"components": [{"axis": AXES[a], **shape_to_json(c)}
+                               for a, c in zip(s.axes, s.components, strict=True)]}
+    return {
+        "order": s.order,
+        "criterion": s.criterion,
+        "domain": s.basis.domain.tolist(),
+        "family": s.basis.family,
+        "basis": s.basis.coefficients.tolist(),
+        **({} if s.basis.columns is None else {"columns": s.basis.columns.tolist()}),
+        "coefficients_re": s.coefficients.real.tolist(),
+        "coefficients_im": s.coefficients.imag.tolist(),
+        "residual_std": s.residual_std,
+        "coefficient_covariance": s.coefficient_covariance.tolist(),
+        "orders": np.asarray(s.orders).tolist(),
+        "score": np.asarray(s.score).tolist(),
+    }
+
+
+def shape_from_json(s: dict) -> Fit:
+    """The shape :func:`shape_to_json` wrote."""
+    if "components" in s:
+        return VectorShapeFit(tuple(AXES.index(c["axis"]) for c in s["components"]),
+                              tuple(_shape_fit(c) for c in s["components"]))
+    return _shape_fit(s)
+
+
+def _shape_fit(s: dict) -> ShapeFit:
+    basis = PolynomialBasis(int(s["order"]), np.asarray(s["domain"], dtype=float),
+                            np.asarray(s["basis"], dtype=float), s.get("family", "legendre"),
+                            np.asarray(s["columns"], dtype=int) if "columns" in s else None)
+    coef = np.asarray(s["coefficients_re"]) + 1j * np.asarray(s["coefficients_im"])
+    return ShapeFit(
+        basis=basis, coefficients=coef, order=int(s["order"]), orders=np.asarray(s["orders"]),
+        score=np.asarray(s["score"]), criterion=s["criterion"],
+        residual_std=float(s["residual_std"]),
+        coefficient_covariance=np.asarray(s["coefficient_covariance"]))
 
 
 def load_model(path: str | Path) -> SpatialModel:

@@ -1,0 +1,228 @@
+"""Forces for any drive, sample by sample (METHOD.md section 7, "any drive").
+
+A swept, multi-tone or random drive has no harmonics to fit; eq. 15-16 hold at every instant
+instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`):
+
+1. generalized coordinates at every sample from the probes, q(t) = (G^T W G)^-1 G^T W s(t),
+   G[j, k] = phi_k(l_j), W the probes' inverse noise variances (eq. 15-16; Nq <= NS);
+2. every coordinate's acceleration, and every gauge's reaction, from a Kalman smoother
+   (batch) or filter (real time) of a band-limited signal (:mod:`forcecal.kalman`), with its
+   steady covariance;
+3. J_r(t) = sum_k m_{r,k} qdd_k(t) and f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the
+   reactions-only estimate -Psi^+ R(t).
+
+The noise of every channel is read from its spectrum above the band (white beyond the drive's
+reach), so that a probe's noise sets its weight and the smoother's gain.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from .broadband import BroadbandModel, check_model_rig_keys
+from .errors import DataError, InputError
+from .forces import channels_si
+from .kalman import band_model, filter_states, smooth_states
+from .records import Run
+from .relaxation import force_matrix
+from .rig import Rig
+
+__all__ = ["TransientEstimate", "channel_noise", "reconstruct_any"]
+
+
+@dataclass(frozen=True)
+class TransientEstimate:
+    """The forces of one run under any drive, at every sample.
+
+    Attributes
+    ----------
+    run_name : str
+    force_names : tuple of str
+    time : (N,) array [s]
+    force : (n_forces, N) array [N]
+        Reactions and inertia.
+    force_std : (n_forces,) array [N]
+        Standard uncertainty of one sample (the smoother's steady covariance, propagated).
+    total : (N,) array [N]
+    total_std : float [N]
+    static : (n_forces, N) array [N]
+        Reactions only, -Psi^+ R(t) (the raw gauge samples).
+    inertia : (n_gauges, N) array [N]
+        J_r(t).
+    reactions : (n_gauges, N) array [N]
+        The smoothed reactions.
+    coordinates : (n_shapes, N) array [m per unit coordinate]
+        q(t) from the probes.
+    band : (low, high) [Hz]
+    smoothed : bool
+        True for the smoother (batch), False for the causal filter (real time).
+    notes : tuple of str
+    """
+
+    run_name: str
+    force_names: tuple[str, ...]
+    time: np.ndarray
+    force: np.ndarray
+    force_std: np.ndarray
+    total: np.ndarray
+    total_std: float
+    static: np.ndarray
+    inertia: np.ndarray
+    reactions: np.ndarray
+    coordinates: np.ndarray
+    band: tuple[float, float]
+    smoothed: bool = True
+    notes: tuple[str, ...] = ()
+
+    @property
+    def inertia_share(self) -> float:
+        """RMS of the AC inertia term's part in the total over the AC total's RMS [1]."""
+        total = self.total - self.total.mean()
+        static = self.static.sum(axis=0)
+        part = (self.total - static) - (self.total - static).mean()
+        rms = float(np.sqrt(np.mean(total**2)))
+        return float(np.sqrt(np.mean(part**2))) / rms if rms > 0 else 0.0
+
+
+def channel_noise(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
+    """Each channel's white-noise variance per sample, from its spectrum above the band.
+
+    Parameters
+    ----------
+    x : (n_channels, N) array
+    fs : float [Hz]
+    band : (low, high) [Hz]
+
+    Returns
+    -------
+    (n_channels,) array [unit^2]
+        The median one-sided density between 2 x the band's top (at most 0.6 of Nyquist) and
+        0.9 of Nyquist, times fs / 2, scaled from the median to the mean of an exponential
+        variable (ln 2).
+
+    Raises
+    ------
+    InputError
+        When the sampling leaves no room above the band.
+    """
+    nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 10)))))
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg, axis=-1)
+    lo, hi = min(2 * band[1], 0.3 * fs), 0.45 * fs
+    sel = (f >= lo) & (f <= hi)
+    if np.count_nonzero(sel) < 4:
+        raise InputError(f"sampling at {fs:g} Hz leaves no lines above the band's top "
+                         f"{band[1]:g} Hz to measure the noise")
+    # Welch averages exp. variables: the median of averaged densities sits near the mean
+    return np.median(p[..., sel], axis=-1) * fs / 2
+
+
+TOP_MARGIN = 100.0
+"""The drive's reach: the highest line of the band whose density exceeds the noise's this many
+times."""
+
+
+def _prior(x: np.ndarray, fs: float, band: tuple[float, float],
+           noise_var: float) -> tuple[float, float]:
+    """The band-limited prior of a signal: its cutoff [Hz], 1.2 x the highest line of the band
+    the signal rises ``TOP_MARGIN`` above its noise (at least the band's bottom, at most its
+    top), and its mean one-sided density below that line [unit^2 / Hz]."""
+    nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 2)))))
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg)
+    sel = (f <= band[1]) & (f > 0)
+    loud = np.flatnonzero(sel & (p > TOP_MARGIN * 2 * noise_var / fs))
+    top = float(f[loud[-1]]) if len(loud) else band[1]
+    top = min(max(top, band[0], f[1]), band[1])
+    under = sel & (f <= top)
+    level = float(np.mean(p[under])) if np.any(under) else float(np.mean(p))
+    return min(1.2 * top, band[1] * 1.2), level
+
+
+def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,
+                    smooth: bool = True) -> TransientEstimate:
+    """The forces of a run under any drive, sample by sample.
+
+    Parameters
+    ----------
+    rig : Rig
+        With ``acquisition.band``.
+    model : BroadbandModel
+        From a broadband scan of the rig.
+    run : Run
+        The recording.
+    tare : Run, optional
+        A zero-current record: its mean gauge and probe values are the zero.
+    smooth : bool
+        The Kalman smoother (batch, default) or the causal filter (real time).
+
+    Returns
+    -------
+    TransientEstimate
+
+    Raises
+    ------
+    InputError
+        More span shapes than probes, or a model of another rig.
+    DataError
+        A record too short for the band.
+    """
+    check_model_rig_keys(model, rig)
+    band = model.band
+    fs = run.fs
+    n = run.n_samples
+    if n < 4 * fs / max(band[0], 1.0) and n < 8 * fs / band[1]:
+        raise DataError(f"run '{run.source}': {n} samples are too short for the band "
+                        f"{band[0]:g}-{band[1]:g} Hz")
+    if model.n_shapes > len(rig.sensors):
+        raise InputError(f"model '{model.source}': {model.n_shapes} shapes but "
+                         f"{len(rig.sensors)} probes (eq. 16: no more coordinates than sensors)")
+    sig = channels_si(rig, run)
+    gauges = np.stack([sig[g] for g in rig.gauge_names])
+    probes = np.stack([sig[s] for s in rig.sensor_names])
+    if tare is not None:
+        tsig = channels_si(rig, tare)
+        gauges -= np.array([np.mean(tsig[g]) for g in rig.gauge_names])[:, None]
+        probes -= np.array([np.mean(tsig[s]) for s in rig.sensor_names])[:, None]
+    var_s = channel_noise(probes, fs, band)
+    var_g = channel_noise(gauges, fs, band)
+    st = rig.structure
+    gam = model.values(st.coordinates(rig.sensor_points, source=f"rig '{rig.source}'")).real
+    w = 1.0 / var_s
+    cov_q = np.linalg.inv(gam.T @ (w[:, None] * gam))
+    q = cov_q @ (gam.T @ (w[:, None] * probes))                  # (n_shapes, N)
+    estimate = smooth_states if smooth else filter_states
+    acc = np.empty_like(q)
+    var_acc = np.empty(len(q))
+    for k in range(len(q)):
+        bm = band_model(fs, *_prior(q[k], fs, band, cov_q[k, k]), cov_q[k, k])
+        acc[k] = estimate(bm, q[k], states=(2,))[0]
+        var_acc[k] = (bm.smoothed_cov if smooth else bm.filtered_cov)[2, 2]
+    reactions = np.empty_like(gauges)
+    var_r = np.empty(len(gauges))
+    for r in range(len(gauges)):
+        bm = band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r])
+        reactions[r] = estimate(bm, gauges[r], states=(0,))[0]
+        var_r[r] = (bm.smoothed_cov if smooth else bm.filtered_cov)[0, 0]
+    m = model.couplings                                           # (n_gauges, n_shapes)
+    inertia = m @ acc
+    # the coordinates' errors are correlated as their measurement noise is
+    corr = cov_q / np.sqrt(np.outer(np.diag(cov_q), np.diag(cov_q)))
+    sa = np.sqrt(var_acc)
+    var_j = np.einsum("rk,kl,rl->r", m, corr * np.outer(sa, sa), m)
+    pinv = np.linalg.pinv(force_matrix(rig))
+    force = pinv @ (inertia - reactions)
+    static = -pinv @ gauges
+    var_f = (pinv**2) @ (var_j + var_r)
+    ones = np.ones(len(rig.forces))
+    total_std = float(np.sqrt(((ones @ pinv) ** 2) @ (var_j + var_r)))
+    notes: list[str] = []
+    if not np.all(np.isfinite(force)):
+        raise DataError(f"run '{run.source}': the forces are not finite (a channel holds "
+                        "non-finite samples?)")
+    return TransientEstimate(
+        run_name=run.name, force_names=tuple(rig.force_names),
+        time=run.t0 + np.arange(n) / fs, force=force, force_std=np.sqrt(var_f),
+        total=force.sum(axis=0), total_std=total_std, static=static, inertia=inertia,
+        reactions=reactions, coordinates=q, band=band, smoothed=smooth, notes=tuple(notes))
