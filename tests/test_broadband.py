@@ -178,3 +178,70 @@ def test_any_drive_forces_against_truth(beam, bb_model):
         jt = j_true[r] - j_true[r].mean()
         gain = np.dot(est.inertia[r] - est.inertia[r].mean(), jt) / np.dot(jt, jt)
         assert 0.95 < gain < 1.02
+
+
+def test_cli_scan_and_reconstruct_any_drive(beam, scan, tmp_path):
+    """``scan`` with acquisition.band writes a broadband model; ``reconstruct`` with
+    acquisition.drive = "any" writes each run's forces sample by sample (the columns of a
+    steady run's series) and its summary; a steady-drive rig refuses nothing it did before."""
+    import json
+
+    import pandas as pd
+    import tomli_w
+
+    from forcecal.cli import main
+    from forcecal.io.run_files import write_run_csv
+    from forcecal.io.scan_files import write_scan_npz
+    from forcecal.rig import rig_to_dict
+
+    rig = beam[3]
+    (tmp_path / "rig.toml").write_text(tomli_w.dumps(rig_to_dict(rig)), encoding="utf-8")
+    write_scan_npz(scan, tmp_path / "scan.npz")
+    run, u, _ = _run(beam, np.random.default_rng(6), 40.0, seconds=2.0)
+    write_run_csv(run, tmp_path / "random.csv")
+    model = tmp_path / "model.json"
+    assert main(["scan", str(tmp_path / "rig.toml"), str(tmp_path / "scan.npz"), "-o",
+                 str(model)]) == 0
+    assert json.loads(model.read_text())["kind"] == "broadband"
+    out = tmp_path / "out"
+    assert main(["reconstruct", str(tmp_path / "rig.toml"), str(model),
+                 str(tmp_path / "random.csv"), "-o", str(out)]) == 0
+    series = pd.read_csv(out / "random.forces.csv")
+    assert list(series.columns[:4]) == ["time", "F1", "F2", "total"]
+    assert {"total_static", "total_std"} <= set(series.columns)
+    err = series["total"].to_numpy() - 2 * u
+    assert np.sqrt(np.mean(err**2)) / np.std(2 * u) < 0.03
+    summary = json.loads((out / "random.json").read_text())
+    assert summary["drive"] == "any" and summary["band_hz"] == [5.0, 200.0]
+
+
+def test_campaign_row_takes_its_frequency_from_the_manifest(beam, bb_model, tmp_path):
+    """A stepped-sine row is reconstructed at its ``frequency`` column's harmonics; a column
+    that is not a frequency is refused naming the row; three fundamentals make a campaign over
+    frequency, two do not."""
+    from types import SimpleNamespace
+
+    from forcecal.campaign.calibrate import _frequency_steps
+    from forcecal.campaign.runs import _entry_model, _Task
+    from forcecal.io.manifest import ManifestEntry
+
+    rig = beam[3]
+
+    def task(label):
+        entry = ManifestEntry(run=tmp_path / "r.csv", gap=None, gaps={}, tare=False,
+                              labels={"frequency": label}, row=3)
+        return _Task(index=0, rig=rig, model=bb_model, entry=entry, tare=None,
+                     ac_coupled=False, samples_per_period=64)
+
+    row_rig, model = _entry_model(task("46.42"))
+    assert row_rig.frequency == 46.42 and model.f0 == 46.42
+    assert list(model.harmonics) == [1, 2, 3, 4]          # 5 x 46.42 Hz lies above 200 Hz
+    for bad in ("fast", "-5"):
+        with pytest.raises(InputError, match="row 3"):
+            _entry_model(task(bad))
+
+    def runs(*f0):
+        return [SimpleNamespace(estimate=SimpleNamespace(f0=f)) for f in f0]
+
+    assert _frequency_steps(runs(10.0, 10.05, 14.7, 14.7)) == 2
+    assert _frequency_steps(runs(10.0, 14.7, 21.5, 21.52)) == 3

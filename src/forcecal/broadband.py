@@ -43,14 +43,16 @@ from .rig import Rig
 from .screening import record_weights
 from .spatial import SpatialModel, check_model_rig, rig_keys, shape_from_json, shape_to_json
 
-__all__ = ["BroadbandModel", "ScanResponse", "build_broadband_model", "scan_response",
-           "steady_model"]
+__all__ = ["STEADY_HARMONICS", "BroadbandModel", "ScanResponse", "build_broadband_model",
+           "load_any_model", "scan_response", "steady_model"]
 
 MIN_COHERENCE = 0.5
 """Lines whose median coherence over the points is below this carry too little of the drive
 to shape the span."""
 MAX_CHI2 = 2.0
 """The span is large enough when the lines' median reduced chi-square is below this."""
+STEADY_HARMONICS = 6
+"""Harmonics a steady run is reconstructed with from a broadband model."""
 SEGMENTS = 8
 """Welch segments aimed at per record (half overlap): the frequency resolution is about
 ``SEGMENTS / (2 T)`` for records of T seconds."""
@@ -264,7 +266,7 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
         raise InputError(f"scan '{scan.source}': a broadband model is built from time records "
                          "(a spectrum export holds the lines of one fundamental)")
     st = rig.structure
-    if st.kind == "body":
+    if st.directed:
         raise InputError(f"rig '{rig.source}': broadband shapes are built for beams and plates "
                          "(a body's vector shapes are not supported over a band)")
     resp = scan_response(scan, rig.band)
@@ -339,7 +341,10 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
         raise InputError(f"a drive at {f0:.4g} Hz lies above the broadband model's band "
                          f"{model.band[0]:g}-{model.band[1]:g} Hz")
     kept = n[inside]
-    first, rest = model.shapes[0], model.shapes[1:]
+    # the harmonic path's shapes are complex phasor shapes
+    shapes = tuple(dataclasses.replace(f, coefficients=f.coefficients.astype(complex))
+                   for f in model.shapes)
+    first, rest = shapes[0], shapes[1:]
     coupling = model.couplings.astype(complex)
     return SpatialModel(
         f0=f0, harmonics=kept, shapes=(first,) * len(kept),
@@ -361,3 +366,25 @@ def check_model_rig_keys(model: BroadbandModel, rig: Rig) -> None:
                          similarity=np.ones((1, 1)), snr=np.ones(1), gauge_names=(),
                          source=model.source, rig=model.rig)
     check_model_rig(proxy, rig)
+
+
+def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:
+    """A MODEL.json written by ``scan``: a harmonic (steady) model or a broadband one.
+
+    Raises
+    ------
+    InputError
+        As :func:`forcecal.spatial.load_model`; a broadband document that does not read.
+    """
+    from ._schema import MAX_DOCUMENT_BYTES
+    from .spatial import load_model
+
+    p = Path(path)
+    if p.is_file() and p.stat().st_size <= MAX_DOCUMENT_BYTES:
+        try:
+            doc = json.loads(p.read_text(encoding="utf-8"))
+        except (ValueError, UnicodeDecodeError, RecursionError):
+            doc = None
+        if isinstance(doc, dict) and doc.get("kind") == "broadband":
+            return BroadbandModel.from_json(doc, source=str(p))
+    return load_model(p)

@@ -124,8 +124,14 @@ def _build_model(rig, scan, args):
     from .spatial import build_spatial_model
 
     if isinstance(scan, list):
+        if rig.band is not None:
+            raise InputError(f"rig '{rig.source}': a broadband model is built from one scan")
         return merge_models(rig, [_build_model(rig, s, args) for s in scan])
     try:
+        if rig.band is not None:
+            from .broadband import build_broadband_model
+
+            return build_broadband_model(rig, scan, criterion=args.criterion)
         return build_spatial_model(rig, scan, n_harmonics=args.harmonics,
                                    criterion=args.criterion, basis=args.basis)
     except ForcecalError as exc:
@@ -136,10 +142,10 @@ def _build_model(rig, scan, args):
 
 def _model_for(args, rig):
     """The spatial model: from a saved MODEL.json, or built from the scan."""
-    from .spatial import load_model
+    from .broadband import load_any_model
 
     if str(args.scan).endswith(".json"):
-        return load_model(args.scan)
+        return load_any_model(args.scan)
     return _build_model(rig, _read_scan(args, rig), args)
 
 
@@ -184,6 +190,10 @@ def _cmd_scan(args) -> int:
     model = _build_model(rig, scans if len(scans) > 1 else scans[0], args)
     clean_stale(Path(args.output).parent)
     _save_model(model, args.output, ", ".join(args.scans), _provenance(args))
+    if rig.band is not None:
+        _print(f"{args.output}: band {model.band[0]:g}-{model.band[1]:g} Hz, {model.n_shapes} "
+               f"shape(s) span the deflections (order {model.shapes[0].order})")
+        return 0
     mac = model.similarity.min()
     _print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
           f"{', '.join(str(n) for n in model.harmonics)} (orders "
@@ -245,6 +255,12 @@ def _cmd_reconstruct(args) -> int:
     model = _model_for(args, rig)
     runs = _read_runs(args.runs, rig)
     tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
+    if rig.drive == "any":
+        from .io.transient_results import reconstruct_any_runs
+
+        for line in reconstruct_any_runs(rig, model, runs, tare, args.output, _provenance(args)):
+            _print(line)
+        return 0
     estimates = run_jobs(reconstruct_job,
                          [(rig, model, run, tare, args.ac_coupled, args.monte_carlo)
                           for run in runs],
@@ -305,9 +321,6 @@ def _largest(est) -> str:
     return max(est.budget, key=lambda src: float(np.sum(est.budget[src][k, 1:] ** 2)))
 
 
-
-
-
 def _cmd_calibrate(args) -> int:
     from .campaign import calibrate_campaign, write_calibration
     from .io.staging import staged_folder
@@ -333,9 +346,12 @@ def _cmd_calibrate(args) -> int:
             where.mkdir(parents=True, exist_ok=True)
             path = write_calibration(result, where)
             if not args.no_report:
+                from .broadband import STEADY_HARMONICS, BroadbandModel, steady_model
                 from .report.pipeline import calibration_report
 
-                calibration_report(rig, model, result, where, provenance=origin)
+                shown = (steady_model(model, rig, result.runs[0].estimate.f0, STEADY_HARMONICS)
+                         if isinstance(model, BroadbandModel) else model)
+                calibration_report(rig, shown, result, where, provenance=origin)
             _print(folder / path.name)
     return 0
 
@@ -365,7 +381,7 @@ def _cmd_predict(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            pred = predict(cal, [args.current], args.gap)
+            pred = predict(cal, [args.current], args.gap, frequency=args.frequency)
         except ForcecalError as exc:
             raise InputError(f"calibration '{args.calibration}': {exc}") from None
     values = [float(pred.total[0]), float(pred.std[0]), *map(float, pred.per_pole[0])]
@@ -375,8 +391,13 @@ def _cmd_predict(args) -> int:
     for w in caught:
         _say(f"{PROG}: warning: {w.message}")
     if args.json:
+        extra = {} if args.frequency is None else {
+            "frequency_hz": args.frequency,
+            **{key: float(np.ravel(getattr(pred, key))[0]) for key in (
+                "k_frequency", "k_frequency_std", "lag_deg", "lag_deg_std")}}
         _print(json.dumps({"total_n": values[0], "std_n": values[1],
-                           "per_pole_n": values[2:], "law": cal.law}, allow_nan=False))
+                           "per_pole_n": values[2:], "law": cal.law, **extra},
+                          allow_nan=False))
     else:
         _print(f"{pred.total[0]:.6g}")
     return 0

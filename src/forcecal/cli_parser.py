@@ -43,7 +43,9 @@ def _simulate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p.add_argument("--preset", default="paper",
                    help="paper, resonance, campaign, plate, body, two-coil (two magnets on their "
                         "own coils, scanned twice) or tilt (two magnets on one current at unequal "
-                        "pole gaps, scanned twice); a second scan is written to scan2.uff")
+                        "pole gaps, scanned twice), sweep (a swept-sine run and a stepped-sine "
+                        "campaign 10-100 Hz, an eddy-current magnet, a chirp scan) or random "
+                        "(a band-limited random run); a second scan is written to scan2.uff")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--binary-uff", action="store_true", help="write the scans as dataset 58b")
     p.add_argument("--realism", choices=("ideal", "lab"), default="ideal",
@@ -111,6 +113,9 @@ def _predict_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p.add_argument("calibration")
     p.add_argument("--current", type=float, required=True, help="coil current, A")
     p.add_argument("--gap", type=float, required=True, help="air gap at every pole, m")
+    p.add_argument("--frequency", type=float, default=None,
+                   help="Hz: the force at this frequency (K(f) and its lag, from a calibration "
+                        "over frequency)")
     p.add_argument("--json", action="store_true", help="uncertainty and per-pole split")
 
 def _stream_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:

@@ -39,6 +39,12 @@ def reconstruct_job(job: tuple[Any, ...]) -> ForceEstimate:
     from .forces import reconstruct
 
     rig, model, run, tare, ac_coupled, n_draws = job
+    from .spatial import SpatialModel
+
+    if not isinstance(model, SpatialModel):                # a broadband model: a steady run
+        from .broadband import STEADY_HARMONICS, steady_model
+
+        model = steady_model(model, rig, rig.drive_frequency, STEADY_HARMONICS)
     est = reconstruct(rig, model, run, tare=tare, ac_coupled=ac_coupled)
     return with_monte_carlo(rig, model, run, est, tare, n_draws) if n_draws else est
 

@@ -29,6 +29,11 @@ selection
     :func:`held_out_error`, :func:`select_law` and :func:`report_text`.
 prediction
     The :class:`Calibration` file, :func:`predict` and :func:`predict_flux`.
+frequency
+    The law over frequency (a first-order lag of the magnetising current):
+    :class:`SteadyRecord`, :class:`FrequencyLaw` and its :class:`FrequencyStep` table.
+frequency_fit
+    :func:`fit_frequency_law` of a stepped-sine campaign.
 
 Shapes: ``n_obs`` observations, ``n_poles`` poles, ``n_params`` parameters of a law. SI units
 throughout.
@@ -39,6 +44,8 @@ from __future__ import annotations
 from .ac_only import ACOnlyLaw
 from .data import FLOOR_FRACTION, GAP_TOLERANCE, CalibrationData
 from .fitting import LawFit, check_identifiable, fit_law
+from .frequency import FrequencyLaw, FrequencyStep, SteadyRecord
+from .frequency_fit import STEP_TOLERANCE, fit_frequency_law
 from .laws import (
     ALL_LAWS,
     FLUX,
@@ -52,7 +59,14 @@ from .laws import (
     get_law,
     ideal_k,
 )
-from .prediction import Calibration, ExtrapolationWarning, Prediction, predict, predict_flux
+from .prediction import (
+    FREQUENCY_EXTRAPOLATION,
+    Calibration,
+    ExtrapolationWarning,
+    Prediction,
+    predict,
+    predict_flux,
+)
 from .selection import (
     HELD_OUT_ABS_TOL,
     HELD_OUT_REL_TOL,
@@ -69,6 +83,7 @@ __all__ = [
     "ALL_LAWS",
     "FLOOR_FRACTION",
     "FLUX",
+    "FREQUENCY_EXTRAPOLATION",
     "GAP_TOLERANCE",
     "HELD_OUT_ABS_TOL",
     "HELD_OUT_REL_TOL",
@@ -79,17 +94,22 @@ __all__ = [
     "MU0",
     "N_FOLDS",
     "POWER",
+    "STEP_TOLERANCE",
     "ACOnlyLaw",
     "Calibration",
     "CalibrationData",
     "Candidate",
     "ExtrapolationWarning",
+    "FrequencyLaw",
+    "FrequencyStep",
     "HeldOutError",
     "Law",
     "LawFit",
     "Prediction",
     "Selection",
+    "SteadyRecord",
     "check_identifiable",
+    "fit_frequency_law",
     "fit_law",
     "get_law",
     "held_out_error",

@@ -2,7 +2,9 @@
 
 A :class:`Calibration` predicts the total actuator force, with its standard uncertainty, from
 (current, gap) (:func:`predict`) or from the flux (:func:`predict_flux`); it is written to and
-read from JSON exactly.
+read from JSON exactly. A calibration may carry a law over frequency
+(:class:`~forcecal.actuator.frequency.FrequencyLaw`, the file's ``frequency_law``): then
+:func:`predict` also takes the drive's frequency.
 
 Shapes: ``n`` predictions, ``n_poles`` poles, ``n_params`` parameters of a law. SI units
 throughout.
@@ -12,7 +14,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -21,12 +23,14 @@ import numpy as np
 from .._atomic import write_text_atomic
 from .._schema import MAX_DOCUMENT_BYTES, check_calibration_document, reject_constant
 from ..errors import DimensionError, InputError
+from .frequency import FrequencyLaw
 from .laws import Law, get_law
 
 if TYPE_CHECKING:
     from .fitting import LawFit
 
-__all__ = ["Calibration", "ExtrapolationWarning", "Prediction", "predict", "predict_flux"]
+__all__ = ["FREQUENCY_EXTRAPOLATION", "Calibration", "ExtrapolationWarning", "Prediction",
+           "predict", "predict_flux"]
 
 _CALIBRATION_FORMAT = "forcecal-calibration"
 _CALIBRATION_VERSION = 1
@@ -37,6 +41,9 @@ MAX_GAP_M = 0.1
 MAX_FLUX_WB = 10.0
 """Largest pole flux accepted by :func:`predict_flux` [Wb]."""
 _REQUIRED_KEYS = ("law", "params", "covariance", "n_poles", "current_range", "gap_range")
+FREQUENCY_EXTRAPOLATION = 10.0
+"""A frequency above this many times the highest calibrated one is refused: the first-order lag
+is a low-frequency model of the eddy currents, not to be carried that far."""
 
 
 class ExtrapolationWarning(UserWarning):
@@ -83,6 +90,12 @@ class Calibration:
         Fluxes the law was fitted on, when measured.
     candidates : tuple of dict
         The selection table (one JSON-ready row per law, skipped laws with their reason).
+    frequency_law : FrequencyLaw or None
+        The law over frequency, from a stepped-sine campaign; None: calibrated at one
+        frequency.
+    source : str
+        The file the calibration was read from ('' when built in memory), for the messages;
+        not written.
     """
 
     law: str
@@ -93,6 +106,8 @@ class Calibration:
     gap_range: tuple[float, float]
     flux_range: tuple[float, float] | None = None
     candidates: tuple[dict[str, Any], ...] = field(default_factory=tuple)
+    frequency_law: FrequencyLaw | None = None
+    source: str = ""
 
     def __post_init__(self) -> None:
         law = get_law(self.law)
@@ -112,6 +127,25 @@ class Calibration:
         object.__setattr__(self, "covariance", cov)
         object.__setattr__(self, "n_poles", int(self.n_poles))
         object.__setattr__(self, "candidates", tuple(self.candidates))
+        fl = self.frequency_law
+        if fl is not None and fl.n_poles != self.n_poles:
+            raise InputError(f"calibration '{self.law}': the frequency law sums {fl.n_poles} "
+                             f"poles, the calibration {self.n_poles}")
+
+    def with_frequency_law(self, frequency_law: FrequencyLaw) -> Calibration:
+        """This calibration carrying a law over frequency.
+
+        Parameters
+        ----------
+        frequency_law : FrequencyLaw
+            From :func:`forcecal.actuator.fit_frequency_law`.
+
+        Returns
+        -------
+        Calibration
+            A copy with ``frequency_law`` set.
+        """
+        return replace(self, frequency_law=frequency_law)
 
     @classmethod
     def from_fit(cls, fit: LawFit, candidates: tuple[dict[str, Any], ...] = ()) -> Calibration:
@@ -159,8 +193,10 @@ class Calibration:
     def __repr__(self) -> str:
         """One line: the law and its parameters with their standard uncertainties."""
         params = ", ".join(f"{n} = {v} ± {e} {u}" for n, v, e, u in self._param_rows())
+        over = "" if self.frequency_law is None else \
+            f"; tau = {self.frequency_law.tau:.4g} ± {self.frequency_law.stderr[2]:.2g} s"
         return (f"Calibration(law '{self.law}': {self.law_object.formula}; {params}; "
-                f"{self.n_poles} pole(s))")
+                f"{self.n_poles} pole(s){over})")
 
     def _repr_html_(self) -> str:
         """A small table for notebooks: the law and its parameters."""
@@ -181,7 +217,7 @@ class Calibration:
             What :meth:`from_json` reads back exactly.
         """
         law = self.law_object
-        return {
+        doc = {
             "format": _CALIBRATION_FORMAT,
             "version": _CALIBRATION_VERSION,
             "law": law.name,
@@ -197,6 +233,9 @@ class Calibration:
             "flux_range": None if self.flux_range is None else list(self.flux_range),
             "candidates": [dict(row) for row in self.candidates],
         }
+        if self.frequency_law is not None:
+            doc["frequency_law"] = self.frequency_law.to_json()
+        return doc
 
     @classmethod
     def from_json(cls, obj: dict[str, Any], source: str = "<dict>") -> Calibration:
@@ -220,6 +259,8 @@ class Calibration:
             Naming ``source`` and the key at fault.
         """
         check_calibration_document(obj, source)  # format, version, types, finite numbers
+        fl = obj.get("frequency_law")
+        frequency_law = None if fl is None else FrequencyLaw.from_json(fl, source)
         for key in _REQUIRED_KEYS:
             if key not in obj:
                 raise InputError(f"calibration '{source}': missing key '{key}'")
@@ -236,6 +277,8 @@ class Calibration:
                 gap_range=_pair(obj["gap_range"], "key 'gap_range'"),
                 flux_range=None if flux_range is None else _pair(flux_range, "key 'flux_range'"),
                 candidates=tuple(dict(row) for row in obj.get("candidates", [])),
+                frequency_law=frequency_law,
+                source=source,
             )
         except (InputError, DimensionError, TypeError, ValueError) as exc:
             raise InputError(f"calibration '{source}': {exc}") from exc
@@ -311,11 +354,23 @@ class Prediction:
         Force of each pole.
     std : (n,) array [N]
         Standard uncertainty of ``total`` from the parameter covariance (delta method).
+    frequency : (n,) array [Hz] or None
+        The drive's frequency, when the prediction was asked at one (then ``total`` is the
+        force with K replaced by K(f), and ``std`` from the frequency law's covariance).
+    k_frequency, k_frequency_std : (n,) arrays [N m^2/A^2] or None
+        K(f) and its standard uncertainty.
+    lag_deg, lag_deg_std : (n,) arrays [deg] or None
+        The force's lag behind i^2 at that frequency, and its standard uncertainty.
     """
 
     total: np.ndarray
     per_pole: np.ndarray
     std: np.ndarray
+    frequency: np.ndarray | None = None
+    k_frequency: np.ndarray | None = None
+    k_frequency_std: np.ndarray | None = None
+    lag_deg: np.ndarray | None = None
+    lag_deg_std: np.ndarray | None = None
 
 
 def _warn_outside(
@@ -376,7 +431,8 @@ def _current_and_gaps(
     return i, s
 
 
-def predict(calibration: Calibration, current: Any, gaps: Any) -> Prediction:
+def predict(calibration: Calibration, current: Any, gaps: Any,
+            frequency: Any = None) -> Prediction:
     """Total and per-pole force from coil current and air gaps, with its uncertainty.
 
     Parameters
@@ -387,30 +443,49 @@ def predict(calibration: Calibration, current: Any, gaps: Any) -> Prediction:
         Coil current.
     gaps : float, (n_poles,), (n, 1) or (n, n_poles) array [m]
         Air gap at each pole; a scalar means every pole at that gap.
+    frequency : float, (n,) array or None [Hz]
+        The drive's frequency, for a calibration with a frequency law: the force is then the
+        frequency law's ``K(f) i^2 / (s + s_fe)^2`` (its own K, s_fe and tau), the amplitude
+        of a steady drive at f; it lags i^2 by ``lag_deg``. None: the calibration's law.
 
     Returns
     -------
     Prediction
         Arrays over the n predictions; ``std`` propagates the parameter covariance through the
-        gradient of the total (delta method).
+        gradient of the total (delta method); with a frequency also K(f) and the lag.
 
     Raises
     ------
     InputError
         When the law predicts from flux, the inputs are not finite, or a gap plus ``s_fe`` is
-        not positive.
+        not positive; when a frequency is given to a calibration without a frequency law, or
+        is negative or above :data:`FREQUENCY_EXTRAPOLATION` times the highest calibrated
+        one.
     DimensionError
         When the shapes of current and gaps do not fit.
 
     Warns
     -----
     ExtrapolationWarning
-        When a current or gap lies outside the calibrated range.
+        When a current, gap or frequency lies outside the calibrated range.
     """
     law = calibration.law_object
     if law.needs_flux:
         raise InputError(f"calibration law '{law.name}' predicts from flux; use predict_flux")
     i, s = _current_and_gaps(calibration, current, gaps)
+    if frequency is not None:
+        fl, f = _frequency(calibration, frequency, i.size)
+        _warn_outside(i, fl.current_range, "current", "A", 1.0)
+        _warn_outside(s, fl.gap_range, "gap", "mm", 1e3)
+        _warn_outside(f, fl.frequency_range, "frequency", "Hz", 1.0)
+        with np.errstate(all="ignore"):
+            total, per_pole, std = fl.forces(i, s, f)
+        k, k_std = fl.k_at(f)
+        lag, lag_std = fl.lag_deg(f)
+        pred = Prediction(total=total, per_pole=per_pole, std=std, frequency=f, k_frequency=k,
+                          k_frequency_std=k_std, lag_deg=lag, lag_deg_std=lag_std)
+        _check_finite_prediction(pred)
+        return pred
     law.check_gap_offset(calibration.params, s)
     _warn_outside(i, calibration.current_range, "current", "A", 1.0)
     _warn_outside(s, calibration.gap_range, "gap", "mm", 1e3)
@@ -418,6 +493,33 @@ def predict(calibration: Calibration, current: Any, gaps: Any) -> Prediction:
         pred = _propagate(law, calibration, i, s, None)
     _check_finite_prediction(pred)
     return pred
+
+
+def _frequency(calibration: Calibration, frequency: Any, n: int
+               ) -> tuple[FrequencyLaw, np.ndarray]:
+    """The calibration's frequency law and the frequency broadcast to (n,) [Hz]; InputError
+    without a law, for a frequency that is not finite, negative or far above the range."""
+    fl = calibration.frequency_law
+    if fl is None:
+        name = f"calibration '{calibration.source}'" if calibration.source else \
+            f"calibration (law '{calibration.law}')"
+        raise InputError(f"{name} was calibrated at one frequency and has no frequency law; "
+                         "predict without a frequency, or calibrate a stepped-sine campaign")
+    f = np.asarray(frequency, dtype=float)
+    try:
+        f = np.array(np.broadcast_to(f, (n,)), dtype=float)
+    except ValueError:
+        raise DimensionError(f"frequency {f.shape} does not fit {n} predictions; expected a "
+                             "scalar or (n,)") from None
+    if not np.all(np.isfinite(f)) or np.any(f < 0):
+        raise InputError("frequency must be finite and not negative [Hz]")
+    top = FREQUENCY_EXTRAPOLATION * fl.frequency_range[1]
+    if np.any(f > top):
+        raise InputError(f"frequency {float(f.max()):.4g} Hz is more than "
+                         f"{FREQUENCY_EXTRAPOLATION:g} times the highest calibrated frequency "
+                         f"{fl.frequency_range[1]:.4g} Hz; the first-order law is not "
+                         "extrapolated that far")
+    return fl, f
 
 
 def _check_finite_prediction(pred: Prediction) -> None:

@@ -35,7 +35,10 @@ from ..actuator import (
     Selection,
     select_law,
 )
+from ..actuator.frequency import SteadyRecord
+from ..actuator.frequency_fit import STEP_TOLERANCE, fit_frequency_law
 from ..actuator.propagation import NoiseColumns, column_effects, covariance_of
+from ..broadband import BroadbandModel
 from ..errors import FitError, InputError
 from ..io.manifest import read_manifest
 from ..rig import Rig
@@ -162,6 +165,20 @@ def _calibration(selection: Selection, uncertainty: ParameterUncertainty,
                                covariance=uncertainty.covariance, candidates=tuple(rows))
 
 
+FREQUENCY_STEPS = 3
+"""Fundamentals (1 % apart) a campaign needs for the law over frequency (K, s_fe and the
+eddy-current time constant tau, :func:`forcecal.actuator.fit_frequency_law`)."""
+
+
+def _frequency_steps(results: Sequence[RunResult]) -> int:
+    """How many fundamentals, 1 % apart, the runs were driven at."""
+    steps: list[float] = []
+    for f0 in sorted(r.estimate.f0 for r in results):
+        if not steps or f0 > steps[-1] * (1 + STEP_TOLERANCE):
+            steps.append(f0)
+    return len(steps)
+
+
 def _select(data: CalibrationData, laws: tuple[Law, ...], manifest: str) -> Selection:
     """:func:`forcecal.actuator.select_law`, its failure naming the manifest."""
     try:
@@ -224,6 +241,12 @@ def calibrate_runs(
                if all(r.samples.noise is not None for r in results) else None)
     uncertainty = parameter_uncertainty(chosen, data, results, rig, columns)
     calibration = _calibration(selection, uncertainty, data, columns)
+    if not ac_only and _frequency_steps(results) >= FREQUENCY_STEPS:
+        records = [SteadyRecord.from_samples(r.samples, f0=r.estimate.f0, name=r.name)
+                   for r in results]
+        if any(rec.force_std is None for rec in records):      # then weighted by the residual
+            records = [dataclasses.replace(rec, force_std=None) for rec in records]
+        calibration = calibration.with_frequency_law(fit_frequency_law(records))
     run_k, run_res = _per_run(chosen, data, len(results))
     return CampaignResult(
         runs=results,
@@ -245,7 +268,7 @@ def calibrate_runs(
 
 def calibrate_campaign(
     rig: Rig,
-    model: SpatialModel,
+    model: SpatialModel | BroadbandModel,
     manifest_path: str | Path,
     progress: Callable[[int, int, str], None] | None = None,
     workers: int | None = None,

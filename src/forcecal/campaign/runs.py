@@ -14,6 +14,9 @@ from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
+import numpy as np
+
+from ..broadband import STEADY_HARMONICS, BroadbandModel, steady_model
 from ..checks import check_run_for_rig
 from ..cluster import pool_map
 from ..errors import InputError
@@ -112,7 +115,7 @@ class _Task:
 
     index: int
     rig: Rig
-    model: SpatialModel
+    model: SpatialModel | BroadbandModel
     entry: ManifestEntry
     tare: Path | None
     ac_coupled: bool
@@ -124,11 +127,12 @@ def _reconstruct_entry(task: _Task) -> tuple[int, RunResult, _Caught]:
     (serial and parallel runs then warn alike)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        run = read_run(task.entry.run, task.rig)
-        check_run_for_rig(task.rig, run)
-        tare = read_run(task.tare, task.rig) if task.tare is not None else None
-        estimate = reconstruct(task.rig, task.model, run, tare=tare, ac_coupled=task.ac_coupled)
-        samples = run_samples(task.rig, task.model, run, estimate, tare, task.samples_per_period,
+        rig, model = _entry_model(task)
+        run = read_run(task.entry.run, rig)
+        check_run_for_rig(rig, run)
+        tare = read_run(task.tare, rig) if task.tare is not None else None
+        estimate = reconstruct(rig, model, run, tare=tare, ac_coupled=task.ac_coupled)
+        samples = run_samples(rig, model, run, estimate, tare, task.samples_per_period,
                               tare_name=None if task.tare is None else task.tare.stem)
     result = RunResult(
         entry=task.entry,
@@ -137,6 +141,24 @@ def _reconstruct_entry(task: _Task) -> tuple[int, RunResult, _Caught]:
         tare=None if task.tare is None else task.tare.stem,
     )
     return task.index, result, [(str(w.message), w.category) for w in caught]
+
+
+def _entry_model(task: _Task) -> tuple[Rig, SpatialModel]:
+    """The rig and the harmonic model of a row: from a broadband model, the harmonics of the
+    row's nominal frequency (its ``frequency`` column, else the rig's)."""
+    if isinstance(task.model, SpatialModel):
+        return task.rig, task.model
+    label = task.entry.labels.get("frequency")
+    try:
+        nominal = float(label) if label is not None else task.rig.drive_frequency
+    except ValueError:
+        raise InputError(f"manifest row {task.entry.row}: frequency {label!r} is not a number "
+                         "(Hz)") from None
+    if not (np.isfinite(nominal) and nominal > 0):
+        raise InputError(f"manifest row {task.entry.row}: frequency {label!r} is not a "
+                         "positive frequency (Hz)")
+    rig = replace(task.rig, frequency=nominal)
+    return rig, steady_model(task.model, rig, nominal, STEADY_HARMONICS)
 
 
 def _tare_for(index: int, tares: list[int]) -> int | None:
@@ -149,7 +171,7 @@ def _tare_for(index: int, tares: list[int]) -> int | None:
 
 def _campaign_tasks(
     rig: Rig,
-    model: SpatialModel,
+    model: SpatialModel | BroadbandModel,
     manifest_path: str | Path,
     ac_coupled: bool,
     samples_per_period: int,
@@ -198,7 +220,7 @@ def _run_tasks(
 
 def reconstruct_campaign(
     rig: Rig,
-    model: SpatialModel,
+    model: SpatialModel | BroadbandModel,
     manifest_path: str | Path,
     progress: Callable[[int, int, str], None] | None = None,
     workers: int | None = None,

@@ -12,6 +12,12 @@ in the truth: ``simulator.json``'s ``realism`` (the settings, every channel's se
 gauge's preload, offset and zero-current reading, each run's drive drift and chirp, each scan's
 drive level and frequency at every acquisition), and each run's NPZ (its ``imperfections``,
 :class:`.virtual_rig.Truth`).
+
+A rig under broadband drives (``Preset.band``: a sweep, random) writes its scan's ``band = [lo,
+hi]`` [Hz] and ``drive = "any"`` in the rig file's ``[acquisition]``; its runs that are not
+listed (``RunSpec.manifest`` false: the swept and random ones) are written with their truth but
+left out of ``manifest.csv``. A magnet whose core lags (eddy currents) has its ``eddy_time_s``
+and the law it gives stated in ``simulator.json``'s ``eddy``.
 """
 
 from __future__ import annotations
@@ -103,11 +109,17 @@ def _structure_facts(preset: Preset) -> dict:
 
 
 def _drives(preset: Preset, drives: tuple[Drive, ...]) -> list[dict]:
-    """Every coil's drive, named by its current channel."""
-    return [{"coil": m.current_channel, "source": d.source, "dc": d.dc, "ac": d.ac,
-             "frequency_Hz": d.frequency, "phase_rad": d.phase,
-             "harmonics": [list(h) for h in d.harmonics]}
-            for m, d in zip(preset.magnets, drives, strict=True)]
+    """Every coil's drive, named by its current channel (with its ``waveform`` when it has
+    one)."""
+    out = []
+    for m, d in zip(preset.magnets, drives, strict=True):
+        row: dict[str, Any] = {"coil": m.current_channel, "source": d.source, "dc": d.dc,
+                               "ac": d.ac, "frequency_Hz": d.frequency, "phase_rad": d.phase,
+                               "harmonics": [list(h) for h in d.harmonics]}
+        if d.waveform is not None:
+            row["waveform"] = d.waveform.describe()
+        out.append(row)
+    return out
 
 
 def _pole_gaps(preset: Preset, gap: float | None, gaps: dict[str, float]) -> dict[str, float]:
@@ -137,13 +149,38 @@ def _simulator_facts(preset: Preset) -> dict:
         "natural_frequencies_Hz": natural_frequencies(model, 4).tolist(),
         "drive_frequency_Hz": preset.runs[0].drives[0].frequency,
         "nominal_frequency_Hz": preset.nominal_frequency,
+        **({} if preset.band is None else {"band_Hz": list(preset.band)}),
         "magnet": {"turns": mag.turns, "pole_area_m2": mag.pole_area,
                    "iron_length_m": mag.iron_length, "mu_r": mag.mu_r,
                    "resistance_ohm": mag.resistance, "gap_offset_m": mag.gap_offset,
                    "ideal_K_total_Nm2_A2": mag.ideal_k},
         "noise": dict(vars(preset.noise)),
+        **_eddy_facts(preset),
         **_scans_and_runs(preset),
     }
+
+
+def _eddy_facts(preset: Preset) -> dict:
+    """The eddy time of every magnet and the law it gives, when a core lags (else nothing)."""
+    if not any(m.eddy_time > 0 for m in preset.magnets):
+        return {}
+    return {"eddy": {
+        "eddy_time_s": {m.current_channel: m.eddy_time for m in preset.magnets},
+        "model": "tau di_m/dt + i_m = i; flux and force from the magnetising current i_m",
+        "law": "at a fixed gap the force's component at f over that of i^2: "
+               "H(f) = 1 / (1 + j 2 pi f tau): K(f) = K / sqrt(1 + (2 pi f tau)^2), "
+               "lag(f) = atan(2 pi f tau)"}}
+
+
+def _rig_document(preset: Preset) -> dict:
+    """The public rig file's document; a rig under broadband drives also states its scan's
+    ``band`` [Hz] and ``drive = "any"`` in ``[acquisition]``."""
+    doc = rig_to_dict(public_rig(preset))
+    if preset.band is not None:
+        acquisition = doc.setdefault("acquisition", {})
+        acquisition["band"] = [float(preset.band[0]), float(preset.band[1])]
+        acquisition["drive"] = "any"
+    return doc
 
 
 def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
@@ -197,8 +234,7 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
 
     say("scan")
     scan = record_scan(preset, rng, model) if lab is None else lab.scan(0)
-    rig = public_rig(preset)
-    write_text_atomic(out / "rig.toml", tomli_w.dumps(rig_to_dict(rig)))
+    write_text_atomic(out / "rig.toml", tomli_w.dumps(_rig_document(preset)))
     write_scan_uff(scan, out / scan_file(0), binary=binary_uff)
 
     rows = []
@@ -209,6 +245,8 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
         write_truth(out / "truth", spec.name, truth)
         if lab is not None:
             lab.note_run(spec.name, truth)
+        if not spec.manifest:
+            continue
         row: dict[str, object] = {"run": f"runs/{spec.name}.csv"}
         if spec.gap is not None:
             row["gap"] = spec.gap

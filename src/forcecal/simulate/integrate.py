@@ -4,130 +4,51 @@ Newmark average acceleration (trapezoidal rule: unconditionally stable, no numer
 for the structure; the coil flux linkage by the same trapezoidal rule; the magnetic force and
 the structural motion solved together at every step by Newton's method on the flux linkages.
 
-The record starts on the periodic steady state: passes over a few periods alternate with a
-projection of the structure onto the exact discrete periodic response to the magnetic forces of
-the last pass, so the slowly decaying free vibration of a lightly damped beam never has to be
-waited out.
+Under steady sines the record starts on the periodic steady state: passes over a few periods
+alternate with a projection of the structure onto the exact discrete periodic response to the
+magnetic forces of the last pass, so the slowly decaying free vibration of a lightly damped beam
+never has to be waited out. Under a broadband drive (:mod:`.waveforms`) it is waited out: the
+rig starts at rest a lead time before the record (:func:`lead_time`).
+
+A magnet with eddy currents in its core (``eddy_time``) carries its magnetising current as a
+state, stepped by the same trapezoidal rule as the flux linkage.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Sequence
 
 import numpy as np
 
 from .beam import BeamModel
 from .magnet import MU0, Drive, Magnet, Pole
 from .plate import PlateModel
+from .response import Record, Response, _finish_record, _keep, _new_record
 from .solid import SolidModel
+from .waveforms import scalar_drive
 
-__all__ = ["Response", "SimulationError", "integrate", "pole_points"]
+__all__ = ["LEAD_TIME_CONSTANTS", "MAX_LEAD", "Response", "SimulationError", "integrate",
+           "lead_time", "pole_points"]
 
 Model = BeamModel | PlateModel | SolidModel
 """A finite-element model of the structure: beam, plate or body."""
 
-State = tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float]]
-"""The stepper's state: modal q, qd, qdd (n_modes,), and per magnet the flux linkage [Wb]
-and the coil current [A]."""
+State = tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float], list[float]]
+"""The stepper's state: modal q, qd, qdd (n_modes,), and per magnet the flux linkage [Wb],
+the coil current [A] and the magnetising current [A] (the coil current's lagged image with eddy
+currents in the core, :attr:`.magnet.Magnet.eddy_time`; unused without)."""
 
-Record = dict[str, np.ndarray]
-"""Kept samples by name: ``q``, ``qd``, ``qdd`` (modal state) and ``lam``, ``i``, ``f``, ``d``
-(flux linkage, current, force and drive value of every magnet)."""
+LEAD_TIME_CONSTANTS = 10.0
+"""A non-periodic drive's record starts after this many decay times ``1 / (zeta omega)`` of
+the slowest-decaying elastic mode (its free vibration then down by e^-10, 5e-5; e^-7 when the
+magnets' negative stiffness lowers that mode's frequency squared by 30 %)."""
+MAX_LEAD = 30.0
+"""[s] the longest lead a non-periodic drive is stepped through before its record."""
 
 
 class SimulationError(RuntimeError):
     """The simulated rig left its physical range (pole contact, no convergence)."""
-
-
-@dataclass(frozen=True)
-class Response:
-    """What the virtual rig did over the record, sampled at ``fs``.
-
-    Attributes
-    ----------
-    t : (n_samples,) array [s]
-        Sample times, the first at 0.
-    u : (n_dof, n_samples) array [m]
-        Nodal displacement.
-    v : (n_dof, n_samples) array [m/s]
-        Nodal velocity.
-    a : (n_dof, n_samples) array [m/s^2]
-        Nodal acceleration.
-    current : (n_magnets, n_samples) array [A]
-        Coil current.
-    flux : (n_magnets, n_samples) array [Wb]
-        Flux through each pole of the magnet.
-    voltage : (n_magnets, n_samples) array [V]
-        Coil voltage.
-    pole_force : (n_poles, n_samples) array [N]
-        Force on the structure at each pole, +w.
-    gap : (n_poles, n_samples) array [m]
-        Air gap at each pole.
-    """
-
-    t: np.ndarray
-    u: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
-    current: np.ndarray
-    flux: np.ndarray
-    voltage: np.ndarray
-    pole_force: np.ndarray
-    gap: np.ndarray
-
-
-def _scalar_drive(drive: Drive) -> Callable[[float], float]:
-    """``drive.value`` for one float time, on plain floats (the per-step hot path); a steady
-    drive (no ``drift``, no ``chirp``) keeps the arithmetic it always had."""
-    w = 2 * math.pi * drive.frequency
-    dc, ac, phase = float(drive.dc), float(drive.ac), float(drive.phase)
-    extra = tuple((n * w, float(amp), float(ph)) for n, amp, ph in drive.harmonics)
-    sin = math.sin
-    if drive.drift or drive.chirp:
-        drift, half_chirp = float(drive.drift), 0.5 * float(drive.chirp)
-
-        def drifting(t: float) -> float:
-            tau = t + half_chirp * t * t                  # 2 pi f tau: the chirped phase
-            out = dc + ac * sin(w * tau + phase)
-            for nw, amp, ph in extra:
-                out = out + amp * sin(nw * tau + ph)
-            return out * (1.0 + drift * t)
-
-        return drifting
-
-    def value(t: float) -> float:
-        out = dc + ac * sin(w * t + phase)
-        for nw, amp, ph in extra:
-            out = out + amp * sin(nw * t + ph)
-        return out
-
-    return value
-
-
-def _new_record(n_modes: int, n_m: int, n_keep: int) -> Record | None:
-    """Row-per-sample storage of the kept states (transposed by :func:`_finish_record`)."""
-    if not n_keep:
-        return None
-    out = {k: np.empty((n_keep, n_modes)) for k in ("q", "qd", "qdd")}
-    out.update({k: np.empty((n_keep, n_m)) for k in ("lam", "i", "f", "d")})
-    return out
-
-
-def _keep(out: Record, k: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-          lam: Sequence[float], cur: Sequence[float], f: Sequence[float],
-          d: Sequence[float]) -> None:
-    """Store the state of step k (time on the first axis until :func:`_finish_record`)."""
-    out["q"][k], out["qd"][k], out["qdd"][k] = q, qd, qdd
-    out["lam"][k], out["i"][k], out["f"][k], out["d"][k] = lam, cur, f, d
-
-
-def _finish_record(out: Record | None) -> Record | None:
-    """Time on the last axis: (n_modes or n_m, n_keep)."""
-    if out is None:
-        return None
-    return {k: np.ascontiguousarray(v.T) for k, v in out.items()}
 
 
 def pole_points(model: Model, poles: Sequence[Pole]) -> np.ndarray:
@@ -195,7 +116,13 @@ class _Stepper:
         self.voltage_driven = [d.voltage_driven for d in drives]
         self.fscale = [1.0 / (2 * mg.turns**2 * MU0 * mg.pole_area) for mg in magnets]
         self.n_m = n_m
-        self._drive_fns = [_scalar_drive(d) for d in drives]
+        self._drive_fns = [scalar_drive(d) for d in drives]
+        self.eddy = [float(mg.eddy_time) for mg in magnets]
+        for mg, d in zip(magnets, drives, strict=True):
+            if mg.eddy_time > 0 and d.voltage_driven:
+                raise ValueError(f"magnet {mg.current_channel!r}: eddy_time > 0 needs a current "
+                                 "drive (the lag of the magnetising current is modelled for an "
+                                 "imposed coil current only)")
 
     def drive(self, t: float) -> list[float]:
         """The drive of every magnet at time t [s], [A] or [V]."""
@@ -289,15 +216,17 @@ class _Stepper:
         return lam, cur, f
 
     def run(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-            lam: list[float], cur: list[float],
+            lam: list[float], cur: list[float], mag: list[float],
             keep_every: int = 0) -> tuple[State, np.ndarray, Record | None]:
-        """Advance n_steps from time t0 (modal state q, qd, qdd; coil state lam, cur).
+        """Advance n_steps from time t0 (modal state q, qd, qdd; coil state lam, cur, mag).
 
         Returns the final state, the magnet forces of every step (n_m, n_steps) and, when
         ``keep_every`` > 0, every keep_every-th sample of the state (time on the last axis).
         """
+        if any(self.eddy):
+            return self._run_eddy(t0, n_steps, q, qd, qdd, lam, cur, mag, keep_every)
         if self.n_m == 1:
-            return self._run_1(t0, n_steps, q, qd, qdd, lam, cur, keep_every)
+            return self._run_1(t0, n_steps, q, qd, qdd, lam, cur, mag, keep_every)
         dt = self.dt
         a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
         c, keff, G = self.c, self.keff, self.G
@@ -326,10 +255,10 @@ class _Stepper:
             forces[:, n] = f
             if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
                 _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, lam, cur, f, d_new)
-        return (q, qd, qdd, lam, cur), forces, _finish_record(out)
+        return (q, qd, qdd, lam, cur, mag), forces, _finish_record(out)
 
     def _run_1(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-               lam0: list[float], cur0: list[float],
+               lam0: list[float], cur0: list[float], mag: list[float],
                keep_every: int) -> tuple[State, np.ndarray, Record | None]:
         """:meth:`run` for a single magnet: scalar coil state, numpy modal update."""
         dt = self.dt
@@ -363,13 +292,63 @@ class _Stepper:
             fr[n] = f
             if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
                 _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, (lam,), (cur,), (f,), (d_new,))
-        return (q, qd, qdd, [lam], [cur]), forces, _finish_record(out)
+        return (q, qd, qdd, [lam], [cur], mag), forces, _finish_record(out)
+
+    def _run_eddy(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray,
+                  qdd: np.ndarray, lam: list[float], cur: list[float], mag: list[float],
+                  keep_every: int) -> tuple[State, np.ndarray, Record | None]:
+        """:meth:`run` with eddy currents in a core: the magnetising current i_m of a magnet
+        with ``eddy_time`` tau follows its coil current by the trapezoidal rule on
+        ``tau di_m/dt + i_m = i`` and takes the coil current's place in its magnetic circuit
+        (which :meth:`solve_flux` solves as for a current drive of i_m)."""
+        dt, n_m = self.dt, self.n_m
+        a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
+        c, keff, G = self.c, self.keff, self.G
+        gsum0 = self.S @ self.static_gap
+        sp = self.S @ self.pole_modal                                       # (n_m, n_modes)
+        lagged = [tau > 0 for tau in self.eddy]
+        # i_m' = (i_m (tau/dt - 1/2) + (i + i') / 2) / (tau/dt + 1/2)
+        keep_old = [tau / dt - 0.5 for tau in self.eddy]
+        gain = [1.0 / (tau / dt + 0.5) for tau in self.eddy]
+        d_old = self.drive(t0)
+        mag = [float(x) for x in mag]
+        n_keep = n_steps // keep_every if keep_every else 0
+        out = _new_record(len(q), n_m, n_keep)
+        forces = np.empty((n_m, n_steps))
+        lam_prev = list(lam)
+        eff_old = [mag[m] if lagged[m] else d_old[m] for m in range(n_m)]
+        for n in range(n_steps):
+            d_new = self.drive(t0 + (n + 1) * dt)
+            eff_new = []
+            for m in range(n_m):
+                if lagged[m]:
+                    mag[m] = (mag[m] * keep_old[m] + 0.5 * (d_old[m] + d_new[m])) * gain[m]
+                    eff_new.append(mag[m])
+                else:
+                    eff_new.append(d_new[m])
+            q_lin = (a0 * q + v4 * qd + qdd + c * (a1 * q + qd)) / keff
+            gsum_lin = (gsum0 - sp @ q_lin).tolist()
+            guess = [2 * lam[m] - lam_prev[m] for m in range(n_m)]
+            lam_prev = lam
+            lam, solved, f = self.solve_flux(guess, lam, eff_old, eff_new, cur, gsum_lin)
+            cur = [d_new[m] if lagged[m] else solved[m] for m in range(n_m)]
+            q_new = q_lin + G @ np.asarray(f)
+            dq = q_new - q
+            qd_new = a1 * dq - qd
+            qdd = a0 * dq - v4 * qd - qdd
+            q, qd = q_new, qd_new
+            d_old, eff_old = d_new, eff_new
+            forces[:, n] = f
+            if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
+                _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, lam, cur, f, d_new)
+        return (q, qd, qdd, lam, cur, list(mag)), forces, _finish_record(out)
 
     # ---------------------------------------------------------------- steady state
 
-    def static_state(self, t0: float) -> State:
-        """Static equilibrium under the coil state of time t0 (quasi-static coil)."""
-        d = self.drive(t0)
+    def static_state(self, t0: float, values: Sequence[float] | None = None) -> State:
+        """Static equilibrium under the coil state of time t0 (quasi-static coil), or under
+        the drive ``values`` [A] or [V] of every magnet when given."""
+        d = self.drive(t0) if values is None else [float(v) for v in values]
         cur = np.array([d[m] / self.res[m] if self.voltage_driven[m] else d[m]
                         for m in range(self.n_m)])
         q = np.zeros(len(self.w2))
@@ -384,7 +363,7 @@ class _Stepper:
             q = q_new
             if done:
                 break
-        return q, np.zeros_like(q), np.zeros_like(q), lam.tolist(), cur.tolist()
+        return q, np.zeros_like(q), np.zeros_like(q), lam.tolist(), cur.tolist(), cur.tolist()
 
     def periodic_structure(self, t: np.ndarray, forces: np.ndarray, t_end: float, f0: float,
                            n_harm: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -415,8 +394,14 @@ class _Stepper:
 
 def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ...],
               fs: float, duration: float, oversample: int = 1, settle_periods: int = 3,
-              max_passes: int = 8, tol: float = 1e-8) -> Response:
-    """Simulate the rig on its periodic steady state and sample it at ``fs`` for ``duration``.
+              max_passes: int = 8, tol: float = 1e-8, lead: float | None = None) -> Response:
+    """Simulate the rig on its steady state and sample it at ``fs`` for ``duration``.
+
+    Under steady sines (no drive with a ``waveform``) the record starts on the periodic steady
+    state. Under a broadband drive (any drive with a ``waveform``: a sweep, random, multi-tone,
+    a periodic chirp) the rig starts from its static equilibrium under the drives' DC a lead
+    time before t = 0 (before the earliest waveform's ``onset`` too) and is stepped through:
+    the free vibration of that start has decayed by the record.
 
     Parameters
     ----------
@@ -426,7 +411,7 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
     magnets : tuple of Magnet
         The electromagnets (at most two).
     drives : tuple of Drive
-        One drive per magnet; all drives share one fundamental frequency.
+        One drive per magnet; steady drives share one fundamental frequency.
     fs : float
         Output sampling rate [Hz].
     duration : float
@@ -439,6 +424,10 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
         Most passes towards the steady state.
     tol : float
         Relative change of the modal state between passes that counts as steady.
+    lead : float or None
+        [s] under a broadband drive, the time stepped before t = 0; None:
+        :data:`LEAD_TIME_CONSTANTS` decay times ``1 / (zeta omega)`` of the slowest-decaying
+        elastic mode (above 1 Hz), at most :data:`MAX_LEAD`.
 
     Returns
     -------
@@ -450,13 +439,16 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
     SimulationError
         When a pole closes its gap or the magnetic circuit does not converge.
     ValueError
-        Not one drive per magnet, or more than two magnets.
+        Not one drive per magnet, more than two magnets, or eddy currents in a voltage-driven
+        magnet.
     """
     if len(magnets) != len(drives):
         raise ValueError("one drive per magnet")
     f0 = drives[0].frequency
     dt = 1.0 / (fs * oversample)
     st = _Stepper(model, magnets, drives, dt, model.beta)
+    if any(d.waveform is not None for d in drives):
+        return _stepped_through(st, drives, fs, duration, oversample, lead)
     per_period = max(int(round(1.0 / (f0 * dt))), 2)
     n_settle = settle_periods * per_period
     n_out = int(round(duration * fs))
@@ -467,6 +459,49 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
     n_lead = int(round((t_start - t) / dt))
     if n_lead > 0:
         state, _, _ = st.run(t, n_lead, *state)
+    _, _, rec = st.run(t_start, n_out * oversample, *state, keep_every=oversample)
+    assert rec is not None, "a record of no sample"          # n_out > 0 samples were kept
+    return _response(st, rec, n_out, fs)
+
+
+def lead_time(model: Model) -> float:
+    """The default lead [s] of a broadband drive: :data:`LEAD_TIME_CONSTANTS` decay times
+    ``1 / (zeta omega) = 2 / (beta omega^2)`` of the slowest-decaying elastic mode above 1 Hz,
+    at most :data:`MAX_LEAD`.
+
+    Parameters
+    ----------
+    model : BeamModel, PlateModel or SolidModel
+
+    Returns
+    -------
+    float
+    """
+    w2 = model.modes[0]
+    decay = 0.5 * model.beta * w2[w2 > (2 * math.pi) ** 2]                 # zeta omega [1/s]
+    if not len(decay) or np.min(decay) <= 0:
+        return MAX_LEAD
+    return float(min(LEAD_TIME_CONSTANTS / np.min(decay), MAX_LEAD))
+
+
+def _stepped_through(st: _Stepper, drives: Sequence[Drive], fs: float, duration: float,
+                     oversample: int, lead: float | None) -> Response:
+    """:func:`integrate` under a broadband drive: from the static equilibrium under the DC a
+    lead before t = 0 (and before every waveform's onset), stepped through the record."""
+    dt = st.dt
+    t_start = -1.0 / fs                       # the first kept sample falls on t = 0
+    start = -(lead_time(st.model) if lead is None else lead)
+    for d in drives:
+        if d.waveform is not None and d.waveform.onset is not None:
+            start = min(start, d.waveform.onset)
+    n_lead = max(int(math.ceil((t_start - start) / dt - 1e-9)), 0)
+    t = t_start - n_lead * dt
+    fns = st._drive_fns
+    values = [d.dc if d.waveform is not None else fns[m](t) for m, d in enumerate(drives)]
+    state = st.static_state(t, values)
+    if n_lead > 0:
+        state, _, _ = st.run(t, n_lead, *state)
+    n_out = int(round(duration * fs))
     _, _, rec = st.run(t_start, n_out * oversample, *state, keep_every=oversample)
     assert rec is not None, "a record of no sample"          # n_out > 0 samples were kept
     return _response(st, rec, n_out, fs)
@@ -488,7 +523,7 @@ def _steady_state(st: _Stepper, state: State, t: float, n_settle: int, per_perio
         window = slice(-2 * per_period, None)
         q, qd, qdd = st.periodic_structure(times[window], forces[:, window], t, f0)
         change = np.max(np.abs(q - state[0])) / max(np.max(np.abs(q)), 1e-300)
-        state = (q, qd, qdd, state[3], state[4])
+        state = (q, qd, qdd, *state[3:])
         if change < tol:
             break
     return state, t

@@ -6,7 +6,14 @@ Magnetic circuit: reluctance ``(sum of the pole gaps + l_fe / mu_r) / (mu0 A)``,
 ``mu0 N^2 A i^2 / (4 (s + l_fe / (2 mu_r))^2)``.
 
 Coil drive: an ideal current source, or a voltage source through the coil resistance with the
-flux linkage ``lambda = N Phi`` as state: ``v = R i + d(lambda)/dt``.
+flux linkage ``lambda = N Phi`` as state: ``v = R i + d(lambda)/dt``. The drive is a steady
+sine on a DC bias, or a broadband :mod:`.waveforms` waveform on it.
+
+Eddy currents in the core (``Magnet.eddy_time`` tau, current drive only): the magnetising
+current ``i_m`` that produces the flux follows the coil current through a first-order lag,
+``tau di_m/dt + i_m = i``, and the flux and the force take ``i_m`` in place of ``i``. At a fixed
+gap the force's component at frequency f then lags that of ``i^2`` by ``atan(2 pi f tau)``, its
+gain ``K(f) = K / sqrt(1 + (2 pi f tau)^2)`` (``H(f) = 1 / (1 + j 2 pi f tau)``).
 """
 
 from __future__ import annotations
@@ -16,6 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import ArrayLike
+
+from .waveforms import Waveform
 
 __all__ = ["MU0", "Drive", "Magnet", "Pole"]
 
@@ -53,7 +62,7 @@ class Pole:
 
 @dataclass(frozen=True)
 class Drive:
-    """Periodic coil drive: ``dc + ac * sin(2 pi f t + phase)`` in V or A.
+    """Coil drive: ``dc + ac * sin(2 pi f t + phase)`` in V or A, or ``dc + waveform(t)``.
 
     Attributes
     ----------
@@ -75,6 +84,11 @@ class Drive:
     chirp : float [1/s]
         A slow linear drift of the frequency: the instantaneous frequency is
         ``f (1 + chirp * t)``, so every ``2 pi f t`` above reads ``2 pi f (t + chirp t^2 / 2)``.
+    waveform : Waveform or None
+        A broadband drive (:mod:`.waveforms`) in place of the ``ac`` sine (which must then be
+        0): the drive reads ``dc + waveform(tau) + harmonics``, ``tau = t + chirp t^2 / 2``,
+        all scaled by ``1 + drift * t``; ``frequency`` is then a nominal frequency (that of the
+        harmonics). None (the default): the steady sine.
     """
 
     source: str  # "current" or "voltage"
@@ -85,10 +99,14 @@ class Drive:
     harmonics: tuple[tuple[int, float, float], ...] = ()
     drift: float = 0.0
     chirp: float = 0.0
+    waveform: Waveform | None = None
 
     def __post_init__(self) -> None:
         if self.source not in ("current", "voltage"):
             raise ValueError(f"a drive imposes 'current' or 'voltage', not {self.source!r}")
+        if self.waveform is not None and self.ac:
+            raise ValueError("a drive with a waveform has ac = 0 (the waveform replaces the "
+                             "sine)")
 
     @property
     def voltage_driven(self) -> bool:
@@ -109,6 +127,13 @@ class Drive:
             Shaped like ``t``.
         """
         w = 2 * math.pi * self.frequency
+        if self.waveform is not None:
+            tt = np.asarray(t, dtype=float)
+            tau = tt + 0.5 * self.chirp * tt**2 if self.chirp else tt
+            out = self.dc + self.waveform.value(tau)
+            for n, amp, ph in self.harmonics:
+                out = out + amp * np.sin(n * w * tau + ph)
+            return out * (1.0 + self.drift * tt) if self.drift else out
         if self.drift or self.chirp:
             tt = np.asarray(t, dtype=float)
             arg = w * (tt + 0.5 * self.chirp * tt**2)
@@ -122,8 +147,8 @@ class Drive:
         return out
 
     def scaled(self, level: float, frequency: float | None = None) -> Drive:
-        """The same drive with its whole level (``dc``, ``ac``, harmonics) times ``level``,
-        at ``frequency`` [Hz] (default: its own).
+        """The same drive with its whole level (``dc``, ``ac``, harmonics, waveform) times
+        ``level``, at ``frequency`` [Hz] (default: its own; a waveform keeps its own).
 
         Parameters
         ----------
@@ -139,7 +164,8 @@ class Drive:
         return Drive(self.source, self.dc * level, self.ac * level,
                      self.frequency if frequency is None else frequency, self.phase,
                      tuple((n, amp * level, ph) for n, amp, ph in self.harmonics),
-                     self.drift, self.chirp)
+                     self.drift, self.chirp,
+                     None if self.waveform is None else self.waveform.scaled(level))
 
 
 @dataclass(frozen=True)
@@ -166,6 +192,9 @@ class Magnet:
         Name of the recorded flux channel.
     voltage_channel : str
         Name of the recorded coil voltage channel.
+    eddy_time : float [s]
+        tau of the eddy currents in the core: the magnetising current follows the coil
+        current through ``tau di_m/dt + i_m = i`` (current drive only); 0: no lag.
     """
 
     poles: tuple[Pole, ...]
@@ -177,6 +206,26 @@ class Magnet:
     current_channel: str = "i"
     flux_channel: str = "phi"
     voltage_channel: str = "v"
+    eddy_time: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not self.eddy_time >= 0.0:
+            raise ValueError(f"a magnet's eddy_time must be >= 0 s, not {self.eddy_time!r}")
+
+    def eddy_response(self, frequency: ArrayLike) -> np.ndarray:
+        """H(f) = 1 / (1 + j 2 pi f tau): the force's small-signal component at frequency f
+        [Hz] over that of ``i^2`` at a fixed gap (1 without eddy currents).
+
+        Parameters
+        ----------
+        frequency : float or array [Hz]
+
+        Returns
+        -------
+        complex array
+            ``|H| = K(f) / K``, ``-angle(H)`` the force's lag [rad].
+        """
+        return 1.0 / (1.0 + 2j * math.pi * np.asarray(frequency, dtype=float) * self.eddy_time)
 
     @property
     def iron_gap(self) -> float:

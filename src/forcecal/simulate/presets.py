@@ -1,7 +1,9 @@
 """Built-in virtual rigs: the paper's beam, a calibration campaign, a near-resonance drive, a
-plate on three gauges, a 3-D block on six gauges with measuring directions, and two rigs scanned
+plate on three gauges, a 3-D block on six gauges with measuring directions, two rigs scanned
 under more than one load: two magnets on their own coils, and two magnets on one current whose
-pole gaps change unequally.
+pole gaps change unequally; and two rigs under broadband drives (:mod:`.waveforms`), their
+magnet's force lagging its current (eddy currents): a swept sine with a stepped-sine campaign
+over frequency, and band-limited random.
 
 Every preset is a complete description: structure, gauges, magnets, sensors, noise, the SLDV
 scans and the runs. The drive's true frequency deliberately differs from the nominal one written
@@ -18,6 +20,7 @@ from dataclasses import dataclass, field
 
 from .magnet import Drive, Magnet, Pole
 from .realism import Realism, resolve_realism
+from .waveforms import BandLimitedRandom, PeriodicChirp, SweptSine
 
 __all__ = ["PRESETS", "BeamSpec", "BodySpec", "NoiseSpec", "PlateSpec", "Preset", "RunSpec",
            "ScanSpec", "get_preset", "with_tare"]
@@ -148,6 +151,7 @@ class RunSpec:
     tare: bool = False
     labels: dict[str, str] = field(default_factory=dict)
     gaps: dict[str, float] = field(default_factory=dict)   # pole name -> m, after ``gap``
+    manifest: bool = True                      # listed in manifest.csv
 
 
 @dataclass(frozen=True)
@@ -159,6 +163,9 @@ class ScanSpec:
 
     ``reference`` is the index of the magnet whose coil current is recorded beside every point;
     ``gap`` overrides every pole's static gap, then ``gaps`` (pole name -> m) single poles'.
+    Under a broadband drive (a ``waveform``) every point's record is a window of one long
+    response starting at its own random offset, within one period of a periodic waveform or
+    within one record of another.
     """
 
     drives: tuple[Drive, ...]
@@ -189,7 +196,9 @@ class Preset:
     field keeps its historical name, :attr:`structure` is the neutral alias. ``scan`` is the
     first SLDV scan, ``more_scans`` further scans of the same rig under other loads;
     :attr:`scans` lists them all. ``realism`` is None for ideal measurements (white noise
-    only) or the :class:`.realism.Realism` of a ``lab`` rig.
+    only) or the :class:`.realism.Realism` of a ``lab`` rig. ``band`` (lo, hi) [Hz] is set
+    on a rig driven by broadband drives: its scan's band, written to the rig file with
+    ``drive = "any"``.
     """
 
     name: str
@@ -204,6 +213,7 @@ class Preset:
     noise: NoiseSpec = field(default_factory=NoiseSpec)
     more_scans: tuple[ScanSpec, ...] = ()
     realism: Realism | None = None
+    band: tuple[float, float] | None = None
 
     @property
     def scans(self) -> tuple[ScanSpec, ...]:
@@ -400,8 +410,66 @@ def _tilt() -> Preset:
     )
 
 
+_EDDY_MAGNET = dataclasses.replace(_MAGNET, eddy_time=0.5e-3)
+"""The paper's U-core whose core lags: eddy currents, tau = 0.5 ms (17 degrees at 100 Hz)."""
+_BROADBAND_SCAN = ScanSpec(
+    drives=(Drive("current", 0.6, 0.0, 5.0, waveform=PeriodicChirp(0.1, 5.0, 200.0, 0.25)),),
+    record=1.0, gap=1.0e-3)
+"""A periodic chirp 5 -> 200 Hz every 0.25 s on 0.6 A DC: 1 s records hold four periods."""
+_STEPS = (10.0, 14.68, 21.54, 31.62, 46.42, 60.0, 100.0)
+"""[Hz] nominal steps: a decade 10..100 Hz log-spaced in 7, the sixth (68.1 Hz) moved to 60 Hz,
+clear of the closed-loop first bending mode (67.3 / 69.0 / 69.8 Hz at 0.8 / 1.0 / 1.2 mm and
+0.6 A)."""
+
+
+def _step_ac(gap: float, f: float) -> float:
+    """[A] a step's AC: 0.2 A keeps every pole's dynamic gap change below 10 % of the gap but
+    at 0.8 mm and 60 Hz, 7 Hz under the mode, where 0.14 A keeps it below 15 %."""
+    return 0.14 if gap < 0.9e-3 and f == 60.0 else 0.2
+
+
+def _sweep() -> Preset:
+    runs = [RunSpec("sweep", drives=(Drive("current", 0.6, 0.0, 10.0, waveform=SweptSine(
+        0.1, 10.0, 150.0, 4.0)),), gap=1.0e-3, duration=4.0, manifest=False)]
+    for gap in (0.8e-3, 1.0e-3, 1.2e-3):
+        for f in _STEPS:
+            ac = _step_ac(gap, f)
+            runs.append(RunSpec(
+                f"g{gap * 1e6:04.0f}_f{f:.2f}".replace(".", "p"), gap=gap, duration=0.5,
+                drives=(Drive("current", 0.6, ac, f * (1 + 7e-4)),),
+                labels={"dc": "0.6", "ac": f"{ac}", "frequency": f"{f}"}))
+    runs.append(RunSpec("tare", drives=(Drive("current", 0.0, 0.0, _STEPS[0] * (1 + 7e-4)),),
+                        gap=1.0e-3, duration=0.5, tare=True,
+                        labels={"dc": "0", "ac": "0", "frequency": f"{_STEPS[0]}"}))
+    return Preset(
+        name="sweep",
+        description="the paper's beam and U-core magnet, whose force lags its current (eddy "
+                    "currents, 0.5 ms), current drive: scanned under a periodic chirp 5-200 Hz "
+                    "on 0.6 A DC; a sweep 10 -> 150 Hz over 4 s (0.1 A on 0.6 A DC, 1 mm); a "
+                    "stepped-sine campaign over a decade, 10..100 Hz in 7 steps x gaps 0.8, "
+                    "1.0, 1.2 mm (0.6 A DC, 0.2 A AC) and a zero-current tare",
+        beam=BeamSpec(), magnets=(_EDDY_MAGNET,), sensors=_SENSORS, scan=_BROADBAND_SCAN,
+        runs=tuple(runs), nominal_frequency=_STEPS[0], band=(5.0, 200.0),
+    )
+
+
+def _random() -> Preset:
+    noise = BandLimitedRandom(0.07, 5.0, 150.0, period=4.0, seed=7)
+    return Preset(
+        name="random",
+        description="the sweep rig (the paper's beam, a U-core whose force lags its current) "
+                    "scanned under a periodic chirp 5-200 Hz; one run of band-limited random "
+                    "current 5-150 Hz, 0.07 A RMS on 0.6 A DC, 4 s at 1 mm",
+        beam=BeamSpec(), magnets=(_EDDY_MAGNET,), sensors=_SENSORS, scan=_BROADBAND_SCAN,
+        runs=(RunSpec("random", drives=(Drive("current", 0.6, 0.0, 5.0, waveform=noise),),
+                      gap=1.0e-3, duration=4.0, manifest=False),),
+        nominal_frequency=5.0, band=(5.0, 200.0),
+    )
+
+
 PRESETS = {"paper": _paper, "resonance": _resonance, "campaign": _campaign, "plate": _plate,
-           "body": _body, "two-coil": _two_coil, "tilt": _tilt}
+           "body": _body, "two-coil": _two_coil, "tilt": _tilt, "sweep": _sweep,
+           "random": _random}
 
 
 def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
@@ -424,7 +492,7 @@ def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
     Raises
     ------
     InputError
-        An unknown name or realism.
+        An unknown name or realism, or a ``lab`` realism for a rig under broadband drives.
     """
     from ..errors import InputError
 
@@ -434,6 +502,9 @@ def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
     preset = PRESETS[name]()
     if chosen is None:
         return preset
+    if preset.band is not None:
+        raise InputError(f"preset '{name}' is driven by broadband drives: the lab realism "
+                         "drifts a steady sine (use the ideal rig)")
     return with_tare(dataclasses.replace(preset, realism=chosen))
 
 

@@ -46,6 +46,7 @@ __all__ = [
     "relaxation_modes",
     "run_truth",
     "scan_file",
+    "scan_offsets",
     "scan_points",
     "scan_response",
     "static_gaps",
@@ -349,10 +350,10 @@ def record_scan(preset: Preset, rng: np.random.Generator,
                 errors: LabErrors | None = None) -> Scan:
     """A sequential SLDV scan: each point a velocity record with its own random start phase.
 
-    The rig runs on its periodic steady state; point k is recorded over its own window, which
-    starts at a random time within one drive period, with the coil current of the same window
-    (the current of the scan's ``reference`` magnet) as reference. ``which`` indexes
-    :attr:`Preset.scans`. A ``lab`` preset's drive walks from point to point
+    The rig runs on its steady state; point k is recorded over its own window, which starts at
+    a random time within one drive period (:func:`scan_offsets`), with the coil current of the
+    same window (the current of the scan's ``reference`` magnet) as reference. ``which``
+    indexes :attr:`Preset.scans`. A ``lab`` preset's drive walks from point to point
     (:func:`.lab.record_lab_scan`), with its rig's ``errors``.
     """
     model = model or build_model(preset)
@@ -408,14 +409,28 @@ def scan_points(preset: Preset, which: int = 0) -> np.ndarray:
     return np.linspace(0.0, b.length, spec.n_points)
 
 
+def scan_offsets(preset: Preset, which: int = 0) -> int:
+    """How many start samples a scan's windows draw theirs from: one drive period (of the
+    first drive's waveform when it has one), or one record under a waveform that does not
+    repeat. ``which`` indexes :attr:`Preset.scans`."""
+    spec = _scan_spec(preset, which)
+    wave = spec.drives[0].waveform
+    if wave is None:
+        return int(np.ceil(preset.fs / spec.drives[0].frequency))
+    if wave.period is None:
+        return int(round(spec.record * preset.fs))
+    return int(np.ceil(preset.fs * wave.period))
+
+
 def scan_response(preset: Preset, model: Model, which: int = 0) -> Response:
-    """The steady-state response a scan samples: one record plus one drive period.
+    """The steady-state response a scan samples: one record plus the span of the windows'
+    starts (:func:`scan_offsets`: one drive period).
 
     ``which`` indexes :attr:`Preset.scans`.
     """
     spec = _scan_spec(preset, which)
     n_rec = int(round(spec.record * preset.fs))
-    per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
+    per_period = scan_offsets(preset, which)
     return simulate_response(preset, spec.drives, spec.gap, (n_rec + per_period) / preset.fs,
                              model, spec.gaps)
 
@@ -423,18 +438,18 @@ def scan_response(preset: Preset, model: Model, which: int = 0) -> Response:
 def measure_scan(preset: Preset, model: Model, r: Response,
                  rng: np.random.Generator, which: int = 0,
                  errors: LabErrors | None = None) -> Scan:
-    """The scan's records: a window per point at a random start within one drive period; the
-    reference is the coil current of the scan's ``reference`` magnet. ``which`` indexes
-    :attr:`Preset.scans` (``r`` is that scan's :func:`scan_response`). A ``lab`` preset's
-    records carry its noise and its rig's ``errors`` (:func:`.lab.measure_lab_scan`; the drive
-    does not walk here)."""
+    """The scan's records: a window per point at a random start within one drive period
+    (:func:`scan_offsets`); the reference is the coil current of the scan's ``reference``
+    magnet. ``which`` indexes :attr:`Preset.scans` (``r`` is that scan's
+    :func:`scan_response`). A ``lab`` preset's records carry its noise and its rig's
+    ``errors`` (:func:`.lab.measure_lab_scan`; the drive does not walk here)."""
     if preset.realism is not None:
         from .lab import measure_lab_scan
 
         return measure_lab_scan(preset, model, r, rng, which, errors)
     spec = _scan_spec(preset, which)
     n_rec = int(round(spec.record * preset.fs))
-    per_period = int(np.ceil(preset.fs / spec.drives[0].frequency))
+    per_period = scan_offsets(preset, which)
     x = scan_points(preset, which)
     velocity = model.row(x) @ r.v                            # (n_points, n_total)
     # a 3-D SLDV measures a point's three components in one acquisition

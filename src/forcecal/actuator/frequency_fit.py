@@ -1,0 +1,362 @@
+"""Fitting the actuator's law over frequency: :func:`fit_frequency_law`.
+
+The model is :mod:`forcecal.actuator.frequency`'s: ``tau di_m/dt + i_m = i`` and
+``f = K i_m^2 sum_p 1 / (s_p + s_fe)^2``.
+
+Fit
+---
+The ``n`` instants of a run are not independent observations: they are a Fourier series of
+``2 H + 1`` real values (H harmonics), and the reconstruction's errors are errors of those
+phasors. The fit is therefore made on the force's phasors: for every run the DFT of the
+current (its instants cover exactly one period) gives I_n, the lag gives I_m,n, the law is
+evaluated at the instants, and the DFT of the modelled force is compared with the measured
+force's phasors F_0..F_H: Re and Im of every harmonic n >= 1 and the DC, each divided by its
+standard uncertainty (``force_std``: Re and Im each, the DC real, as
+:class:`forcecal.estimate.ForceEstimate`'s ``total_std``). K, s_fe and tau are fitted over all
+runs at once by nonlinear least squares (start: a grid over s_fe, then over tau, K solved
+linearly).
+
+Uncertainty
+-----------
+Runs are independent; the harmonics of one run are taken as independent of one another (Re
+and Im of each alike). The covariance is ``c (J^T J)^-1`` with ``J`` the Jacobian of the
+weighted residuals and ``c = max(1, chi2 / dof)``: a misfit of the model inflates it, never
+shrinks it; ``dof`` counts harmonic values, not instants. Without ``force_std`` the harmonics
+are weighted as white noise on the instants would weight them (the DC twice, in variance, as
+precise as Re or Im of a harmonic) and ``c = chi2 / dof``: the scatter sets the level. The
+current and the gaps are taken as exact, and errors shared between runs (a tare, the scan's
+shapes, a sensor's scale) are not counted.
+
+Per frequency step
+------------------
+Runs whose fundamentals agree within :data:`STEP_TOLERANCE` form a step. A second fit, with
+no model of the frequency dependence at the fundamental, frees per step the gain ``g`` and the
+lag ``phi`` of the fundamental of ``i_m`` (``I_m,1 = g exp(-j phi) I_1``) together with K and
+s_fe (the DC of every run pins K); harmonics n >= 2 of the current keep the first-order lag
+with the fitted tau. ``K(f) = K g`` (its uncertainty with K's, correlated) and
+``lag(f) = phi`` come with their standard uncertainties from that fit's covariance, as above.
+
+Shapes: ``n`` instants per run, ``n_poles`` poles, ``H+1`` harmonics 0..H, ``R`` runs. SI
+units throughout.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from ..errors import DimensionError, FitError, InputError
+from .data import GAP_TOLERANCE
+from .frequency import FrequencyLaw, FrequencyStep, SteadyRecord
+
+__all__ = ["STEP_TOLERANCE", "fit_frequency_law"]
+
+STEP_TOLERANCE = 0.01
+"""Runs whose fundamentals differ by less than this fraction are one frequency step."""
+_TWO_PI = 2.0 * math.pi
+
+
+# --------------------------------------------------------------------------------------------
+# the model of a stack of runs sharing the number of instants
+
+
+@dataclass(frozen=True)
+class _Stack:
+    """Runs with the same number of instants ``n``, as arrays over the runs (R of them)."""
+
+    index: np.ndarray     # (R,) the runs' positions among the records
+    f0: np.ndarray        # (R,) [Hz]
+    current: np.ndarray   # (R, n//2 + 1) complex: rfft of the current
+    gaps: np.ndarray      # (R, n, n_poles) [m]
+    force: np.ndarray     # (R, H+1) complex [N]: the measured phasors
+    weight: np.ndarray    # (R, H+1) [1/N]: 1 / std, 0 beyond a run's own H
+
+    @property
+    def bins(self) -> np.ndarray:
+        """(R, n//2 + 1) [rad/s]: the angular frequency of every DFT bin of every run."""
+        return _TWO_PI * self.f0[:, None] * np.arange(self.current.shape[1])
+
+    def real(self, z: np.ndarray) -> np.ndarray:
+        """Weighted Re of every harmonic then Im of harmonics >= 1, as one real vector; ``z``
+        is (R, H+1) or (R, p, H+1) (then (m, p))."""
+        w = self.weight if z.ndim == 2 else self.weight[:, None, :]
+        zw = z * w
+        if z.ndim == 2:
+            return np.concatenate([zw.real.ravel(), zw[:, 1:].imag.ravel()])
+        p = z.shape[1]
+        re = zw.real.transpose(0, 2, 1).reshape(-1, p)
+        im = zw[:, :, 1:].imag.transpose(0, 2, 1).reshape(-1, p)
+        return np.concatenate([re, im])
+
+
+def _phasors(x: np.ndarray, h: int) -> np.ndarray:
+    """One-sided phasors 0..h over the last axis of samples spanning one period."""
+    c = np.fft.rfft(x, axis=-1)[..., : h + 1] / x.shape[-1]
+    c[..., 1:] *= 2.0
+    return c
+
+
+def _model(st: _Stack, k: float, s_fe: float, filt: np.ndarray,
+           dfilt: Sequence[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """Modelled force phasors (R, H+1) and their derivatives (R, p, H+1) with respect to K,
+    s_fe and every filter parameter; ``filt`` (R, n//2 + 1) takes I_n to I_m,n."""
+    n, h = st.gaps.shape[1], st.force.shape[1] - 1
+    im = np.fft.irfft(st.current * filt, n=n)
+    u = st.gaps + s_fe
+    q = np.sum(u**-2.0, axis=-1)
+    cols = [im**2 * q, -2.0 * k * im**2 * np.sum(u**-3.0, axis=-1)]
+    cols += [2.0 * k * im * q * np.fft.irfft(st.current * d, n=n) for d in dfilt]
+    return _phasors(k * im**2 * q, h), _phasors(np.stack(cols, axis=1), h)
+
+
+def _lag_filter(st: _Stack, tau: float) -> tuple[np.ndarray, np.ndarray]:
+    """The first-order filter of every bin and its derivative with respect to tau."""
+    d = 1.0 + 1j * st.bins * tau
+    return 1.0 / d, -1j * st.bins / d**2
+
+
+def _stacks(records: Sequence[SteadyRecord], weighted: bool) -> list[_Stack]:
+    """The records grouped by their number of instants."""
+    out = []
+    for n in sorted({r.n for r in records}):
+        idx = np.array([k for k, r in enumerate(records) if r.n == n])
+        h_max = max(records[k].harmonics for k in idx)
+        force = np.zeros((idx.size, h_max + 1), dtype=np.complex128)
+        weight = np.zeros((idx.size, h_max + 1))
+        for row, k in enumerate(idx):
+            r = records[k]
+            h = r.harmonics
+            force[row, : h + 1] = _phasors(r.force, h)
+            std = r.force_std if weighted else np.r_[1.0 / math.sqrt(2.0), np.ones(h)]
+            weight[row, : h + 1] = 1.0 / np.asarray(std)
+        out.append(_Stack(
+            index=idx, f0=np.array([records[k].f0 for k in idx]),
+            current=np.fft.rfft(np.stack([records[k].current for k in idx]), axis=-1),
+            gaps=np.stack([records[k].gaps for k in idx]), force=force, weight=weight))
+    return out
+
+
+@dataclass(frozen=True)
+class _Fit:
+    """A weighted least-squares fit: parameters, covariance, chi-square, dof, scale."""
+
+    x: np.ndarray
+    cov: np.ndarray
+    chi2: float
+    dof: int
+    scale: float
+
+
+def _solve(fun: Any, x0: np.ndarray, scale: np.ndarray, lo: np.ndarray, weighted: bool,
+           n_obs: int, what: str) -> _Fit:
+    """Nonlinear least squares of ``fun(x) -> (residuals, jacobian)`` and the covariance."""
+    memo: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def both(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = x.tobytes()
+        if key not in memo:
+            memo.clear()
+            memo[key] = fun(x)
+        return memo[key]
+
+    with np.errstate(all="ignore"):
+        res = least_squares(lambda x: both(x)[0], x0, jac=lambda x: both(x)[1],
+                            bounds=(lo, np.full(x0.size, np.inf)), x_scale=scale,
+                            method="trf", xtol=1e-12, ftol=1e-12, gtol=1e-12, max_nfev=400)
+    r, jac = both(res.x)
+    if res.status <= 0 or not np.all(np.isfinite(r)):
+        raise FitError(f"{what}: the fit did not converge ({res.message})")
+    dof = n_obs - x0.size
+    if dof <= 0:
+        raise FitError(f"{what}: {x0.size} parameters from only {n_obs} harmonic values")
+    _, sv, vt = np.linalg.svd(jac * scale, full_matrices=False)
+    if not sv[-1] > 1e-10 * sv[0]:
+        raise FitError(f"{what}: the parameters are not identifiable from these runs")
+    chi2 = float(r @ r)
+    c = max(1.0, chi2 / dof) if weighted else chi2 / dof
+    cov = (scale[:, None] * (vt.T / sv**2) @ vt) * scale[None, :] * c
+    return _Fit(x=res.x, cov=cov, chi2=chi2, dof=dof, scale=c)
+
+
+def _steps(f0: np.ndarray, tol: float) -> np.ndarray:
+    """Step label per run: sorted fundamentals within ``tol`` relative of the previous share."""
+    order = np.argsort(f0)
+    labels = np.empty(f0.size, dtype=int)
+    step = 0
+    for j, k in enumerate(order):
+        if j and f0[k] > f0[order[j - 1]] * (1.0 + tol):
+            step += 1
+        labels[k] = step
+    return labels
+
+
+# --------------------------------------------------------------------------------------------
+# the fit
+
+
+def _records(records: Iterable[Any]) -> list[SteadyRecord]:
+    """SteadyRecords, CalibrationSamples read with :meth:`SteadyRecord.from_samples`."""
+    out = [r if isinstance(r, SteadyRecord) else SteadyRecord.from_samples(r, name=f"run {k}")
+           for k, r in enumerate(records)]
+    if not out:
+        raise InputError("no records to fit a frequency law to")
+    if len({r.gaps.shape[1] for r in out}) > 1:
+        raise DimensionError("records with different numbers of poles")
+    given = [r.force_std is not None for r in out]
+    if any(given) and not all(given):
+        bare = ", ".join(r.name or str(k) for k, r in enumerate(out) if r.force_std is None)
+        raise InputError(f"records {bare} give no force uncertainty while the others do; give "
+                         "every record's or none")
+    return out
+
+
+def _check_campaign(recs: list[SteadyRecord], steps: np.ndarray) -> None:
+    """FitError when the campaign cannot separate K, s_fe and tau."""
+    gaps = np.sort([r.static_gap for r in recs])
+    distinct = 1 + int(np.sum(np.diff(gaps) > GAP_TOLERANCE * float(np.median(gaps))))
+    if distinct < 2:
+        raise FitError(f"a frequency law needs runs at 2 or more static gaps to separate K from "
+                       f"s_fe; all {len(recs)} runs are at {1e3 * gaps[0]:.3f} mm")
+    if steps.max() < 1:
+        raise FitError(f"a frequency law needs 2 or more frequency steps; every run is at "
+                       f"{recs[0].f0:.4g} Hz")
+    for s in range(steps.max() + 1):
+        sel = [r for r, k in zip(recs, steps, strict=True) if k == s]
+        ac = max(abs(np.fft.rfft(r.current)[1]) * 2 / r.n for r in sel)
+        if not ac > 1e-9 * max(float(np.max(np.abs(r.current))) for r in sel):
+            raise FitError(f"the step at {sel[0].f0:.4g} Hz has no current at its fundamental; "
+                           "its lag cannot be measured")
+
+
+def _start(stacks: list[_Stack], recs: list[SteadyRecord]) -> np.ndarray:
+    """(K, s_fe, tau) to start from: a grid over s_fe (tau = 0), then over tau, K solved
+    linearly each time."""
+    g_min = min(float(r.gaps.min()) for r in recs)
+    f_max = max(r.f0 for r in recs)
+    y = np.concatenate([st.real(st.force) for st in stacks])
+
+    def best(s_fe: float, tau: float) -> tuple[float, float]:
+        b = np.concatenate([st.real(_model(st, 1.0, s_fe, _lag_filter(st, tau)[0], [])[0])
+                            for st in stacks])
+        k = float(b @ y / (b @ b))
+        return float(np.sum((y - k * b) ** 2)), k
+
+    median = float(np.median([r.static_gap for r in recs]))
+    sfe = min(np.linspace(-0.5 * g_min, median, 31), key=lambda v: best(float(v), 0.0)[0])
+    taus = np.r_[0.0, np.geomspace(1e-3, 3.0, 30) / (_TWO_PI * f_max)]
+    tau = min(taus, key=lambda v: best(float(sfe), float(v))[0])
+    return np.array([best(float(sfe), float(tau))[1], sfe, tau])
+
+
+def _fit_steps(stacks: list[_Stack], recs: list[SteadyRecord], steps: np.ndarray,
+               glob: _Fit, weighted: bool, n_obs: int) -> tuple[FrequencyStep, ...]:
+    """The joint fit of K, s_fe and every step's (g, phi) at the fundamental (tau held for the
+    harmonics n >= 2), and each step's K(f) and lag(f) with their uncertainties."""
+    k0, sfe0, tau = glob.x
+    n_steps = int(steps.max()) + 1
+    freq = np.array([np.mean([r.f0 for r, s in zip(recs, steps, strict=True) if s == j])
+                     for j in range(n_steps)])
+    w = _TWO_PI * freq
+    x0 = np.r_[k0, sfe0, np.column_stack([(1 + (w * tau) ** 2) ** -0.5,
+                                          np.arctan(w * tau)]).ravel()]
+
+    def fun(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        res, jac = [], []
+        for st in stacks:
+            step = steps[st.index]
+            filt = _lag_filter(st, tau)[0]
+            h1 = x[2 + 2 * step] * np.exp(-1j * x[3 + 2 * step])
+            filt[:, 1] = h1
+            dfilt = []
+            for j in range(n_steps):
+                mask = (step == j)
+                for dh in (np.exp(-1j * x[3 + 2 * step]), -1j * h1):
+                    d = np.zeros_like(filt)
+                    d[:, 1] = np.where(mask, dh, 0.0)
+                    dfilt.append(d)
+            m, dm = _model(st, x[0], x[1], filt, dfilt)
+            res.append(st.real(m - st.force))
+            jac.append(st.real(dm))
+        return np.concatenate(res), np.concatenate(jac)
+
+    g_min = min(float(r.gaps.min()) for r in recs)
+    scale = np.r_[abs(k0), float(np.median([r.static_gap for r in recs])),
+                  np.tile([0.1, 0.1], n_steps)]
+    lo = np.r_[-np.inf, -0.9 * g_min, np.full(2 * n_steps, -np.inf)]
+    fit = _solve(fun, x0, scale, lo, weighted, n_obs, "frequency steps")
+    out = []
+    for j in range(n_steps):
+        gi, pi = 2 + 2 * j, 3 + 2 * j
+        k, g = fit.x[0], fit.x[gi]
+        grad = np.zeros(fit.x.size)
+        grad[0], grad[gi] = g, k
+        out.append(FrequencyStep(
+            frequency=float(freq[j]), n_runs=int(np.sum(steps == j)), gain=float(g),
+            gain_std=float(np.sqrt(fit.cov[gi, gi])), k=float(k * g),
+            k_std=float(np.sqrt(max(grad @ fit.cov @ grad, 0.0))),
+            lag_deg=float(np.degrees(fit.x[pi])),
+            lag_deg_std=float(np.degrees(np.sqrt(fit.cov[pi, pi])))))
+    return tuple(out)
+
+
+def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLERANCE
+                      ) -> FrequencyLaw:
+    """Fit K, s_fe and tau to a stepped-sine campaign, and the response of every step.
+
+    Parameters
+    ----------
+    records : iterable of SteadyRecord or CalibrationSamples
+        One per run, at two or more fundamentals and two or more static gaps.
+    step_tolerance : float
+        Runs whose fundamentals differ by less than this fraction form one step.
+
+    Returns
+    -------
+    FrequencyLaw
+        The global fit with its covariance and the per-step table (module docstring).
+
+    Raises
+    ------
+    InputError
+        When the records are inconsistent (see :class:`SteadyRecord`).
+    FitError
+        When the runs cannot separate the parameters or the fit does not converge.
+    """
+    recs = _records(records)
+    steps = _steps(np.array([r.f0 for r in recs]), step_tolerance)
+    _check_campaign(recs, steps)
+    weighted = recs[0].force_std is not None
+    stacks = _stacks(recs, weighted)
+    n_obs = sum(2 * r.harmonics + 1 for r in recs)
+
+    def fun(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        res, jac = [], []
+        for st in stacks:
+            filt, dfilt = _lag_filter(st, x[2])
+            m, dm = _model(st, x[0], x[1], filt, [dfilt])
+            res.append(st.real(m - st.force))
+            jac.append(st.real(dm))
+        return np.concatenate(res), np.concatenate(jac)
+
+    x0 = _start(stacks, recs)
+    g_min = min(float(r.gaps.min()) for r in recs)
+    f_max = max(r.f0 for r in recs)
+    scale = np.array([abs(x0[0]), float(np.median([r.static_gap for r in recs])),
+                      1.0 / (_TWO_PI * f_max)])
+    lo = np.array([-np.inf, -0.9 * g_min, -np.inf])
+    glob = _solve(fun, x0, scale, lo, weighted, n_obs, "frequency law")
+    table = _fit_steps(stacks, recs, steps, glob, weighted, n_obs)
+    currents = np.concatenate([r.current for r in recs])
+    gaps = np.concatenate([r.gaps.ravel() for r in recs])
+    f0 = [r.f0 for r in recs]
+    return FrequencyLaw(
+        k=float(glob.x[0]), s_fe=float(glob.x[1]), tau=float(glob.x[2]), covariance=glob.cov,
+        n_poles=int(recs[0].gaps.shape[1]), frequency_range=(min(f0), max(f0)),
+        current_range=(float(currents.min()), float(currents.max())),
+        gap_range=(float(gaps.min()), float(gaps.max())), steps=table, chi2=glob.chi2,
+        dof=glob.dof, covariance_scale=glob.scale)

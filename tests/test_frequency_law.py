@@ -1,0 +1,347 @@
+"""Tests of the actuator's law over frequency (``forcecal.actuator.frequency``, ``frequency_fit``)
+and of predictions at a frequency.
+
+The stepped-sine campaigns are synthesised here from the exact law, independently of the
+fit's code: the magnetising current's phasors ``I_n / (1 + j n w tau)`` summed in closed form,
+``f = K i_m^2 sum_p 1/(s_p + s_fe)^2`` at 64 instants over one period, three static gaps, seven
+frequencies log-spaced from 10 to 100 Hz (each run's fundamental a little off its step), a
+gap at each of two poles that closes as the force rises (amplitude 2-3 %, the structure's
+phase growing with frequency), and noise of known standard deviation added to the force's
+phasors 0..6, as a reconstruction's errors are.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.stats import binom, chi2, norm
+
+from forcecal.actuator import (
+    Calibration,
+    ExtrapolationWarning,
+    FrequencyLaw,
+    SteadyRecord,
+    fit_frequency_law,
+    ideal_k,
+    predict,
+)
+from forcecal.campaign import CalibrationSamples
+from forcecal.campaign.noise import CoordinateNoise, RunNoise
+from forcecal.errors import DimensionError, FitError, InputError
+
+K = ideal_k(400, 4.0e-4)  # [N m^2/A^2]
+SFE = 0.2e-3  # [m]
+TAU = 0.5e-3  # [s]
+TRUTH = np.array([K, SFE, TAU])
+GAPS = (0.8e-3, 1.0e-3, 1.3e-3)  # [m]
+FREQS = np.geomspace(10.0, 100.0, 7)  # [Hz]
+N, H = 64, 6
+CURRENT = np.array([1.0, 0.6 * np.exp(0.4j), 0.05 * np.exp(0.3j)])  # [A] phasors 0..2
+SIGMA = 0.15  # [N] standard uncertainty of Re and Im of every force phasor (about 0.5 %)
+WITHIN = 4.0  # a single fit: errors within this many stated standard uncertainties
+N_SEEDS = 50
+
+
+def gain_and_lag(f, tau=TAU):
+    """|H(f)| and the lag atan(2 pi f tau) [deg] of the first-order law."""
+    x = 2 * np.pi * np.asarray(f) * tau
+    return 1 / np.sqrt(1 + x**2), np.degrees(np.arctan(x))
+
+
+def run(s0, f0, tau=TAU, n=N):
+    """Current, gaps (n, 2) and noise-free total force of one steady run over one period."""
+    theta = 2 * np.pi * np.arange(n) / n
+    w = 2 * np.pi * f0
+    harm = np.arange(CURRENT.size)
+    e = np.exp(1j * np.outer(harm, theta))
+    i = (CURRENT @ e).real
+    i_m = ((CURRENT / (1 + 1j * harm * w * tau)) @ e).real
+    phase = theta + 0.4 - np.arctan(w * tau) - np.arctan2(f0, 60.0)  # the gap follows the force
+    gaps = np.stack([s0 * (1 - a * np.cos(phase - 0.3 * p)) for p, a in enumerate((0.03, 0.02))],
+                    axis=1)
+    return i, gaps, K * i_m**2 * np.sum((gaps + SFE) ** -2.0, axis=1)
+
+
+def records(seed, sigma=SIGMA, tau=TAU, freqs=FREQS, gaps=GAPS, with_std=True):
+    """A noisy stepped-sine campaign: one record per (gap, frequency)."""
+    rng = np.random.default_rng(seed)
+    theta = 2 * np.pi * np.arange(N) / N
+    out = []
+    for s0 in gaps:
+        for f in freqs:
+            f0 = f * (1 + 0.002 * rng.uniform(-1, 1))
+            i, g, force = run(s0, f0, tau)
+            phasors = np.fft.rfft(force)[: H + 1] / N
+            phasors[1:] *= 2
+            phasors += sigma * rng.standard_normal(H + 1)
+            phasors[1:] += 1j * sigma * rng.standard_normal(H)
+            samples = phasors[0].real + (phasors[1:] @ np.exp(
+                1j * np.outer(np.arange(1, H + 1), theta))).real
+            out.append(SteadyRecord(f0=f0, current=i, gaps=g, force=samples,
+                                    force_std=np.full(H + 1, sigma) if with_std else None,
+                                    n_harmonics=H, name=f"{s0 * 1e3:.1f} mm, {f:.0f} Hz"))
+    return out
+
+
+@pytest.fixture(scope="module")
+def law():
+    return fit_frequency_law(records(7))
+
+
+def calibration(frequency_law=None):
+    return Calibration(law="k_i2_sfe2", params=np.array([K, SFE]),
+                       covariance=np.diag([(1e-3 * K) ** 2, (1e-2 * SFE) ** 2]), n_poles=2,
+                       current_range=(0.3, 1.7), gap_range=(0.7e-3, 1.4e-3),
+                       frequency_law=frequency_law)
+
+
+# --------------------------------------------------------------------------------------------
+# the model and the fit
+
+
+def test_law_reproduces_the_synthesised_force_exactly():
+    exact = FrequencyLaw(k=K, s_fe=SFE, tau=TAU, covariance=np.zeros((3, 3)), n_poles=2,
+                         frequency_range=(10.0, 100.0), current_range=(0.0, 2.0),
+                         gap_range=(0.5e-3, 1.5e-3))
+    for f0 in (10.0, 100.0, 400.0):
+        i, g, force = run(1.0e-3, f0)
+        np.testing.assert_allclose(exact.periodic_force(i, g, f0), force, rtol=1e-12)
+    # without the lag the force would differ: the check can fail
+    i, g, force = run(1.0e-3, 100.0)
+    assert np.max(np.abs(exact.periodic_force(i, g, 1.0) - force)) > 1e-2 * np.ptp(force)
+
+
+def test_recovers_k_sfe_and_tau_within_their_stated_uncertainty(law):
+    z = (law.params - TRUTH) / law.stderr
+    assert np.all(np.abs(z) < WITHIN), z
+    assert law.stderr[2] < 0.02 * TAU            # the campaign does measure tau (~0.5 %)
+    assert law.stderr[0] < 0.02 * K
+    assert law.stderr[1] < 0.05 * SFE
+    assert 0.8 < law.chi2 / law.dof < 1.2       # dof counts harmonics: 21 runs x 13 - 3
+    assert law.dof == 21 * (2 * H + 1) - 3
+    assert law.frequency_range[0] == pytest.approx(10.0, rel=0.003)
+    assert law.frequency_range[1] == pytest.approx(100.0, rel=0.003)
+
+
+def test_every_step_recovers_k_of_f_and_the_lag(law):
+    assert len(law.steps) == FREQS.size
+    assert [s.n_runs for s in law.steps] == [3] * FREQS.size
+    for step in law.steps:
+        gain, lag = gain_and_lag(step.frequency)
+        assert abs(step.gain - gain) < WITHIN * step.gain_std, step
+        assert abs(step.k - K * gain) < WITHIN * step.k_std, step
+        assert abs(step.lag_deg - lag) < WITHIN * step.lag_deg_std, step
+        assert step.lag_deg_std < 0.5                  # a lag of 1.8 to 17 degrees resolved
+    # the highest step is seen to fall off and lag: the points are not flat
+    top = law.steps[-1]
+    assert (1 - top.gain) > 4 * top.gain_std and top.lag_deg > 15
+
+
+def test_stated_uncertainty_covers_the_truth_over_seeds():
+    """k = 2 coverage of tau within binomial bounds, and the whole covariance calibrated (the
+    sum over seeds of the Mahalanobis distance of (K, s_fe, tau) within chi-square bounds);
+    the same checks fail with the covariance halved or doubled."""
+    d2, z_tau, z_lag = [], [], []
+    for seed in range(N_SEEDS):
+        fit = fit_frequency_law(records(100 + seed))
+        err = fit.params - TRUTH
+        d2.append(float(err @ np.linalg.solve(fit.covariance, err)))
+        z_tau.append(err[2] / fit.stderr[2])
+        z_lag += [(s.lag_deg - gain_and_lag(s.frequency)[1]) / s.lag_deg_std for s in fit.steps]
+    d2, z_tau, z_lag = np.array(d2), np.array(z_tau), np.array(z_lag)
+    p2 = 2 * norm.cdf(2.0) - 1
+    lo_count = binom.ppf(0.001, N_SEEDS, p2)
+    lo_d2, hi_d2 = chi2.ppf([0.001, 0.999], 3 * N_SEEDS)
+
+    def calibrated(scale):
+        """The coverage checks with the stated covariance multiplied by ``scale``."""
+        covered = np.sum(np.abs(z_tau) < 2 * np.sqrt(scale))
+        lag_cover = np.mean(np.abs(z_lag) < 2 * np.sqrt(scale))
+        return (covered >= lo_count and lo_d2 <= d2.sum() / scale <= hi_d2
+                and 0.91 <= lag_cover <= 0.99)
+
+    covered = int(np.sum(np.abs(z_tau) < 2))
+    assert covered >= lo_count, f"tau covered at k = 2 in {covered} of {N_SEEDS} seeds"
+    assert lo_d2 <= d2.sum() <= hi_d2, f"sum of d^2 = {d2.sum():.1f} for {3 * N_SEEDS} dof"
+    assert calibrated(1.0)
+    assert not calibrated(0.5)      # an overconfident covariance is caught
+    assert not calibrated(2.0)      # and so is an overcautious one
+
+
+def test_without_force_uncertainty_the_scatter_sets_the_level(law):
+    bare = fit_frequency_law(records(7, with_std=False))
+    assert bare.covariance_scale == pytest.approx(SIGMA**2, rel=0.25)
+    np.testing.assert_allclose(bare.stderr, law.stderr, rtol=0.25)
+    assert np.all(np.abs((bare.params - TRUTH) / bare.stderr) < WITHIN)
+
+
+def test_no_lag_is_found_where_there_is_none():
+    fit = fit_frequency_law(records(3, tau=0.0))
+    assert abs(fit.tau) < WITHIN * fit.stderr[2]
+    assert fit.stderr[2] < 0.02 * TAU
+
+
+def test_records_from_calibration_samples():
+    i, g, force = run(1.0e-3, 25.0)
+    f0, t0 = 25.0, 3.7
+    force_std = {"gauge noise": np.full(H + 1, 0.1), "unresolved harmonics": np.full(H + 1, 0.05)}
+    coord = CoordinateNoise(harmonic=1, force=np.array([0.3 + 0.4j]), motion=np.zeros((2, 1)),
+                            cov=np.array([[1.0]]))
+    noise = RunNoise(force_std=force_std, current_std=np.zeros(H + 1), coordinates=(coord,),
+                     dc_shape=np.zeros(2), dc_std=0.0)
+    smp = CalibrationSamples(time=t0 + np.arange(N) / (N * f0), current=i, gaps=g, force=force,
+                             static_force=force, flux=None, motion=None, noise=noise)
+    rec = SteadyRecord.from_samples(smp)
+    assert rec.f0 == pytest.approx(f0, rel=1e-9)
+    expected = np.full(H + 1, np.hypot(0.1, 0.05))
+    expected[1] = np.sqrt(0.1**2 + 0.05**2 + 0.25)
+    np.testing.assert_allclose(rec.force_std, expected)
+    assert rec.harmonics == H
+    spectrum = np.fft.rfft(force)
+    spectrum[4:] = 0.0                  # a Fourier series of 3 harmonics, as a reconstruction's
+    bare = SteadyRecord.from_samples(SimpleNamespace(
+        time=smp.time, current=i, gaps=g, force=np.fft.irfft(spectrum, n=N)), f0=25.0)
+    assert bare.force_std is None and bare.harmonics == 3
+
+
+def test_fit_refuses_campaigns_that_cannot_separate_the_parameters():
+    with pytest.raises(FitError, match="2 or more static gaps"):
+        fit_frequency_law(records(1, gaps=(1.0e-3,)))
+    with pytest.raises(FitError, match="2 or more frequency steps"):
+        fit_frequency_law(records(1, freqs=(50.0,)))
+    mixed = records(1)
+    mixed[4] = SteadyRecord(f0=mixed[4].f0, current=mixed[4].current, gaps=mixed[4].gaps,
+                            force=mixed[4].force, n_harmonics=H, name="bare")
+    with pytest.raises(InputError, match="records bare give no force uncertainty"):
+        fit_frequency_law(mixed)
+    with pytest.raises(InputError, match="no records"):
+        fit_frequency_law([])
+
+
+def test_record_refuses_bad_input():
+    i, g, force = run(1.0e-3, 20.0)
+    with pytest.raises(DimensionError, match="expected"):
+        SteadyRecord(f0=20.0, current=i, gaps=g[:-1], force=force)
+    with pytest.raises(InputError, match="not a positive number"):
+        SteadyRecord(f0=-20.0, current=i, gaps=g, force=force)
+    with pytest.raises(InputError, match="cannot be resolved"):
+        SteadyRecord(f0=20.0, current=i, gaps=g, force=force, n_harmonics=40)
+    with pytest.raises(InputError, match="force_std must hold 7"):
+        SteadyRecord(f0=20.0, current=i, gaps=g, force=force, force_std=[1.0, 0.0],
+                     n_harmonics=6)
+
+
+# --------------------------------------------------------------------------------------------
+# the file and the prediction
+
+
+def test_json_round_trip(law, tmp_path):
+    back = FrequencyLaw.from_json(json.loads(json.dumps(law.to_json(), allow_nan=False)))
+    np.testing.assert_array_equal(back.params, law.params)
+    np.testing.assert_array_equal(back.covariance, law.covariance)
+    assert back.steps == law.steps
+    assert (back.frequency_range, back.gap_range, back.current_range, back.n_poles) == \
+        (law.frequency_range, law.gap_range, law.current_range, law.n_poles)
+    assert (back.chi2, back.dof, back.covariance_scale) == \
+        (law.chi2, law.dof, law.covariance_scale)
+    path = calibration(law).save(tmp_path / "calibration.json")
+    doc = json.loads(path.read_text(encoding="utf-8"))
+    assert set(doc["frequency_law"]["params"]) == {"K", "s_fe", "tau"}
+    assert len(doc["frequency_law"]["steps"]) == 7
+    cal = Calibration.load(path)
+    assert cal.source == str(path)
+    a = predict(cal, [0.5, 1.5], 1.0e-3, frequency=[20.0, 80.0])
+    b = predict(calibration(law), [0.5, 1.5], 1.0e-3, frequency=[20.0, 80.0])
+    np.testing.assert_array_equal(a.total, b.total)
+    np.testing.assert_array_equal(a.std, b.std)
+    assert "frequency_law" not in calibration().to_json()   # a one-frequency file is unchanged
+
+
+def test_calibration_file_refuses_a_broken_frequency_law(law, tmp_path):
+    doc = calibration(law).to_json()
+    del doc["frequency_law"]["params"]["tau"]
+    path = tmp_path / "broken.json"
+    path.write_text(json.dumps(doc), encoding="utf-8")
+    with pytest.raises(InputError, match=r"broken\.json.*frequency_law\.params.*'tau'"):
+        Calibration.load(path)
+
+
+def test_predict_without_frequency_is_unchanged(law):
+    i, s = np.array([0.4, 1.0, 1.6]), np.array([[0.8e-3, 0.9e-3]])
+    plain, with_law = predict(calibration(), i, s), predict(calibration(law), i, s)
+    np.testing.assert_array_equal(plain.total, with_law.total)
+    np.testing.assert_array_equal(plain.std, with_law.std)
+    assert plain.frequency is None and plain.lag_deg is None and plain.k_frequency is None
+
+
+def test_predict_at_a_frequency(law):
+    i, s = np.array([0.5, 1.0, 1.6]), np.array([[0.8e-3, 0.9e-3]])
+    pred = predict(calibration(law), i, s, frequency=60.0)
+    gain = 1 / np.sqrt(1 + (2 * np.pi * 60.0 * law.tau) ** 2)
+    per_pole = law.k * gain * i[:, None] ** 2 / (s + law.s_fe) ** 2
+    np.testing.assert_allclose(pred.per_pole, per_pole, rtol=1e-12)
+    np.testing.assert_allclose(pred.total, per_pole.sum(axis=1), rtol=1e-12)
+    np.testing.assert_allclose(pred.frequency, 60.0)
+    np.testing.assert_allclose(pred.k_frequency, law.k * gain, rtol=1e-12)
+    np.testing.assert_allclose(pred.lag_deg, np.degrees(np.arctan(2 * np.pi * 60.0 * law.tau)))
+    _, lag_truth = gain_and_lag(60.0)
+    assert np.all(np.abs(pred.lag_deg - lag_truth) < WITHIN * pred.lag_deg_std)
+    # the delta method against Monte Carlo over the law's covariance
+    draws = np.random.default_rng(0).multivariate_normal(law.params, law.covariance, 20000)
+    g = 1 / np.sqrt(1 + (2 * np.pi * 60.0 * draws[:, 2]) ** 2)
+    totals = (draws[:, 0] * g)[:, None] * np.sum(
+        i[None, :, None] ** 2 / (s[None] + draws[:, 1, None, None]) ** 2, axis=2)
+    np.testing.assert_allclose(pred.std, totals.std(axis=0), rtol=0.05)
+    np.testing.assert_allclose(pred.k_frequency_std, (draws[:, 0] * g).std(), rtol=0.05)
+    lags = np.degrees(np.arctan(2 * np.pi * 60.0 * draws[:, 2]))
+    np.testing.assert_allclose(pred.lag_deg_std, lags.std(), rtol=0.05)
+
+
+def test_predict_warns_and_refuses_outside_the_frequency_range(law):
+    cal = calibration(law)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        predict(cal, 1.0, 1.0e-3, frequency=50.0)             # inside: silent
+    with pytest.warns(ExtrapolationWarning, match=r"frequency from 5 to 5 Hz .* calibrated"):
+        predict(cal, 1.0, 1.0e-3, frequency=5.0)
+    with pytest.warns(ExtrapolationWarning, match="frequency from 300 to 300 Hz"):
+        predict(cal, 1.0, 1.0e-3, frequency=300.0)
+    with pytest.raises(InputError, match="more than 10 times the highest calibrated"):
+        predict(cal, 1.0, 1.0e-3, frequency=2000.0)
+    with pytest.raises(InputError, match="not negative"):
+        predict(cal, 1.0, 1.0e-3, frequency=-1.0)
+    with pytest.raises(DimensionError, match="does not fit 2 predictions"):
+        predict(cal, [1.0, 1.2], 1.0e-3, frequency=[10.0, 20.0, 30.0])
+
+
+def test_predict_at_a_frequency_without_a_frequency_law_names_the_file(tmp_path):
+    path = calibration().save(tmp_path / "one_freq.json")
+    with pytest.raises(InputError, match=r"one_freq\.json' was calibrated at one frequency"):
+        predict(Calibration.load(path), 1.0, 1.0e-3, frequency=50.0)
+    with pytest.raises(InputError, match=r"law 'k_i2_sfe2'.*calibrated at one frequency"):
+        predict(calibration(), 1.0, 1.0e-3, frequency=50.0)
+
+
+def test_frequency_law_must_sum_the_calibrations_poles(law):
+    with pytest.raises(InputError, match="sums 2 poles, the calibration 3"):
+        Calibration(law="k_i2_sfe2", params=np.array([K, SFE]), covariance=np.eye(2) * 1e-20,
+                    n_poles=3, current_range=(0, 1), gap_range=(1e-3, 2e-3), frequency_law=law)
+
+
+def test_figure(law):
+    from forcecal.report.figures.frequency import fig_frequency_law
+
+    fig = fig_frequency_law(law, truth=(K, TAU))
+    gain_ax, lag_ax = fig.axes
+    assert gain_ax.get_xscale() == "log" and lag_ax.get_xlabel() == "frequency [Hz]"
+    labels = [line.get_label() for line in gain_ax.get_lines()]
+    assert "first-order law" in labels and "truth" in labels
+    assert len(gain_ax.containers) == 1 and len(gain_ax.containers[0].lines[0].get_xdata()) == 7
+    absolute = fig_frequency_law(law, relative=False)
+    assert "K(f) [N m²/A²]" in absolute.axes[0].get_ylabel()
+    with pytest.raises(InputError, match="truth must be"):
+        fig_frequency_law(law, truth=(K,))

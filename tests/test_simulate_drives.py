@@ -1,0 +1,392 @@
+"""Broadband drives, the lagging magnet and the rigs that use them.
+
+The waveforms against their own definitions (instantaneous frequency, lines, band, RMS), the
+steady drives against records computed before broadband drives existed, the eddy-current lag
+against 1 / (1 + j w tau), a broadband record against a longer lead and against the periodic
+steady state, and the swept rig's truth against its balance law and its files.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import tomllib
+
+import numpy as np
+import pytest
+import scipy.signal
+
+from forcecal.errors import InputError
+from forcecal.io.uff import read_scan_uff
+from forcecal.simulate import presets
+from forcecal.simulate.beam import hermite_row
+from forcecal.simulate.export import write_simulation
+from forcecal.simulate.integrate import integrate, lead_time
+from forcecal.simulate.magnet import Drive
+from forcecal.simulate.presets import BeamSpec, NoiseSpec, RunSpec, ScanSpec, get_preset
+from forcecal.simulate.virtual_rig import (
+    _magnets_at,
+    build_model,
+    record_run,
+    scan_offsets,
+    scan_response,
+)
+from forcecal.simulate.waveforms import (
+    BandLimitedRandom,
+    MultiTone,
+    PeriodicChirp,
+    SweptSine,
+    scalar_drive,
+)
+
+FS = 10_000.0
+SWEEP_FREQ_ATOL = 0.3      # Hz, Hilbert instantaneous frequency vs the linear law
+LINE_RTOL = 1e-9           # multi-tone lines vs their amplitudes (exact DFT bins)
+RANDOM_FLAT_RTOL = 1e-3    # random lines' magnitudes (linear interpolation droop: 2e-5)
+RMS_RTOL = 1e-3            # random RMS vs requested
+EDDY_GAIN_RTOL = 1.5e-3    # trapezoidal lag vs 1/(1 + j w tau): warping (w dt / 2)^2 / 3
+EDDY_PHASE_ATOL = 1.5e-3   # rad
+SETTLED_RTOL = 2e-3        # a broadband record vs the same with a doubled lead / steady state
+BALANCE_RTOL = 1e-6        # rigid-body balance residual relative to the reaction RMS
+
+
+def quiet(preset):
+    """The preset without measurement noise."""
+    return dataclasses.replace(preset, noise=NoiseSpec(0.0, 0.0, 0.0, 0.0, 0.0, 0.0))
+
+
+def lines(x: np.ndarray, fs: float) -> tuple[np.ndarray, np.ndarray]:
+    """(frequencies [Hz], complex amplitudes) of a record of whole periods: X_k = A e^{j phi}
+    for a term A cos(2 pi f t + phi)."""
+    spec = np.fft.rfft(x) * 2 / len(x)
+    return np.fft.rfftfreq(len(x), 1 / fs), spec
+
+
+@pytest.fixture(scope="module")
+def sweep_rig():
+    preset = get_preset("sweep")
+    return preset, build_model(preset)
+
+
+# --------------------------------------------------------------------------------------------
+# the waveforms
+
+
+def test_sweep_follows_its_linear_frequency_law():
+    wave = SweptSine(1.0, 20.0, 120.0, 2.0, lead_in=0.5)
+    fs = 5000.0
+    t = np.arange(int(-0.6 * fs), int(2.6 * fs)) / fs
+    x = wave.value(t)
+    assert np.all(x[t < -0.5] == 0.0)                        # silent before the lead-in
+    phase = np.unwrap(np.angle(scipy.signal.hilbert(x)))
+    f_inst = np.gradient(phase, t) / (2 * np.pi)
+    inside = (t > 0.1) & (t < 1.9)
+    np.testing.assert_allclose(f_inst[inside], 20.0 + 50.0 * t[inside], atol=SWEEP_FREQ_ATOL)
+    # held at f_stop after the sweep, at f_start during the lead-in (rising zero crossings)
+    for lo, hi, f in ((2.1, 2.5, 120.0), (-0.25, 0.0, 20.0)):
+        seg, ts = x[(t > lo) & (t < hi)], t[(t > lo) & (t < hi)]
+        k = np.flatnonzero((seg[:-1] < 0) & (seg[1:] >= 0))
+        crossings = ts[k] - seg[k] * (ts[k + 1] - ts[k]) / (seg[k + 1] - seg[k])
+        np.testing.assert_allclose(1 / np.diff(crossings), f, rtol=1e-3)
+    np.testing.assert_allclose(np.abs(x[(t > -0.25) & (t < 2.5)]).max(), 1.0, rtol=1e-3)
+    stopped = dataclasses.replace(wave, after="stop").value(t)
+    assert np.all(stopped[t > 2.0] == 0.0) and np.array_equal(stopped[t <= 2.0], x[t <= 2.0])
+    np.testing.assert_allclose(wave.instantaneous_frequency([-1.0, 1.0, 3.0]), [20, 70, 120])
+
+
+def test_periodic_chirp_repeats_without_leakage_and_without_a_jump():
+    wave = PeriodicChirp(0.3, 5.0, 200.0, 0.25)
+    fs = 10_000.0
+    t = np.arange(int(4 * 0.25 * fs)) / fs + 0.37
+    x = wave.value(t)
+    np.testing.assert_allclose(wave.value(t + 0.25), x, atol=1e-9)
+    freqs, amps = lines(x, fs)
+    power = np.abs(amps) ** 2
+    on_lines = np.isclose(freqs * 0.25, np.round(freqs * 0.25), atol=1e-9)
+    assert power[~on_lines].sum() < 1e-20 * power.sum()          # leakage: rounding only
+    band = (freqs >= 4.0) & (freqs <= 205.0)
+    assert power[band].sum() > 0.98 * power.sum()
+    # continuous where one sweep ends and the next begins (only the frequency jumps)
+    ends = wave.value(np.array([0.25 - 1e-7, 0.25]))
+    assert abs(ends[0] - ends[1]) < 1e-4
+
+
+def test_multi_tone_lines():
+    wave = MultiTone((7.0, 31.0, 113.0), (0.2, 0.05, 0.1), (0.3, -1.2, 2.0))
+    fs = 4000.0
+    t = np.arange(int(fs)) / fs
+    freqs, amps = lines(wave.value(t), fs)
+    for f, a, ph in zip(wave.frequencies, wave.amplitudes, wave.phases, strict=True):
+        k = int(np.argmin(np.abs(freqs - f)))
+        np.testing.assert_allclose(amps[k], a * np.exp(1j * (ph - np.pi / 2)), atol=LINE_RTOL)
+    others = np.delete(np.abs(amps), [7, 31, 113])
+    assert others.max() < LINE_RTOL
+
+
+def test_band_limited_random_band_rms_and_gaussian():
+    wave = BandLimitedRandom(0.07, 5.0, 150.0, period=2.0, seed=3)
+    fs = 2000.0
+    t = np.arange(int(2.0 * fs)) / fs
+    x = wave.value(t)
+    np.testing.assert_allclose(np.sqrt(np.mean(x**2)), 0.07, rtol=RMS_RTOL)
+    freqs, amps = lines(x, fs)
+    band = (freqs >= 5.0) & (freqs <= 150.0)
+    assert band.sum() == len(wave.lines) == 291
+    mags = np.abs(amps[band])
+    np.testing.assert_allclose(mags, np.mean(mags), rtol=RANDOM_FLAT_RTOL)   # flat
+    assert np.sum(np.abs(amps[~band]) ** 2) < 1e-8 * np.sum(mags**2)
+    z = x / x.std()
+    assert abs(np.mean(z**4) - 3.0) < 0.3 and abs(np.mean(z**3)) < 0.2      # Gaussian
+    again = BandLimitedRandom(0.07, 5.0, 150.0, period=2.0, seed=3).value(t)
+    assert np.array_equal(again, x)                                          # deterministic
+    assert not np.allclose(BandLimitedRandom(0.07, 5.0, 150.0, 2.0, seed=4).value(t), x)
+    np.testing.assert_allclose(wave.value(t + 2.0), x, atol=1e-12)           # periodic
+
+
+@pytest.mark.parametrize("wave", [
+    SweptSine(0.1, 10.0, 150.0, 4.0), PeriodicChirp(0.1, 5.0, 200.0, 0.25),
+    MultiTone((12.0, 55.5), (0.1, 0.02)), BandLimitedRandom(0.07, 5.0, 150.0, 4.0, seed=7)])
+def test_the_steppers_scalar_drive_is_the_drive(wave):
+    drive = Drive("current", 0.6, 0.0, 10.0, waveform=wave)
+    t = np.random.default_rng(0).uniform(-3.0, 9.0, 500)
+    fn = scalar_drive(drive)
+    scalar = np.array([fn(float(x)) for x in t])
+    np.testing.assert_array_equal(scalar, drive.value(t))
+    drifting = dataclasses.replace(drive, drift=0.01, chirp=0.002)
+    fn = scalar_drive(drifting)
+    np.testing.assert_allclose([fn(float(x)) for x in t], drifting.value(t), atol=1e-12)
+
+
+def test_a_waveform_replaces_the_sine():
+    with pytest.raises(ValueError, match="ac = 0"):
+        Drive("current", 0.6, 0.1, 10.0, waveform=MultiTone((10.0,), (0.1,)))
+    drive = Drive("current", 0.6, 0.0, 10.0, waveform=MultiTone((10.0,), (0.1,)))
+    assert drive.scaled(2.0).waveform == MultiTone((10.0,), (0.2,))
+
+
+# --------------------------------------------------------------------------------------------
+# steady drives are computed as they always were
+
+# (sample, pole force F1 [N], u at DOF 60 [m], last coil's current [A]) of the first 0.05 s of
+# each preset's first run, computed before broadband drives and eddy currents existed
+BEFORE = {
+    "paper": [(0, 7.2526848202556815, 5.000700717456577e-05, 0.8509058138714282),
+              (123, 11.740167294944598, 8.389643716007791e-05, 1.0473016064001188),
+              (499, 7.2445536948877205, 4.9949489303414395e-05, 0.850475759114253)],
+    "two-coil": [(0, 8.718694390648825, 2.8571166033276206e-05, 0.2),
+                 (123, 21.62441602797313, 8.513483937178539e-05, 0.2999710794010704),
+                 (499, 8.643693425221366, 2.8309202882593622e-05, 0.1991823153762411)],
+}
+
+
+@pytest.mark.parametrize("name", sorted(BEFORE))
+def test_steady_records_are_bit_identical_to_before(name):
+    preset = get_preset(name)
+    r = integrate(build_model(preset), preset.magnets, preset.runs[0].drives, preset.fs, 0.05)
+    now = [(k, float(r.pole_force[0, k]), float(r.u[60, k]), float(r.current[-1, k]))
+           for k, *_ in BEFORE[name]]
+    assert now == BEFORE[name]
+
+
+def test_the_existing_presets_have_no_lagging_core_and_no_waveform():
+    for name in ("paper", "resonance", "campaign", "plate", "body", "two-coil", "tilt"):
+        preset = get_preset(name)
+        assert all(m.eddy_time == 0.0 for m in preset.magnets)
+        drives = [d for s in preset.scans for d in s.drives]
+        drives += [d for r in preset.runs for d in r.drives]
+        assert all(d.waveform is None for d in drives) and preset.band is None
+
+
+# --------------------------------------------------------------------------------------------
+# the eddy-current lag
+
+
+def fundamental(x: np.ndarray, t: np.ndarray, f: float) -> np.ndarray:
+    """Complex amplitude at f of every row of x (least squares on DC and 3 harmonics)."""
+    w = 2 * np.pi * f * t
+    basis = np.column_stack([np.ones_like(t)] + [g(n * w) for n in (1, 2, 3)
+                                                 for g in (np.cos, np.sin)])
+    coef = np.linalg.lstsq(basis, np.atleast_2d(x).T, rcond=None)[0]
+    return coef[1] - 1j * coef[2]
+
+
+@pytest.fixture(scope="module")
+def stiff_rig(sweep_rig):
+    """The sweep rig on a beam and gauges 10^4 times stiffer: the gaps stay put."""
+    preset, _ = sweep_rig
+    stiff = dataclasses.replace(preset, beam=BeamSpec(youngs_modulus=210e13,
+                                                      gauge_stiffness=2e13))
+    return stiff, build_model(stiff)
+
+
+@pytest.mark.parametrize("f", [40.0, 160.0])
+def test_eddy_currents_lag_the_force_by_the_first_order_law(stiff_rig, f):
+    preset, model = stiff_rig
+    (magnet,) = _magnets_at(preset, 1.0e-3)
+    tau = magnet.eddy_time
+    assert tau == 0.5e-3
+    ratios = []
+    for m in (dataclasses.replace(magnet, eddy_time=0.0), magnet):
+        r = integrate(model, (m,), (Drive("current", 0.6, 0.1, f),), FS, 0.25)
+        force, i2 = fundamental(np.vstack([r.pole_force.sum(0), r.current[0] ** 2]), r.t, f)
+        ratios.append(force / i2)
+    assert np.ptp(r.gap) < 1e-5 * 1.0e-3                     # a fixed gap
+    h = ratios[1] / ratios[0]
+    expected = 1 / (1 + 2j * np.pi * f * tau)
+    np.testing.assert_allclose(abs(h), abs(expected), rtol=EDDY_GAIN_RTOL)
+    np.testing.assert_allclose(np.angle(h), -math.atan(2 * np.pi * f * tau),
+                               atol=EDDY_PHASE_ATOL)
+    np.testing.assert_allclose(magnet.eddy_response(f), expected)
+    assert -np.angle(h) > 0.1                                 # the lag matters
+
+
+def test_eddy_currents_need_a_current_drive(sweep_rig):
+    preset, model = sweep_rig
+    with pytest.raises(ValueError, match="current drive"):
+        integrate(model, preset.magnets, (Drive("voltage", 2.0, 1.0, 20.0),), FS, 0.01)
+    with pytest.raises(ValueError, match="eddy_time"):
+        dataclasses.replace(preset.magnets[0], eddy_time=-1e-3)
+
+
+# --------------------------------------------------------------------------------------------
+# a broadband record starts settled
+
+
+def probe(model, x: float, r) -> np.ndarray:
+    return (hermite_row(model.nodes, np.array([x])) @ r.u)[0]
+
+
+def test_random_record_starts_settled(sweep_rig):
+    preset, model = sweep_rig
+    noise = BandLimitedRandom(0.05, 10.0, 150.0, period=0.1, seed=5)   # repeats every 0.1 s
+    drives = (Drive("current", 0.6, 0.0, 10.0, waveform=noise),)
+    w = probe(model, 0.3, integrate(model, preset.magnets, drives, FS, 0.5))
+    w = w - w.mean()
+    first, last = w[:1000], w[-1000:]
+    rms = np.sqrt(np.mean(last**2))
+    assert abs(np.sqrt(np.mean(first**2)) / rms - 1) < SETTLED_RTOL
+    assert np.max(np.abs(first - last)) < SETTLED_RTOL * np.max(np.abs(last))
+    # the same from rest at t = 0: the start-up transient is there
+    w0 = probe(model, 0.3, integrate(model, preset.magnets, drives, FS, 0.5, lead=0.0))
+    w0 = w0 - w0.mean()
+    assert np.max(np.abs(w0[:1000] - w0[-1000:])) > 0.1 * np.max(np.abs(last))
+
+
+def test_broadband_lead_is_long_enough(sweep_rig):
+    preset, model = sweep_rig
+    lead = lead_time(model)
+    assert 1.5 < lead < 3.0                           # 10 / (zeta omega_1), 70.7 Hz, 1 %
+    drives = (Drive("current", 0.6, 0.0, 10.0,
+                    waveform=BandLimitedRandom(0.07, 5.0, 150.0, period=4.0, seed=7)),)
+    a = probe(model, 0.3, integrate(model, preset.magnets, drives, FS, 0.2))
+    b = probe(model, 0.3, integrate(model, preset.magnets, drives, FS, 0.2, lead=2 * lead))
+    assert np.max(np.abs(a - b)) < SETTLED_RTOL * np.std(b)
+
+
+def test_one_tone_stepped_through_is_the_periodic_steady_state(sweep_rig):
+    preset, model = sweep_rig
+    f = 31.0
+    steady = integrate(model, preset.magnets, (Drive("current", 0.6, 0.2, f),), FS, 0.1)
+    tone = Drive("current", 0.6, 0.0, f, waveform=MultiTone((f,), (0.2,)))
+    stepped = integrate(model, preset.magnets, (tone,), FS, 0.1)
+    np.testing.assert_allclose(stepped.current, steady.current, rtol=1e-12)
+    ac = np.ptp(steady.pole_force)
+    assert np.max(np.abs(stepped.pole_force - steady.pole_force)) < SETTLED_RTOL * ac
+    gap_ac = np.ptp(steady.gap)
+    assert np.max(np.abs(stepped.gap - steady.gap)) < SETTLED_RTOL * gap_ac
+
+
+# --------------------------------------------------------------------------------------------
+# the swept rig: truth, steps, files
+
+
+def test_sweep_truth_balances_reactions_inertia_and_forces(sweep_rig):
+    preset, model = sweep_rig
+    p0 = quiet(preset)
+    spec = RunSpec("short", drives=(Drive("current", 0.6, 0.0, 40.0,
+                                          waveform=SweptSine(0.1, 40.0, 100.0, 0.3)),),
+                   gap=1.0e-3, duration=0.3)
+    run, truth = record_run(p0, spec, np.random.default_rng(1), model)
+    (_, xa), (_, xb) = preset.beam.gauges
+    xs = np.array([p.x for m in preset.magnets for p in m.poles])
+    psi = np.stack([(xb - xs) / (xb - xa), (xs - xa) / (xb - xa)])
+    reactions = np.stack([run.channels[name] for name, _ in preset.beam.gauges])
+    rms = np.sqrt(np.mean(reactions**2, axis=1))
+    residual = truth.inertia - reactions - psi @ truth.pole_force
+    assert np.max(np.abs(residual) / rms[:, None]) < BALANCE_RTOL
+    share = np.sqrt(np.mean(truth.inertia**2, axis=1)) / np.std(reactions, axis=1)
+    assert np.all(share > 0.05)                        # the inertia term matters
+    np.testing.assert_allclose(truth.current[0], 0.6 + spec.drives[0].waveform.value(truth.t))
+
+
+def test_the_closest_step_stays_clear_of_the_gap(sweep_rig):
+    preset, model = sweep_rig
+    spec = next(r for r in preset.runs if r.name == "g0800_f60p00")
+    r = integrate(model, _magnets_at(preset, spec.gap), spec.drives, FS, 0.2)
+    dynamic = np.max(np.abs(r.gap - r.gap.mean(axis=1, keepdims=True)))
+    assert 0.05 * 0.8e-3 < dynamic < 0.15 * 0.8e-3
+
+
+def test_sweep_and_random_presets():
+    sweep, rand = get_preset("sweep"), get_preset("random")
+    steps = [r for r in sweep.runs if r.manifest and not r.tare]
+    assert len(steps) == 21 and {r.gap for r in steps} == {0.8e-3, 1.0e-3, 1.2e-3}
+    assert all(r.duration * r.drives[0].frequency >= 5 for r in steps)
+    assert [r.name for r in sweep.runs if not r.manifest] == ["sweep"]
+    assert sweep.magnets[0].eddy_time == rand.magnets[0].eddy_time == 0.5e-3
+    assert sweep.scan == rand.scan and sweep.band == rand.band == (5.0, 200.0)
+    noise = rand.runs[0].drives[0].waveform
+    assert isinstance(noise, BandLimitedRandom) and noise.band == (5.0, 150.0)
+    with pytest.raises(InputError, match="broadband"):
+        get_preset("sweep", "lab")
+
+
+def _small_sweep():
+    full = presets._sweep()
+    scan = dataclasses.replace(full.scan, n_points=5, record=0.5)
+    return dataclasses.replace(full, scan=scan, runs=(
+        dataclasses.replace(full.runs[0], duration=0.2), full.runs[1], full.runs[-1]))
+
+
+def test_sweep_files(tmp_path, monkeypatch):
+    monkeypatch.setitem(presets.PRESETS, "sweep", _small_sweep)
+    out = write_simulation(tmp_path / "sweep", "sweep", seed=0)
+    rig = tomllib.loads((out / "rig.toml").read_text())
+    assert rig["acquisition"]["band"] == [5.0, 200.0]
+    assert rig["acquisition"]["drive"] == "any"
+    manifest = (out / "manifest.csv").read_text().splitlines()
+    assert manifest[0] == "run,gap,tare,dc,ac,frequency"
+    assert [row.split(",")[0] for row in manifest[1:]] == ["runs/g0800_f10p00.csv",
+                                                           "runs/tare.csv"]
+    assert manifest[1].endswith(",10.0")
+    for name in ("sweep", "g0800_f10p00", "tare"):
+        assert (out / "runs" / f"{name}.csv").exists()
+        assert (out / "truth" / f"{name}.forces.csv").exists()
+        assert (out / "truth" / f"{name}.npz").exists()
+    forces = np.loadtxt(out / "truth" / "sweep.forces.csv", delimiter=",", skiprows=1)
+    assert forces.shape == (2000, 4)                  # time, F1, F2, total
+    np.testing.assert_allclose(forces[:, 3], forces[:, 1] + forces[:, 2], rtol=1e-12)
+    facts = json.loads((out / "truth" / "simulator.json").read_text())
+    assert facts["eddy"]["eddy_time_s"] == {"i": 0.5e-3}
+    assert "atan(2 pi f tau)" in facts["eddy"]["law"]
+    assert facts["runs"]["sweep"]["drives"][0]["waveform"]["f_stop_Hz"] == 150.0
+    # every scan window holds whole chirp periods: its lines at multiples of 4 Hz only
+    scan = read_scan_uff(out / "scan.uff")
+    assert scan.response.shape == (5, 5000)
+    spec = np.abs(np.fft.rfft(scan.reference - scan.reference.mean(1, keepdims=True))) ** 2
+    freqs = np.fft.rfftfreq(5000, 1 / scan.fs)
+    on = np.isclose(freqs / 4, np.round(freqs / 4))
+    assert np.all(spec[:, ~on].sum(1) < 1e-3 * spec[:, on].sum(1))
+
+
+def test_a_random_scan_windows_whole_periods(sweep_rig):
+    preset, model = sweep_rig
+    noise = BandLimitedRandom(0.05, 5.0, 200.0, period=0.5, seed=2)
+    scan = ScanSpec(drives=(Drive("current", 0.6, 0.0, 5.0, waveform=noise),), n_points=3,
+                    record=0.5)
+    rig = dataclasses.replace(quiet(preset), scan=scan)
+    assert scan_offsets(rig) == 5000
+    r = scan_response(rig, model)
+    assert len(r.t) == 10_000
+    np.testing.assert_allclose(r.current[0], 0.6 + noise.value(r.t), rtol=1e-12)
