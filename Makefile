@@ -44,6 +44,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/speed.py
 	$(BIN)/python benchmarks/stated_vs_observed.py
 	$(BIN)/python benchmarks/cluster.py
+	$(BIN)/python benchmarks/any_drive.py
 
 clean:
 	rm -rf $(VENV) demo-output

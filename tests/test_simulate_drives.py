@@ -181,12 +181,15 @@ BEFORE = {
 
 
 @pytest.mark.parametrize("name", sorted(BEFORE))
-def test_steady_records_are_bit_identical_to_before(name):
+def test_steady_records_are_unchanged(name):
+    """The values a steady preset gave before the new drives, to rounding: the matrix products
+    of the modal model round differently from one BLAS build or thread count to another (one
+    unit in the last place was seen), far below any change of the physics."""
     preset = get_preset(name)
     r = integrate(build_model(preset), preset.magnets, preset.runs[0].drives, preset.fs, 0.05)
-    now = [(k, float(r.pole_force[0, k]), float(r.u[60, k]), float(r.current[-1, k]))
-           for k, *_ in BEFORE[name]]
-    assert now == BEFORE[name]
+    now = np.array([(k, float(r.pole_force[0, k]), float(r.u[60, k]), float(r.current[-1, k]))
+                    for k, *_ in BEFORE[name]])
+    np.testing.assert_allclose(now, np.array(BEFORE[name]), rtol=1e-12, atol=0)
 
 
 def test_the_existing_presets_have_no_lagging_core_and_no_waveform():
