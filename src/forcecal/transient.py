@@ -172,7 +172,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     band = model.band
     fs = run.fs
     n = run.n_samples
-    if n < 4 * fs / max(band[0], 1.0) and n < 8 * fs / band[1]:
+    if n < 4 * fs / max(band[0], 1.0) or n < 8 * fs / band[1]:
         raise DataError(f"run '{run.source}': {n} samples are too short for the band "
                         f"{band[0]:g}-{band[1]:g} Hz")
     if model.n_shapes > len(rig.sensors):
