@@ -152,7 +152,7 @@ def test_steady_model_from_broadband(beam, bb_model):
     assert list(sm.harmonics) == [1, 2, 3, 4, 5]
     assert 6 in sm.dropped
     np.testing.assert_allclose(sm.couplings[0], bb_model.couplings[:, 0])
-    with pytest.raises(InputError, match="above the broadband model's band"):
+    with pytest.raises(InputError, match="lies above the band"):
         steady_model(bb_model, rig, 250.0, 3)
 
 
@@ -245,3 +245,37 @@ def test_campaign_row_takes_its_frequency_from_the_manifest(beam, bb_model, tmp_
 
     assert _frequency_steps(runs(10.0, 10.05, 14.7, 14.7)) == 2
     assert _frequency_steps(runs(10.0, 14.7, 21.5, 21.52)) == 3
+
+
+def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
+    """A dead probe, a broadband model whose arrays disagree or hold NaN, and a harmonic the
+    scan's lines do not resolve: refused or left out with the reason, never a NaN."""
+    import json
+
+    from forcecal.broadband import load_any_model
+    from forcecal.errors import DataError
+
+    rig = beam[3]
+    run, _, _ = _run(beam, np.random.default_rng(8), 40.0, seconds=2.0)
+    dead = dataclasses.replace(run, channels={**run.channels, "s2": np.full(run.n_samples, 3e-5)})
+    with pytest.raises(DataError, match="'s2' is constant"):
+        reconstruct_any(rig, bb_model, dead)
+    doc = bb_model.to_json()
+    for change, what in ((lambda d: d["couplings"].pop(), "couplings"),
+                         (lambda d: d["line_snr"].__setitem__(0, None), "broadband"),
+                         (lambda d: d.pop("shapes"), "shapes")):
+        bad = json.loads(json.dumps(doc))
+        change(bad)
+        path = tmp_path / "bad.json"
+        path.write_text(json.dumps(bad))
+        with pytest.raises(InputError, match=what):
+            load_any_model(path)
+    doc["couplings"][0][0] = float("nan")
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match="not valid JSON"):
+        load_any_model(path)
+    quiet = dataclasses.replace(bb_model, line_snr=np.where(bb_model.frequencies > 60.0, 1.0,
+                                                            bb_model.line_snr))
+    sm = steady_model(quiet, rig, 36.0, 5)
+    assert list(sm.harmonics) == [1, 2, 3, 4, 5]
+    assert sm.snr[1] == pytest.approx(1.0) and any("harmonic 2 (72" in n for n in sm.notes)

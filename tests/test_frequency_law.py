@@ -345,3 +345,30 @@ def test_figure(law):
     assert "K(f) [N m²/A²]" in absolute.axes[0].get_ylabel()
     with pytest.raises(InputError, match="truth must be"):
         fig_frequency_law(law, truth=(K,))
+
+
+def test_cli_predict_at_a_frequency(law, tmp_path, capsys):
+    """``forcecal predict --frequency``: K(f) and the lag in the JSON, the force with K(f);
+    far outside the calibrated frequencies, or without a frequency law, one line and exit 2."""
+    import json
+
+    from forcecal.cli import main
+
+    with_law, without = tmp_path / "with.json", tmp_path / "without.json"
+    calibration(law).save(with_law)
+    calibration().save(without)
+    assert main(["predict", str(with_law), "--current", "1.0", "--gap", "1e-3",
+                 "--frequency", "50", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out)
+    k_f, lag = law.k_at(50.0)[0], law.lag_deg(50.0)[0]
+    assert doc["k_frequency"] == pytest.approx(float(k_f), rel=1e-12)
+    assert doc["lag_deg"] == pytest.approx(float(lag), rel=1e-12)
+    assert doc["lag_deg"] == pytest.approx(np.degrees(np.arctan(2 * np.pi * 50 * TAU)), abs=0.5)
+    # K(f) i^2 / (s + s_fe)^2 summed over the two poles at 1 mm
+    want = 2 * float(k_f) * 1.0 / (1e-3 + law.s_fe) ** 2
+    assert doc["total_n"] == pytest.approx(want, rel=1e-9)
+    for args, what in (([str(with_law), "--frequency", "5000"], "10 times"),
+                       ([str(without), "--frequency", "50"], "one frequency")):
+        assert main(["predict", args[0], "--current", "1.0", "--gap", "1e-3", *args[1:]]) == 2
+        err = capsys.readouterr().err
+        assert what in err and len(err.strip().splitlines()) == 1

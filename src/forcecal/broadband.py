@@ -41,7 +41,15 @@ from .inertia import mass_coupling
 from .records import Scan, ScanSpectra
 from .rig import Rig
 from .screening import record_weights
-from .spatial import SpatialModel, check_model_rig, rig_keys, shape_from_json, shape_to_json
+from .spatial import (
+    MIN_SNR,
+    SpatialModel,
+    check_rig_keys,
+    read_model_document,
+    rig_keys,
+    shape_from_json,
+    shape_to_json,
+)
 
 __all__ = ["STEADY_HARMONICS", "BroadbandModel", "ScanResponse", "build_broadband_model",
            "load_any_model", "scan_response", "steady_model"]
@@ -154,6 +162,9 @@ class BroadbandModel:
         Of the lines scaled to unit RMS, strongest first.
     chi2 : (n_sv,) array [1]
         The lines' median reduced chi-square left by a span of 1, 2, ... shapes.
+    line_snr : (n_lines,) array [1]
+        Every line's signal-to-noise ratio over the points (RMS response over the median
+        noise of Re and Im, as a steady scan's :meth:`forcecal.scan.HarmonicShapes.snr`).
     gauge_names : tuple of str
     n_points : int
         Scan records used.
@@ -170,6 +181,7 @@ class BroadbandModel:
     coordinates: np.ndarray
     singular_values: np.ndarray
     chi2: np.ndarray
+    line_snr: np.ndarray
     gauge_names: tuple[str, ...]
     n_points: int = 0
     source: str = "<scan>"
@@ -198,6 +210,7 @@ class BroadbandModel:
                 "coordinates": {"re": self.coordinates.real.tolist(),
                                 "im": self.coordinates.imag.tolist()},
                 "singular_values": self.singular_values.tolist(), "chi2": self.chi2.tolist(),
+                "line_snr": self.line_snr.tolist(),
                 "gauge_names": list(self.gauge_names), "n_points": self.n_points,
                 "source": self.source, "notes": list(self.notes), "rig": self.rig}
 
@@ -216,19 +229,40 @@ class BroadbandModel:
             shapes = tuple(_real_shape(shape_from_json(s)) for s in doc["shapes"])
             coords = np.asarray(doc["coordinates"]["re"], float) + 1j * np.asarray(
                 doc["coordinates"]["im"], float)
-            return cls(band=(float(doc["band"][0]), float(doc["band"][1])), shapes=shapes,
-                       couplings=np.asarray(doc["couplings"], float),
-                       frequencies=np.asarray(doc["frequencies"], float), coordinates=coords,
-                       singular_values=np.asarray(doc["singular_values"], float),
-                       chi2=np.asarray(doc["chi2"], float),
-                       gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
-                       source=str(doc["source"]), notes=tuple(doc["notes"]), rig=doc["rig"])
-        except (KeyError, TypeError, ValueError, IndexError) as exc:
+            model = cls(band=(float(doc["band"][0]), float(doc["band"][1])), shapes=shapes,
+                        couplings=np.asarray(doc["couplings"], float),
+                        frequencies=np.asarray(doc["frequencies"], float), coordinates=coords,
+                        singular_values=np.asarray(doc["singular_values"], float),
+                        chi2=np.asarray(doc["chi2"], float),
+                        line_snr=np.asarray(doc["line_snr"], float),
+                        gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
+                        source=str(doc["source"]), notes=tuple(doc["notes"]),
+                        rig=dict(doc["rig"]))
+        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
             raise InputError(f"model '{source}': not a broadband model ({exc!r})") from None
+        _check_sizes(model, source)
+        return model
 
     def save(self, path: str | Path) -> Path:
         """Write the model as JSON (atomically)."""
         return write_text_atomic(path, json.dumps(self.to_json(), indent=1))
+
+
+def _check_sizes(m: BroadbandModel, source: str) -> None:
+    """Refuse a broadband model whose arrays disagree or hold non-finite numbers."""
+    n_k, n_lines = len(m.shapes), len(m.frequencies)
+    wrong = ("no shape" if not n_k else
+             "its band is not a band" if not 0 <= m.band[0] < m.band[1] else
+             "its couplings are not (gauges, shapes)"
+             if m.couplings.shape != (len(m.gauge_names), n_k) else
+             "its coordinates are not (shapes, lines)"
+             if m.coordinates.shape != (n_k, n_lines) or m.line_snr.shape != (n_lines,) else
+             "it holds non-finite numbers" if not all(
+                 np.all(np.isfinite(a)) for a in (m.couplings, m.frequencies, m.coordinates,
+                                                  m.line_snr, *(f.coefficients for f in m.shapes)))
+             else "")
+    if wrong:
+        raise InputError(f"model '{source}': not a broadband model ({wrong})")
 
 
 def _real_shape(s: object) -> ShapeFit:
@@ -301,9 +335,11 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     couplings = np.column_stack([np.real(mass_coupling(rig, s.evaluate)) for s in shapes])
     basis = np.column_stack([s.evaluate(points) for s in shapes])
     coords = np.linalg.lstsq(basis, resp.values, rcond=None)[0]
+    line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
+                / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), np.finfo(float).tiny)))
     return BroadbandModel(band=rig.band, shapes=shapes, couplings=couplings,
                           frequencies=resp.frequencies, coordinates=coords,
-                          singular_values=sv[:min(len(sv), 12)], chi2=chi2,
+                          singular_values=sv[:min(len(sv), 12)], chi2=chi2, line_snr=line_snr,
                           gauge_names=tuple(rig.gauge_names), n_points=len(points),
                           source=scan.source, notes=tuple(notes), rig=rig_keys(rig))
 
@@ -318,7 +354,10 @@ def _chi2(a: np.ndarray, noise: np.ndarray, basis: np.ndarray) -> float:
 
 def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -> SpatialModel:
     """The harmonic path's model of a steady run at ``f0`` from a broadband model: every
-    harmonic in the band holds the span as its members (:mod:`forcecal.span`).
+    harmonic in the band holds the span as its members (:mod:`forcecal.span`). Its scan
+    signal-to-noise ratio is that of the scan's lines at n f0; one below
+    :data:`forcecal.spatial.MIN_SNR` is noted, not dropped (the span's shapes do not rest on
+    that line, and near a resonance, where coherence drops, the inertia matters most).
 
     Parameters
     ----------
@@ -334,12 +373,20 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
     -------
     SpatialModel
     """
-    check_model_rig_keys(model, rig)
+    check_rig_keys(model.rig, model.source, rig)
     n = np.arange(1, n_harmonics + 1)
+    snr = np.interp(n * f0, model.frequencies, model.line_snr)
     inside = n * f0 <= model.band[1]
-    if not np.any(inside):
-        raise InputError(f"a drive at {f0:.4g} Hz lies above the broadband model's band "
-                         f"{model.band[0]:g}-{model.band[1]:g} Hz")
+    if not inside[0]:
+        raise InputError(f"a drive at {f0:.4g} Hz lies above the band {model.band[0]:g}-"
+                         f"{model.band[1]:g} Hz of the broadband model '{model.source}'")
+    dropped = {int(k): f"{k * f0:.4g} Hz above the scan's band ({model.band[1]:g} Hz)"
+               for k in n[~inside]}
+    notes = model.notes + tuple(
+        f"harmonic {k} ({k * f0:.4g} Hz): the scan's lines there have signal-to-noise "
+        f"{r:.1f} < {MIN_SNR:g} (coherence lost, as near a resonance the lines under-resolve); "
+        "its shapes are the span's" for k, r in zip(n[inside], snr[inside], strict=True)
+        if r < MIN_SNR)
     kept = n[inside]
     # the harmonic path's shapes are complex phasor shapes
     shapes = tuple(dataclasses.replace(f, coefficients=f.coefficients.astype(complex))
@@ -350,41 +397,24 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
         f0=f0, harmonics=kept, shapes=(first,) * len(kept),
         couplings=np.tile(coupling[:, 0], (len(kept), 1)),
         similarity=np.ones((len(kept), len(kept))),
-        snr=np.full(n_harmonics, np.inf), gauge_names=model.gauge_names,
-        dropped={int(k): f"{k * f0:.4g} Hz above the scan's band ({model.band[1]:g} Hz)"
-                 for k in n[~inside]},
-        n_points=model.n_points, source=model.source, notes=model.notes, rig=model.rig,
+        snr=snr, gauge_names=model.gauge_names, dropped=dict(sorted(dropped.items())),
+        n_points=model.n_points, source=model.source, notes=notes, rig=model.rig,
         span=(tuple(rest),) * len(kept) if rest else (),
         span_couplings=(coupling[:, 1:],) * len(kept) if rest else (),
         scans=(model.source,) * model.n_shapes if rest else (),
         member_scans=(tuple(range(model.n_shapes)),) * len(kept) if rest else ())
 
 
-def check_model_rig_keys(model: BroadbandModel, rig: Rig) -> None:
-    """Refuse a broadband model built for another rig (as :func:`check_model_rig`)."""
-    proxy = SpatialModel(f0=1.0, harmonics=np.array([1]), shapes=(), couplings=np.zeros((1, 1)),
-                         similarity=np.ones((1, 1)), snr=np.ones(1), gauge_names=(),
-                         source=model.source, rig=model.rig)
-    check_model_rig(proxy, rig)
-
-
 def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:
-    """A MODEL.json written by ``scan``: a harmonic (steady) model or a broadband one.
+    """A MODEL.json written by ``scan``: a harmonic (steady) model or a broadband one, read
+    once (:func:`forcecal.spatial.read_model_document`).
 
     Raises
     ------
     InputError
-        As :func:`forcecal.spatial.load_model`; a broadband document that does not read.
+        As :func:`forcecal.spatial.load_model`, or a broadband document that does not read.
     """
-    from ._schema import MAX_DOCUMENT_BYTES
-    from .spatial import load_model
-
-    p = Path(path)
-    if p.is_file() and p.stat().st_size <= MAX_DOCUMENT_BYTES:
-        try:
-            doc = json.loads(p.read_text(encoding="utf-8"))
-        except (ValueError, UnicodeDecodeError, RecursionError):
-            doc = None
-        if isinstance(doc, dict) and doc.get("kind") == "broadband":
-            return BroadbandModel.from_json(doc, source=str(p))
-    return load_model(p)
+    doc = read_model_document(path)
+    if isinstance(doc, dict) and doc.get("kind") == "broadband":
+        return BroadbandModel.from_json(doc, source=str(path))
+    return SpatialModel.from_json(doc, source=str(path))

@@ -15,6 +15,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -36,7 +37,9 @@ __all__ = [
     "SpatialModel",
     "build_spatial_model",
     "check_model_rig",
+    "check_rig_keys",
     "load_model",
+    "read_model_document",
     "rig_keys",
     "shape_from_json",
     "shape_to_json",
@@ -287,6 +290,17 @@ def load_model(path: str | Path) -> SpatialModel:
     -------
     SpatialModel
     """
+    return SpatialModel.from_json(read_model_document(path), source=str(path))
+
+
+def read_model_document(path: str | Path) -> Any:
+    """The JSON of a MODEL.json file (strict: no NaN or Infinity), any kind of model.
+
+    Raises
+    ------
+    InputError
+        A missing or oversized file, or one that is not valid JSON.
+    """
     from ._schema import MAX_DOCUMENT_BYTES
 
     path = Path(path)
@@ -304,7 +318,7 @@ def load_model(path: str | Path) -> SpatialModel:
                          "deeply)") from None
     except ValueError as exc:  # NaN/Infinity constants, an integer beyond the digit limit
         raise InputError(f"model '{path}': not valid JSON ({exc})") from None
-    return SpatialModel.from_json(doc, source=str(path))
+    return doc
 
 
 def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | Sequence[Scan | ScanSpectra],
@@ -495,16 +509,28 @@ def check_model_rig(model: SpatialModel, rig: Rig) -> None:
         When the rig's geometry, masses or sensor layout differ from the model's rig (a model
         written before models recorded their rig is accepted).
     """
-    if not model.rig:
+    check_rig_keys(model.rig, model.source, rig)
+
+
+def check_rig_keys(keys: dict[str, float | str], source: str, rig: Rig) -> None:
+    """Refuse a model (from ``source``) built for a rig of other ``keys`` (:func:`rig_keys`);
+    a model without keys is accepted.
+
+    Raises
+    ------
+    InputError
+        Naming the first key that differs.
+    """
+    if not keys:
         return
     now = rig_keys(rig)
-    for key in sorted(set(model.rig) | set(now)):
-        was, is_ = model.rig.get(key), now.get(key)
+    for key in sorted(set(keys) | set(now)):
+        was, is_ = keys.get(key), now.get(key)
         same = (isinstance(was, float) and isinstance(is_, float)
                 and math.isclose(was, is_, rel_tol=1e-9, abs_tol=1e-12)) or was == is_
         if not same:
             raise InputError(
-                f"model '{model.source}' was built for a rig whose key '{key}' is "
+                f"model '{source}' was built for a rig whose key '{key}' is "
                 f"{'absent' if was is None else repr(was)}, but rig '{rig.source}' has "
                 f"{'none' if is_ is None else repr(is_)}: its shapes and mass couplings belong "
                 "to the other rig; build the model again with 'forcecal scan'")

@@ -22,13 +22,14 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.signal
 
-from .broadband import BroadbandModel, check_model_rig_keys
+from .broadband import BroadbandModel
 from .errors import DataError, InputError
 from .forces import channels_si
 from .kalman import band_model, filter_states, smooth_states
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
+from .spatial import check_rig_keys
 
 __all__ = ["TransientEstimate", "channel_noise", "reconstruct_any"]
 
@@ -100,8 +101,9 @@ def channel_noise(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.nda
     -------
     (n_channels,) array [unit^2]
         The median one-sided density between 2 x the band's top (at most 0.6 of Nyquist) and
-        0.9 of Nyquist, times fs / 2, scaled from the median to the mean of an exponential
-        variable (ln 2).
+        0.9 of Nyquist, times fs / 2 (Welch's averages are nearly Gaussian, so their median is
+        their mean), at least 1e-20 of the channel's mean square (a noise-free channel still
+        has a weight).
 
     Raises
     ------
@@ -115,8 +117,9 @@ def channel_noise(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.nda
     if np.count_nonzero(sel) < 4:
         raise InputError(f"sampling at {fs:g} Hz leaves no lines above the band's top "
                          f"{band[1]:g} Hz to measure the noise")
-    # Welch averages exp. variables: the median of averaged densities sits near the mean
-    return np.median(p[..., sel], axis=-1) * fs / 2
+    level = np.median(p[..., sel], axis=-1) * fs / 2
+    floor = 1e-20 * np.mean(x**2, axis=-1) + np.finfo(float).tiny
+    return np.maximum(level, floor)
 
 
 TOP_MARGIN = 100.0
@@ -137,7 +140,7 @@ def _prior(x: np.ndarray, fs: float, band: tuple[float, float],
     top = min(max(top, band[0], f[1]), band[1])
     under = sel & (f <= top)
     level = float(np.mean(p[under])) if np.any(under) else float(np.mean(p))
-    return min(1.2 * top, band[1] * 1.2), level
+    return 1.2 * top, level
 
 
 def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,
@@ -166,9 +169,9 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     InputError
         More span shapes than probes, or a model of another rig.
     DataError
-        A record too short for the band.
+        A record too short for the band, or a gauge or probe channel that is constant.
     """
-    check_model_rig_keys(model, rig)
+    check_rig_keys(model.rig, model.source, rig)
     band = model.band
     fs = run.fs
     n = run.n_samples
@@ -179,6 +182,10 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
         raise InputError(f"model '{model.source}': {model.n_shapes} shapes but "
                          f"{len(rig.sensors)} probes (eq. 16: no more coordinates than sensors)")
     sig = channels_si(rig, run)
+    for name in (*rig.gauge_names, *rig.sensor_names):
+        if np.ptp(sig[name]) == 0:
+            raise DataError(f"run '{run.source}': channel '{name}' is constant over the run; "
+                            "a dead or disconnected sensor cannot follow any drive")
     gauges = np.stack([sig[g] for g in rig.gauge_names])
     probes = np.stack([sig[s] for s in rig.sensor_names])
     if tare is not None:
