@@ -56,7 +56,7 @@ def scan(beam):
     rows = model.row(x) @ phi
     resp, ref = [], []
     for _ in x:
-        r = 0.1 * _band_noise(rng, n, 3.0, 250.0)
+        r = np.tile(0.1 * _band_noise(rng, n // 4, 3.0, 250.0), 4)     # periodic, 4 Hz lines
         qv = modal(f, 2j * np.pi * f * np.fft.rfft(r) * 10.0)        # velocity, 10 N/A
         resp.append(np.fft.irfft(qv, n, axis=0) @ rows.T)
         ref.append(r + 1e-3 * rng.standard_normal(n))
@@ -129,12 +129,13 @@ def test_filter_is_the_kalman_recursion():
 
 
 def test_broadband_span_shapes_and_couplings(beam, bb_model):
-    """One pattern, one dominant shape: the span's shape is the deflection the probes see, its
-    coupling the FE beam's own (mode 1 normalised alike; achieved within 0.3 %)."""
+    """One pattern, one dominant shape (mode 1) and the weaker ones the quasi-static part of
+    the modes above the band brings in, which one shape alone does not fit (reduced
+    chi-square above 2) and the span does."""
     _preset, model, phi, _rig, _ = beam
     assert isinstance(bb_model, BroadbandModel)
-    assert bb_model.n_shapes == 1
-    assert bb_model.chi2[0] < 2.0
+    assert 2 <= bb_model.n_shapes <= 6
+    assert bb_model.chi2[bb_model.n_shapes - 1] < 2.0 < bb_model.chi2[0]
     x = np.linspace(0.0, 0.6, 61)
     fe = model.row(x) @ phi[:, np.argmin(np.abs(model.modes[0] - model.modes[0][
         model.modes[0] > 0][0]))]
@@ -147,37 +148,53 @@ def test_broadband_span_shapes_and_couplings(beam, bb_model):
 
 
 def test_steady_model_from_broadband(beam, bb_model):
-    rig = beam[3]
+    """Each harmonic of a steady run gets the operating shape of its own frequency: the ratio
+    of its mass coupling to its value at a probe is the FE beam's own at that frequency
+    (achieved within 0.26 % at 36-180 Hz, test 0.6 %, where one shape for all is up to 7.3 %
+    off)."""
+    from forcecal.simulate.virtual_rig import _inertia
+
+    preset, model, phi, rig, modal = beam
     sm = steady_model(bb_model, rig, 36.0, 6)
     assert list(sm.harmonics) == [1, 2, 3, 4, 5]
     assert 6 in sm.dropped
-    np.testing.assert_allclose(sm.couplings[0], bb_model.couplings[:, 0])
+    probe = model.row(np.array([0.1]))
+    errors, one_shape = [], []
+    for k, n in enumerate(sm.harmonics):
+        ods = phi @ modal(np.array([36.0 * n]), np.ones(1))[0]
+        want = _inertia(model, preset, ods[:, None])[:, 0] / (probe @ ods)[0]
+        got = sm.couplings[k] / sm.shapes[k].evaluate(np.array([0.1]))[0]
+        first = bb_model.couplings[:, 0] / bb_model.values(np.array([0.1]))[0, 0]
+        errors.append(np.max(np.abs(got / want - 1)))
+        one_shape.append(np.max(np.abs(first / want - 1)))
+    assert max(errors) < 6e-3
+    assert max(one_shape) > 3e-2
     with pytest.raises(InputError, match="lies above the band"):
         steady_model(bb_model, rig, 250.0, 3)
 
 
 def test_any_drive_forces_against_truth(beam, bb_model):
     """A band-limited random force (5-40 Hz) on the FE beam, sample by sample: the total within
-    3 % of its AC RMS (achieved 0.98 %), each force within 1.6 % (achieved 0.52 %), where the
-    reactions alone are 24 % off; the inertia term's gain within 5 % of the truth's (achieved
-    0.965: the one scanned shape, mostly the first mode, stands for the quasi-static deflection
-    of the low frequencies, which the symmetric probes cannot tell apart)."""
+    1.2 % of its AC RMS (achieved 0.39 %), each force within 0.8 % (achieved 0.28 %), where the
+    reactions alone are 24 % off; the inertia term's gain within 0.5 % of the truth's (achieved
+    0.99998-1.0002; without the operating shapes' correction, the first shape alone gives 0.965:
+    at low frequencies the deflection is quasi-static, not the first mode)."""
     rng = np.random.default_rng(5)
     run, u, gauges = _run(beam, rng, 40.0)
     est = reconstruct_any(beam[3], bb_model, run)
     truth = 2 * u
     ac = np.std(truth)
     err = est.total - truth
-    assert np.sqrt(np.mean(err**2)) / ac < 0.03
+    assert np.sqrt(np.mean(err**2)) / ac < 0.012
     for k in range(2):
-        assert np.sqrt(np.mean((est.force[k] - u) ** 2)) / ac < 0.016
+        assert np.sqrt(np.mean((est.force[k] - u) ** 2)) / ac < 0.008
     static = est.static.sum(axis=0) - truth
     assert np.std(static) / ac > 0.15
     j_true = force_matrix(beam[3]) @ np.vstack([u, u]) + gauges
     for r in range(2):
         jt = j_true[r] - j_true[r].mean()
         gain = np.dot(est.inertia[r] - est.inertia[r].mean(), jt) / np.dot(jt, jt)
-        assert 0.95 < gain < 1.02
+        assert 0.995 < gain < 1.005
 
 
 def test_cli_scan_and_reconstruct_any_drive(beam, scan, tmp_path):

@@ -7,20 +7,22 @@ quasi-static part of the modes above it (METHOD.md section 7, "any drive"). Find
 needs no modal parameters: the magnet's negative stiffness shifts the poles of responses
 referred to the coil current, never the shapes they mix.
 
-1. Per point, the frequency response of the displacement to the reference,
-   H1 = S_xr / S_rr (Welch averages, Hann window, half overlap), and its coherence; the
-   standard uncertainty of its Re and of its Im, |H| sqrt((1 - coh) / (2 n_avg coh))
-   (Bendat and Piersol, random errors of frequency-response estimates).
-2. Over the lines of the band: every line scaled to unit RMS over the points (each frequency
-   counts alike), Re and Im side by side, a singular value decomposition. The span keeps the
-   fewest shapes that leave the lines' residual within their noise, never more than the
-   sensors (eq. 16: Nq <= NS).
+1. Per point, the frequency response of the displacement to the reference
+   (:mod:`forcecal.frf`: leakage-free on the lines of a periodic drive, Welch's H1 otherwise)
+   and the standard uncertainty of its Re and of its Im.
+2. Over the lines of the band: every line in units of its own noise, Re and Im side by side,
+   a singular value decomposition (the rank-d least-squares fit of the lines). The span keeps
+   the shapes whose singular values stand clear of those of noise alone; the lines' reduced
+   chi-square is kept beside.
 3. The span's shapes fitted over the points with the structure's basis (one order for all) and
-   their mass couplings by quadrature (eq. 6).
+   their mass couplings by quadrature (eq. 6); every line's operating shape in the span's
+   coordinates.
 
-A steady run then uses the span as every harmonic's members (:func:`steady_model`, the
-harmonic path of :mod:`forcecal.forces` unchanged); any other drive is solved sample by sample
-(:mod:`forcecal.transient`).
+The operating shapes over the band are then a family, phi(x, nu) = sum_k phi_k(x) a_k(nu): a
+steady run takes each harmonic's own (:func:`steady_model`, the harmonic path of
+:mod:`forcecal.forces` unchanged), and any other drive takes the first shape's coordinate from
+the probes and corrects its inertia frequency by frequency (:meth:`BroadbandModel.
+inertia_correction`, :mod:`forcecal.transient`).
 """
 
 from __future__ import annotations
@@ -32,11 +34,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.signal
 
 from ._atomic import write_text_atomic
-from .basis import ShapeFit
+from .basis import ShapeFit, shape_similarity
 from .errors import InputError
+from .frf import scan_response
 from .inertia import mass_coupling
 from .records import Scan, ScanSpectra
 from .rig import Rig
@@ -51,97 +53,21 @@ from .spatial import (
     shape_to_json,
 )
 
-__all__ = ["STEADY_HARMONICS", "BroadbandModel", "ScanResponse", "build_broadband_model",
-           "load_any_model", "scan_response", "steady_model"]
+__all__ = ["STEADY_HARMONICS", "BroadbandModel", "build_broadband_model", "load_any_model",
+           "steady_model"]
 
 MIN_COHERENCE = 0.5
 """Lines whose median coherence over the points is below this carry too little of the drive
 to shape the span."""
 MAX_CHI2 = 2.0
-"""The span is large enough when the lines' median reduced chi-square is below this."""
+"""A span that leaves the lines' reduced chi-square above this is noted."""
+MAX_SHAPES = 6
+"""Most shapes a span keeps."""
+SV_MARGIN = 1.5
+"""A shape joins the span when its singular value stands this many times above the largest
+of a noise-only matrix of the same size."""
 STEADY_HARMONICS = 6
 """Harmonics a steady run is reconstructed with from a broadband model."""
-SEGMENTS = 8
-"""Welch segments aimed at per record (half overlap): the frequency resolution is about
-``SEGMENTS / (2 T)`` for records of T seconds."""
-
-
-@dataclass(frozen=True)
-class ScanResponse:
-    """Every scan point's frequency response to the drive over the band.
-
-    Attributes
-    ----------
-    points : (n_points, n_dim) array [m]
-        The scan points, as :class:`forcecal.records.Scan` holds them.
-    frequencies : (n_lines,) array [Hz]
-        The lines in the band.
-    values : (n_points, n_lines) complex array [m per unit of the reference]
-        H1 of the displacement.
-    std : (n_points, n_lines) array
-        Standard uncertainty of Re and of Im of ``values``.
-    coherence : (n_points, n_lines) array [1]
-        Ordinary coherence of response and reference.
-    source : str
-        The scan's file, for messages.
-    """
-
-    points: np.ndarray
-    frequencies: np.ndarray
-    values: np.ndarray
-    std: np.ndarray
-    coherence: np.ndarray
-    source: str = "<scan>"
-
-
-def scan_response(scan: Scan, band: tuple[float, float]) -> ScanResponse:
-    """Each record's frequency response (H1) over ``band``.
-
-    Parameters
-    ----------
-    scan : Scan
-        Time records under a broadband drive, the coil current as reference.
-    band : (low, high) [Hz]
-        The band the drive covered.
-
-    Returns
-    -------
-    ScanResponse
-
-    Raises
-    ------
-    InputError
-        Records too short to resolve the band, or a band without a line.
-    """
-    n = scan.response.shape[1]
-    nperseg = int(2 * n // (SEGMENTS + 1))
-    if nperseg < 16 or scan.fs / nperseg > (band[1] - band[0]) / 4:
-        raise InputError(f"scan '{scan.source}': records of {n} samples resolve "
-                         f"{scan.fs / max(nperseg, 1):.3g} Hz, too coarse for the band "
-                         f"{band[0]:g}-{band[1]:g} Hz")
-    if band[1] >= scan.fs / 2:
-        raise InputError(f"scan '{scan.source}': the band's top {band[1]:g} Hz is not below "
-                         f"the Nyquist frequency {scan.fs / 2:g} Hz")
-    kw = {"fs": scan.fs, "nperseg": nperseg, "window": "hann", "detrend": "constant"}
-    f, s_rr = scipy.signal.welch(scan.reference, axis=-1, **kw)
-    _, s_xx = scipy.signal.welch(scan.response, axis=-1, **kw)
-    _, s_rx = scipy.signal.csd(scan.reference, scan.response, axis=-1, **kw)
-    lines = (f >= max(band[0], f[1])) & (f <= band[1])
-    if not np.any(lines):
-        raise InputError(f"scan '{scan.source}': no spectral line in the band "
-                         f"{band[0]:g}-{band[1]:g} Hz")
-    f, s_rr, s_xx, s_rx = f[lines], s_rr[:, lines], s_xx[:, lines], s_rx[:, lines]
-    tiny = np.finfo(float).tiny
-    h = s_rx / np.maximum(s_rr, tiny)
-    coh = np.clip(np.abs(s_rx) ** 2 / np.maximum(s_rr * s_xx, tiny), 1e-12, 1.0)
-    if scan.quantity == "velocity":
-        h = h / (2j * np.pi * f)
-    n_avg = max((n - nperseg) // (nperseg // 2) + 1, 1)
-    std = np.abs(h) * np.sqrt((1.0 - coh) / (2.0 * n_avg * coh))
-    return ScanResponse(points=scan.points, frequencies=f, values=h, std=std, coherence=coh,
-                        source=scan.source)
-
-
 @dataclass(frozen=True)
 class BroadbandModel:
     """The span of a broadband scan's operating shapes and its mass couplings.
@@ -200,6 +126,53 @@ class BroadbandModel:
     def stds(self, points: np.ndarray) -> np.ndarray:
         """(n_points, n_shapes) [m]: the fitted shapes' standard uncertainties at points."""
         return np.column_stack([s.std(points) for s in self.shapes])
+
+    def mixing(self, frequencies: np.ndarray) -> np.ndarray:
+        """(n_shapes, n_freq) complex [1]: the operating shape at each frequency in the span's
+        coordinates, relative to the first shape's: 1, a_2 / a_1, ...
+
+        The ratios are interpolated linearly between the scan's lines that carry the drive
+        (signal-to-noise at least 1) and held beyond the first and the last. Near a mode the
+        coordinates themselves swing through the resonance, but their ratios stay smooth
+        (quadratic in the frequency: the resonant shape's denominator cancels).
+        """
+        f = np.atleast_1d(np.asarray(frequencies, float))
+        live = self.line_snr >= 1.0
+        if np.count_nonzero(live) < 2:
+            live = np.ones_like(live)
+        lines = self.frequencies[live]
+        first = self.coordinates[0, live]
+        tiny = np.finfo(float).tiny
+        ratio = self.coordinates[:, live] / np.where(np.abs(first) > tiny, first, tiny)
+        out = np.empty((self.n_shapes, len(f)), complex)
+        for k in range(self.n_shapes):
+            out[k] = (np.interp(f, lines, ratio[k].real)
+                      + 1j * np.interp(f, lines, ratio[k].imag))
+        return out
+
+    def inertia_correction(self, frequencies: np.ndarray, probe_shapes: np.ndarray,
+                           weights: np.ndarray) -> np.ndarray:
+        """(n_gauges, n_freq) complex [1]: what the inertia J_r = m_{r,1} q''_1 of the first
+        shape alone must be multiplied by at each frequency, q_1 taken from the probes by
+        weighted least squares on the first shape.
+
+        At frequency nu the deflection is phi(x) c, phi = sum_k phi_k a_k(nu) the operating
+        shape (:meth:`mixing`); q_1 = beta c with beta = (g_1^T W G a) / (g_1^T W g_1)
+        (G[j, k] = phi_k(l_j), g_1 its first column), so J_r = -w^2 (m_r . a) c =
+        (m_r . a) / (beta m_{r,1}) * m_{r,1} q''_1.
+
+        Parameters
+        ----------
+        frequencies : (n_freq,) array [Hz]
+        probe_shapes : (n_probes, n_shapes) array [m]
+            The span's shapes at the probes (G).
+        weights : (n_probes,) array
+            The probes' weights (inverse noise variances).
+        """
+        mix = self.mixing(frequencies)
+        g1 = probe_shapes[:, 0]
+        beta = (g1 * weights) @ (probe_shapes @ mix) / ((g1 * weights) @ g1)
+        return (self.couplings @ mix) / (beta * self.couplings[:, :1])
 
     def to_json(self) -> dict[str, Any]:
         """A JSON-able description (``kind`` = "broadband")."""
@@ -309,34 +282,34 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
         raise InputError(f"scan '{scan.source}': {np.count_nonzero(good)} line(s) of the band "
                          f"{rig.band[0]:g}-{rig.band[1]:g} Hz carry the drive (median "
                          f"coherence >= {MIN_COHERENCE}); is the drive broadband?")
-    h, std = resp.values[:, good], resp.std[:, good]
-    scale = np.sqrt(np.mean(np.abs(h) ** 2, axis=0))
-    a = np.hstack([(h / scale).real, (h / scale).imag])
-    s_noise = np.hstack([std / scale, std / scale])
+    tiny = np.finfo(float).tiny
+    h, std = resp.values[:, good], np.maximum(resp.std[:, good], tiny)
+    # every line in units of its own noise: the SVD is then the rank-d least-squares fit
+    line_noise = np.median(std, axis=0)
+    a = np.hstack([(h / line_noise).real, (h / line_noise).imag])
+    s_noise = np.hstack([std / line_noise, std / line_noise])
     u, sv, _ = np.linalg.svd(a, full_matrices=False)
-    chi2 = np.array([_chi2(a, s_noise, u[:, :d]) for d in range(1, min(len(sv), 6) + 1)])
-    max_shapes = len(rig.sensors)
-    within = np.flatnonzero(chi2[:max_shapes] <= MAX_CHI2)
-    d = int(within[0]) + 1 if len(within) else max_shapes
-    notes = []
-    if not len(within):
-        notes.append(f"scan '{scan.source}': {max_shapes} shapes (one per sensor) leave the "
-                     f"lines' reduced chi-square at {chi2[max_shapes - 1]:.3g} > {MAX_CHI2:g}: "
-                     "the deflection needs more shapes than the sensors can resolve")
+    n_try = min(len(sv), MAX_SHAPES + 1)
+    chi2 = np.array([_chi2(a, s_noise, u[:, :d]) for d in range(1, n_try + 1)])
+    d, note = _span_size(sv, chi2, a.shape)
+    notes = [f"scan '{scan.source}': {note}"] if note else []
     points = st.coordinates(scan.points, source=f"scan '{scan.source}'")
     weights = record_weights(np.median(s_noise, axis=1))
-    fit = st.fit_shape(points, u[:, :d], criterion, weights, "polynomial")
+    # the span scaled by its singular values: every column carries the data's own noise, so
+    # one order serves the strong shape and the weak alike
+    fit = st.fit_shape(points, u[:, :d] * sv[:d], criterion, weights, "polynomial")
     assert isinstance(fit, ShapeFit), "a beam's or a plate's shape"
-    shapes = tuple(ShapeFit(basis=fit.basis, coefficients=fit.coefficients[:, k],
+    shapes = tuple(ShapeFit(basis=fit.basis, coefficients=fit.coefficients[:, k] / sv[k],
                             order=fit.order, orders=fit.orders, score=fit.score,
-                            criterion=fit.criterion, residual_std=fit.residual_std,
-                            coefficient_covariance=fit.coefficient_covariance)
+                            criterion=fit.criterion, residual_std=fit.residual_std / sv[k],
+                            coefficient_covariance=fit.coefficient_covariance / sv[k] ** 2)
                    for k in range(d))
     couplings = np.column_stack([np.real(mass_coupling(rig, s.evaluate)) for s in shapes])
     basis = np.column_stack([s.evaluate(points) for s in shapes])
-    coords = np.linalg.lstsq(basis, resp.values, rcond=None)[0]
+    w = np.sqrt(weights)[:, None]
+    coords = np.linalg.lstsq(basis * w, resp.values * w, rcond=None)[0]
     line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
-                / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), np.finfo(float).tiny)))
+                / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
     return BroadbandModel(band=rig.band, shapes=shapes, couplings=couplings,
                           frequencies=resp.frequencies, coordinates=coords,
                           singular_values=sv[:min(len(sv), 12)], chi2=chi2, line_snr=line_snr,
@@ -344,20 +317,37 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
                           source=scan.source, notes=tuple(notes), rig=rig_keys(rig))
 
 
+def _span_size(sv: np.ndarray, chi2: np.ndarray, shape: tuple[int, int]) -> tuple[int, str]:
+    """The span's size: shapes whose singular value stands ``SV_MARGIN`` times above the
+    largest a matrix of pure noise of this size would give (sqrt(rows) + sqrt(columns), in
+    units of the noise), at most :data:`MAX_SHAPES`; and a note when that leaves the lines'
+    reduced chi-square above :data:`MAX_CHI2`."""
+    edge = np.sqrt(shape[0]) + np.sqrt(shape[1])
+    d = int(np.clip(np.count_nonzero(sv > SV_MARGIN * edge), 1, MAX_SHAPES))
+    note = ""
+    if chi2[d - 1] > MAX_CHI2:
+        note = (f"{d} shape(s) leave the lines' reduced chi-square at {chi2[d - 1]:.3g} > "
+                f"{MAX_CHI2:g}: the lines' noise is under-stated, or the deflection is not "
+                "one load pattern's")
+    return d, note
+
+
 def _chi2(a: np.ndarray, noise: np.ndarray, basis: np.ndarray) -> float:
-    """The lines' median reduced chi-square after projecting them onto ``basis``'s span."""
+    """The lines' reduced chi-square (summed over lines and points) after projecting them onto
+    ``basis``'s span (the rank-d fit's degrees of freedom taken off)."""
     resid = a - basis @ (basis.T @ a)
-    dof = max(a.shape[0] - basis.shape[1], 1)
-    per_line = np.sum((resid / np.maximum(noise, np.finfo(float).tiny)) ** 2, axis=0) / dof
-    return float(np.median(per_line))
+    d = basis.shape[1]
+    dof = max(a.size - d * (a.shape[0] + a.shape[1] - d), 1)
+    return float(np.sum((resid / np.maximum(noise, np.finfo(float).tiny)) ** 2) / dof)
 
 
 def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -> SpatialModel:
     """The harmonic path's model of a steady run at ``f0`` from a broadband model: every
-    harmonic in the band holds the span as its members (:mod:`forcecal.span`). Its scan
-    signal-to-noise ratio is that of the scan's lines at n f0; one below
-    :data:`forcecal.spatial.MIN_SNR` is noted, not dropped (the span's shapes do not rest on
-    that line, and near a resonance, where coherence drops, the inertia matters most).
+    harmonic in the band gets the operating shape of its own frequency
+    (:meth:`BroadbandModel.operating_shapes`), as a steady scan at ``f0`` would have measured
+    it. Its scan signal-to-noise ratio is that of the scan's lines at n f0; one below
+    :data:`forcecal.spatial.MIN_SNR` is noted, not dropped (the shapes rest on the span of all
+    lines, and near a resonance the inertia matters most).
 
     Parameters
     ----------
@@ -384,25 +374,23 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
                for k in n[~inside]}
     notes = model.notes + tuple(
         f"harmonic {k} ({k * f0:.4g} Hz): the scan's lines there have signal-to-noise "
-        f"{r:.1f} < {MIN_SNR:g} (coherence lost, as near a resonance the lines under-resolve); "
-        "its shapes are the span's" for k, r in zip(n[inside], snr[inside], strict=True)
-        if r < MIN_SNR)
+        f"{r:.1f} < {MIN_SNR:g}; its shape is interpolated in the span of all lines"
+        for k, r in zip(n[inside], snr[inside], strict=True) if r < MIN_SNR)
     kept = n[inside]
-    # the harmonic path's shapes are complex phasor shapes
-    shapes = tuple(dataclasses.replace(f, coefficients=f.coefficients.astype(complex))
-                   for f in model.shapes)
-    first, rest = shapes[0], shapes[1:]
-    coupling = model.couplings.astype(complex)
+    mix = model.mixing(kept * f0)                                # (n_shapes, n_kept)
+    first = model.shapes[0]
+    coefs = np.column_stack([s.coefficients for s in model.shapes]).astype(complex)
+    shapes = tuple(dataclasses.replace(first, coefficients=coefs @ mix[:, j])
+                   for j in range(len(kept)))
+    couplings = (model.couplings.astype(complex) @ mix).T       # (n_kept, n_gauges)
+    # the shapes share one basis, orthonormal over the scan points: their MAC is that of
+    # their coefficients
+    mac = np.array([[shape_similarity(p.coefficients, q.coefficients) for q in shapes]
+                    for p in shapes])
     return SpatialModel(
-        f0=f0, harmonics=kept, shapes=(first,) * len(kept),
-        couplings=np.tile(coupling[:, 0], (len(kept), 1)),
-        similarity=np.ones((len(kept), len(kept))),
+        f0=f0, harmonics=kept, shapes=shapes, couplings=couplings, similarity=mac,
         snr=snr, gauge_names=model.gauge_names, dropped=dict(sorted(dropped.items())),
-        n_points=model.n_points, source=model.source, notes=notes, rig=model.rig,
-        span=(tuple(rest),) * len(kept) if rest else (),
-        span_couplings=(coupling[:, 1:],) * len(kept) if rest else (),
-        scans=(model.source,) * model.n_shapes if rest else (),
-        member_scans=(tuple(range(model.n_shapes)),) * len(kept) if rest else ())
+        n_points=model.n_points, source=model.source, notes=notes, rig=model.rig)
 
 
 def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:

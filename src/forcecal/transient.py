@@ -143,6 +143,19 @@ def _prior(x: np.ndarray, fs: float, band: tuple[float, float],
     return 1.2 * top, level
 
 
+def _corrected(inertia: np.ndarray, fs: float, correction) -> np.ndarray:
+    """Every gauge's inertia filtered by its correction (a function of the frequencies [Hz]
+    giving (n_gauges, n_freq) complex factors), through the discrete Fourier transform of the
+    record extended at both ends by its odd reflection (no jump where it wraps)."""
+    n = inertia.shape[-1]
+    pad = min(n - 1, max(n // 4, 1))
+    ext = np.concatenate([2 * inertia[:, :1] - inertia[:, pad:0:-1], inertia,
+                          2 * inertia[:, -1:] - inertia[:, -2:-pad - 2:-1]], axis=-1)
+    f = np.fft.rfftfreq(ext.shape[-1], 1.0 / fs)
+    out = np.fft.irfft(np.fft.rfft(ext, axis=-1) * correction(f), n=ext.shape[-1], axis=-1)
+    return out[:, pad:pad + n]
+
+
 def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,
                     smooth: bool = True) -> TransientEstimate:
     """The forces of a run under any drive, sample by sample.
@@ -178,9 +191,6 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     if n < 4 * fs / max(band[0], 1.0) or n < 8 * fs / band[1]:
         raise DataError(f"run '{run.source}': {n} samples are too short for the band "
                         f"{band[0]:g}-{band[1]:g} Hz")
-    if model.n_shapes > len(rig.sensors):
-        raise InputError(f"model '{model.source}': {model.n_shapes} shapes but "
-                         f"{len(rig.sensors)} probes (eq. 16: no more coordinates than sensors)")
     sig = channels_si(rig, run)
     for name in (*rig.gauge_names, *rig.sensor_names):
         if np.ptp(sig[name]) == 0:
@@ -197,27 +207,24 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     st = rig.structure
     gam = model.values(st.coordinates(rig.sensor_points, source=f"rig '{rig.source}'")).real
     w = 1.0 / var_s
-    cov_q = np.linalg.inv(gam.T @ (w[:, None] * gam))
-    q = cov_q @ (gam.T @ (w[:, None] * probes))                  # (n_shapes, N)
+    g1 = gam[:, 0]
+    var_q = 1.0 / float(g1 @ (w * g1))
+    q = var_q * ((g1 * w) @ probes)                              # the first shape's coordinate
     estimate = smooth_states if smooth else filter_states
-    acc = np.empty_like(q)
-    var_acc = np.empty(len(q))
-    for k in range(len(q)):
-        bm = band_model(fs, *_prior(q[k], fs, band, cov_q[k, k]), cov_q[k, k])
-        acc[k] = estimate(bm, q[k], states=(2,))[0]
-        var_acc[k] = (bm.smoothed_cov if smooth else bm.filtered_cov)[2, 2]
+    bm = band_model(fs, *_prior(q, fs, band, var_q), var_q)
+    acc = estimate(bm, q, states=(2,))[0]
+    var_acc = float((bm.smoothed_cov if smooth else bm.filtered_cov)[2, 2])
     reactions = np.empty_like(gauges)
     var_r = np.empty(len(gauges))
     for r in range(len(gauges)):
         bm = band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r])
         reactions[r] = estimate(bm, gauges[r], states=(0,))[0]
         var_r[r] = (bm.smoothed_cov if smooth else bm.filtered_cov)[0, 0]
-    m = model.couplings                                           # (n_gauges, n_shapes)
-    inertia = m @ acc
-    # the coordinates' errors are correlated as their measurement noise is
-    corr = cov_q / np.sqrt(np.outer(np.diag(cov_q), np.diag(cov_q)))
-    sa = np.sqrt(var_acc)
-    var_j = np.einsum("rk,kl,rl->r", m, corr * np.outer(sa, sa), m)
+    m1 = model.couplings[:, 0]
+    inertia = m1[:, None] * acc[None, :]
+    if model.n_shapes > 1:
+        inertia = _corrected(inertia, fs, lambda f: model.inertia_correction(f, gam, w))
+    var_j = m1**2 * var_acc
     pinv = np.linalg.pinv(force_matrix(rig))
     force = pinv @ (inertia - reactions)
     static = -pinv @ gauges
@@ -232,4 +239,4 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
         run_name=run.name, force_names=tuple(rig.force_names),
         time=run.t0 + np.arange(n) / fs, force=force, force_std=np.sqrt(var_f),
         total=force.sum(axis=0), total_std=total_std, static=static, inertia=inertia,
-        reactions=reactions, coordinates=q, band=band, smoothed=smooth, notes=tuple(notes))
+        reactions=reactions, coordinates=q[None, :], band=band, smoothed=smooth, notes=tuple(notes))

@@ -1,0 +1,190 @@
+"""Every scan point's frequency response to the drive over a band (a broadband scan).
+
+Two estimators, chosen from the reference itself:
+
+- **Periodic drive** (a periodic chirp, a multisine, periodic random: what SLDV software plays
+  by default). When the record holds m >= 2 whole periods of the reference, its discrete
+  Fourier transform over the whole record (rectangular window) puts the drive on every m-th
+  line and nothing on the lines between: H = X / R on the drive's lines is free of leakage
+  and of the coherence's bias at a sharp resonance. The noise of X is read per point from
+  the lines between, near each drive line (``NOISE_LINES`` of them), so a coloured noise
+  floor is followed; Re and Im of H each have the standard uncertainty sqrt(P / 2) / |R|.
+- **Any other drive** (a sweep, random): H1 = S_xr / S_rr from Welch averages (Hann window,
+  half overlap) and the coherence; the standard uncertainty of Re and of Im is
+  |H| sqrt((1 - coh) / (2 n_avg coh)) (Bendat and Piersol, random errors of frequency-response
+  estimates).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.ndimage
+import scipy.signal
+
+from .errors import InputError
+from .records import Scan
+
+__all__ = ["NOISE_LINES", "PERIODIC_SHARE", "SEGMENTS", "ScanResponse", "periods_in_record",
+           "scan_response"]
+
+SEGMENTS = 8
+"""Welch segments aimed at per record (half overlap): the frequency resolution is about
+``SEGMENTS / (2 T)`` for records of T seconds."""
+PERIODIC_SHARE = 0.999
+"""A reference is periodic with m periods per record when this share of its power in the band
+lies on every m-th line (and m >= 2)."""
+NOISE_LINES = 12
+"""Lines between the drive's lines averaged, around each drive line, for its noise."""
+
+
+@dataclass(frozen=True)
+class ScanResponse:
+    """Every scan point's frequency response to the drive over the band.
+
+    Attributes
+    ----------
+    points : (n_points, n_dim) array [m]
+        The scan points, as :class:`forcecal.records.Scan` holds them.
+    frequencies : (n_lines,) array [Hz]
+        The lines in the band.
+    values : (n_points, n_lines) complex array [m per unit of the reference]
+        H of the displacement.
+    std : (n_points, n_lines) array
+        Standard uncertainty of Re and of Im of ``values``.
+    coherence : (n_points, n_lines) array [1]
+        Ordinary coherence of response and reference (periodic drive: |X|^2 / (|X|^2 + P)).
+    source : str
+        The scan's file, for messages.
+    periods : int
+        Periods of the reference per record (0: not periodic, Welch averages).
+    """
+
+    points: np.ndarray
+    frequencies: np.ndarray
+    values: np.ndarray
+    std: np.ndarray
+    coherence: np.ndarray
+    source: str = "<scan>"
+    periods: int = 0
+
+
+def periods_in_record(reference: np.ndarray, fs: float, band: tuple[float, float]) -> int:
+    """Whole periods of a periodic reference per record (0 when it is not periodic).
+
+    Parameters
+    ----------
+    reference : (n_points, N) array
+    fs : float [Hz]
+    band : (low, high) [Hz]
+
+    Returns
+    -------
+    int
+        The largest m >= 2 (at most 64) with at least :data:`PERIODIC_SHARE` of every record's
+        reference power in the band on lines k m, or 0.
+    """
+    n = reference.shape[-1]
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    power = np.abs(np.fft.rfft(reference - reference.mean(axis=-1, keepdims=True),
+                               axis=-1)) ** 2
+    in_band = (f >= band[0]) & (f <= band[1])
+    total = power[:, in_band].sum(axis=-1)
+    if np.any(total <= 0):
+        return 0
+    lines = np.arange(len(f))
+    for m in range(min(64, n // 4), 1, -1):
+        on = in_band & (lines % m == 0)
+        if np.count_nonzero(on) >= 3 and np.all(power[:, on].sum(axis=-1)
+                                                >= PERIODIC_SHARE * total):
+            return m
+    return 0
+
+
+def scan_response(scan: Scan, band: tuple[float, float]) -> ScanResponse:
+    """Each record's frequency response over ``band`` (leakage-free for a periodic drive).
+
+    Parameters
+    ----------
+    scan : Scan
+        Time records under a broadband drive, the coil current as reference.
+    band : (low, high) [Hz]
+        The band the drive covered.
+
+    Returns
+    -------
+    ScanResponse
+
+    Raises
+    ------
+    InputError
+        Records too short to resolve the band, or a band without a line.
+    """
+    if band[1] >= scan.fs / 2:
+        raise InputError(f"scan '{scan.source}': the band's top {band[1]:g} Hz is not below "
+                         f"the Nyquist frequency {scan.fs / 2:g} Hz")
+    m = periods_in_record(scan.reference, scan.fs, band)
+    if m:
+        f, h, std, coh = _periodic(scan, band, m)
+    else:
+        f, h, std, coh = _welch(scan, band)
+    if scan.quantity == "velocity":
+        jw = 2j * np.pi * f
+        h, std = h / jw, std / np.abs(jw)
+    return ScanResponse(points=scan.points, frequencies=f, values=h, std=std, coherence=coh,
+                        source=scan.source, periods=m)
+
+
+def _periodic(scan: Scan, band: tuple[float, float],
+              m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """H on the drive's lines of records of ``m`` whole periods, noise from the lines between."""
+    n = scan.response.shape[-1]
+    f = np.fft.rfftfreq(n, 1.0 / scan.fs)
+    x = np.fft.rfft(scan.response, axis=-1)
+    r = np.fft.rfft(scan.reference, axis=-1)
+    lines = np.arange(len(f))
+    in_band = (f >= band[0]) & (f <= band[1]) & (lines > 0)
+    on = np.flatnonzero(in_band & (lines % m == 0))
+    if len(on) < 3:
+        raise InputError(f"scan '{scan.source}': {len(on)} line(s) of the periodic drive in "
+                         f"the band {band[0]:g}-{band[1]:g} Hz")
+    between = np.flatnonzero((lines % m != 0) & (lines > 0))
+    p_between = np.abs(x[:, between]) ** 2
+    # each drive line's noise: the mean over the nearest NOISE_LINES lines between
+    width = min(NOISE_LINES, len(between))
+    p_smooth = scipy.ndimage.uniform_filter1d(p_between, size=width, axis=-1, mode="nearest")
+    near = np.clip(np.searchsorted(between, on), 0, len(between) - 1)
+    p = p_smooth[:, near]
+    h = x[:, on] / r[:, on]
+    tiny = np.finfo(float).tiny
+    std = np.sqrt(p / 2.0) / np.maximum(np.abs(r[:, on]), tiny)
+    sig = np.abs(x[:, on]) ** 2
+    coh = np.clip(sig / np.maximum(sig + p, tiny), 1e-12, 1.0)
+    return f[on], h, std, coh
+
+
+def _welch(scan: Scan, band: tuple[float, float]
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """H1 and its coherence from Welch averages."""
+    n = scan.response.shape[1]
+    nperseg = int(2 * n // (SEGMENTS + 1))
+    if nperseg < 16 or scan.fs / nperseg > (band[1] - band[0]) / 4:
+        raise InputError(f"scan '{scan.source}': records of {n} samples resolve "
+                         f"{scan.fs / max(nperseg, 1):.3g} Hz, too coarse for the band "
+                         f"{band[0]:g}-{band[1]:g} Hz")
+    kw = {"fs": scan.fs, "nperseg": nperseg, "window": "hann", "detrend": "constant"}
+    f, s_rr = scipy.signal.welch(scan.reference, axis=-1, **kw)
+    _, s_xx = scipy.signal.welch(scan.response, axis=-1, **kw)
+    _, s_rx = scipy.signal.csd(scan.reference, scan.response, axis=-1, **kw)
+    lines = (f >= max(band[0], f[1])) & (f <= band[1])
+    if not np.any(lines):
+        raise InputError(f"scan '{scan.source}': no spectral line in the band "
+                         f"{band[0]:g}-{band[1]:g} Hz")
+    f, s_rr, s_xx, s_rx = f[lines], s_rr[:, lines], s_xx[:, lines], s_rx[:, lines]
+    tiny = np.finfo(float).tiny
+    h = s_rx / np.maximum(s_rr, tiny)
+    coh = np.clip(np.abs(s_rx) ** 2 / np.maximum(s_rr * s_xx, tiny), 1e-12, 1.0)
+    n_avg = max((n - nperseg) // (nperseg // 2) + 1, 1)
+    std = np.abs(h) * np.sqrt((1.0 - coh) / (2.0 * n_avg * coh))
+    return f, h, std, coh
