@@ -3,13 +3,20 @@
 A swept, multi-tone or random drive has no harmonics to fit; eq. 15-16 hold at every instant
 instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`):
 
-1. generalized coordinates at every sample from the probes, q(t) = (G^T W G)^-1 G^T W s(t),
-   G[j, k] = phi_k(l_j), W the probes' inverse noise variances (eq. 15-16; Nq <= NS);
-2. every coordinate's acceleration, and every gauge's reaction, from a Kalman smoother
-   (batch) or filter (real time) of a band-limited signal (:mod:`forcecal.kalman`), with its
-   steady covariance;
-3. J_r(t) = sum_k m_{r,k} qdd_k(t) and f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the
-   reactions-only estimate -Psi^+ R(t).
+1. the first shape's coordinate at every sample from the probes,
+   q_1(t) = (g_1^T W s(t)) / (g_1^T W g_1), g_1 = phi_1 at the probes, W their inverse noise
+   variances (eq. 15-16);
+2. its acceleration, and every gauge's reaction, from a Kalman smoother (batch) or filter
+   (real time) of a band-limited signal (:mod:`forcecal.kalman`), with its steady covariance;
+3. J_r = m_{r,1} q_1'' corrected frequency by frequency to the operating shape of every
+   frequency (:meth:`forcecal.broadband.BroadbandModel.inertia_correction`), and
+   f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the reactions-only estimate -Psi^+ R(t);
+4. batch only: short-time Wiener gains on every force (:mod:`forcecal.wiener`), which keep
+   the few hertz a moving drive holds at any instant and set the rest of the band's noise
+   aside, each sample's uncertainty being the noise they let through.
+
+Force content above the scan's band (a drive's harmonics beyond it) has no operating shape
+and is smoothed away.
 
 The noise of every channel is read from its spectrum above the band (white beyond the drive's
 reach), so that a probe's noise sets its weight and the smoother's gain.
@@ -30,6 +37,7 @@ from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
 from .spatial import check_rig_keys
+from .wiener import smoother_response, stft_frame, wiener_smooth
 
 __all__ = ["TransientEstimate", "channel_noise", "reconstruct_any"]
 
@@ -45,18 +53,19 @@ class TransientEstimate:
     time : (N,) array [s]
     force : (n_forces, N) array [N]
         Reactions and inertia.
-    force_std : (n_forces,) array [N]
-        Standard uncertainty of one sample (the smoother's steady covariance, propagated).
+    force_std : (n_forces, N) array [N]
+        Standard uncertainty of every sample: the smoother's noise the short-time Wiener gains
+        let through (the filter: its steady covariance, propagated).
     total : (N,) array [N]
-    total_std : float [N]
+    total_std : (N,) array [N]
     static : (n_forces, N) array [N]
         Reactions only, -Psi^+ R(t) (the raw gauge samples).
     inertia : (n_gauges, N) array [N]
         J_r(t).
     reactions : (n_gauges, N) array [N]
         The smoothed reactions.
-    coordinates : (n_shapes, N) array [m per unit coordinate]
-        q(t) from the probes.
+    coordinates : (1, N) array [m per unit coordinate]
+        The first shape's coordinate q_1(t) from the probes.
     band : (low, high) [Hz]
     smoothed : bool
         True for the smoother (batch), False for the causal filter (real time).
@@ -69,7 +78,7 @@ class TransientEstimate:
     force: np.ndarray
     force_std: np.ndarray
     total: np.ndarray
-    total_std: float
+    total_std: np.ndarray
     static: np.ndarray
     inertia: np.ndarray
     reactions: np.ndarray
@@ -211,32 +220,52 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     var_q = 1.0 / float(g1 @ (w * g1))
     q = var_q * ((g1 * w) @ probes)                              # the first shape's coordinate
     estimate = smooth_states if smooth else filter_states
-    bm = band_model(fs, *_prior(q, fs, band, var_q), var_q)
-    acc = estimate(bm, q, states=(2,))[0]
-    var_acc = float((bm.smoothed_cov if smooth else bm.filtered_cov)[2, 2])
+    bm_q = band_model(fs, *_prior(q, fs, band, var_q), var_q)
+    acc = estimate(bm_q, q, states=(2,))[0]
+    var_acc = float((bm_q.smoothed_cov if smooth else bm_q.filtered_cov)[2, 2])
     reactions = np.empty_like(gauges)
     var_r = np.empty(len(gauges))
+    bm_r = []
     for r in range(len(gauges)):
-        bm = band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r])
-        reactions[r] = estimate(bm, gauges[r], states=(0,))[0]
-        var_r[r] = (bm.smoothed_cov if smooth else bm.filtered_cov)[0, 0]
+        bm_r.append(band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r]))
+        reactions[r] = estimate(bm_r[r], gauges[r], states=(0,))[0]
+        var_r[r] = (bm_r[r].smoothed_cov if smooth else bm_r[r].filtered_cov)[0, 0]
     m1 = model.couplings[:, 0]
     inertia = m1[:, None] * acc[None, :]
+
+    def correction(f: np.ndarray) -> np.ndarray:
+        return (model.inertia_correction(f, gam, w) if model.n_shapes > 1
+                else np.ones((len(m1), len(f))))
+
     if model.n_shapes > 1:
-        inertia = _corrected(inertia, fs, lambda f: model.inertia_correction(f, gam, w))
-    var_j = m1**2 * var_acc
+        inertia = _corrected(inertia, fs, correction)
     pinv = np.linalg.pinv(force_matrix(rig))
     force = pinv @ (inertia - reactions)
     static = -pinv @ gauges
-    var_f = (pinv**2) @ (var_j + var_r)
-    ones = np.ones(len(rig.forces))
-    total_std = float(np.sqrt(((ones @ pinv) ** 2) @ (var_j + var_r)))
-    notes: list[str] = []
     if not np.all(np.isfinite(force)):
         raise DataError(f"run '{run.source}': the forces are not finite (a channel holds "
                         "non-finite samples?)")
+    rows = np.vstack([pinv, np.ones(len(rig.forces)) @ pinv])
+    # every gauge's inertia comes from the one coordinate: its noise is common to them
+    var = (rows @ m1) ** 2 * var_acc + (rows**2) @ var_r
+    force_std = np.repeat(np.sqrt(var[:-1, None]), n, axis=1)
+    total_std = np.full(n, np.sqrt(var[-1]))
+    total = force.sum(axis=0)
+    notes: list[str] = []
+    if smooth:
+        frame = stft_frame(fs, n)
+        f = np.fft.rfftfreq(frame, 1.0 / fs)
+        t_a = smoother_response(bm_q, 2, frame)
+        noise = np.concatenate([
+            (np.sqrt(var_q) * t_a * (pinv @ (m1[:, None] * correction(f))))[:, None, :],
+            np.stack([-pinv[:, r, None] * np.sqrt(var_g[r]) * smoother_response(bm_r[r], 0, frame)
+                      for r in range(len(gauges))], axis=1)], axis=1)
+        sw = wiener_smooth(force, noise, fs, frame)
+        force, force_std, total, total_std = sw.values, sw.std, sw.total, sw.total_std
+        notes.append(f"short-time Wiener gains ({frame} samples a frame) let through "
+                     f"{100 * float(np.max(sw.passed)):.3g} % of the smoothed noise at most")
     return TransientEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
-        time=run.t0 + np.arange(n) / fs, force=force, force_std=np.sqrt(var_f),
-        total=force.sum(axis=0), total_std=total_std, static=static, inertia=inertia,
+        time=run.t0 + np.arange(n) / fs, force=force, force_std=force_std,
+        total=total, total_std=total_std, static=static, inertia=inertia,
         reactions=reactions, coordinates=q[None, :], band=band, smoothed=smooth, notes=tuple(notes))

@@ -31,10 +31,10 @@ def _columns(est: TransientEstimate) -> dict[str, np.ndarray]:
     names = [*est.force_names, "total"]
     series = [*est.force, est.total]
     static = [*est.static, est.static.sum(axis=0)]
-    std = [*est.force_std, est.total_std]
+    std: list[np.ndarray] = [*est.force_std, est.total_std]
     cols = dict(zip(names, series, strict=True))
     cols.update({f"{n}_static": s for n, s in zip(names, static, strict=True)})
-    cols.update({f"{n}_std": np.full(est.time.size, s) for n, s in zip(names, std, strict=True)})
+    cols.update({f"{n}_std": s for n, s in zip(names, std, strict=True)})
     return cols
 
 
@@ -43,13 +43,17 @@ def transient_summary(est: TransientEstimate) -> dict:
     def rms(x: np.ndarray) -> float:
         return float(np.sqrt(np.mean((x - x.mean()) ** 2)))
 
+    def quad(s: np.ndarray | float) -> float:
+        return float(np.sqrt(np.mean(s**2)))
+
     return {
         "run": est.run_name, "drive": "any", "band_hz": list(est.band),
-        "estimator": "Kalman smoother" if est.smoothed else "Kalman filter",
-        "forces": {n: {"mean_n": float(f.mean()), "ac_rms_n": rms(f), "std_n": float(s)}
+        "estimator": ("Kalman smoother, short-time Wiener gains" if est.smoothed
+                      else "Kalman filter"),
+        "forces": {n: {"mean_n": float(f.mean()), "ac_rms_n": rms(f), "std_n": quad(s)}
                    for n, f, s in zip(est.force_names, est.force, est.force_std, strict=True)},
         "total": {"mean_n": float(est.total.mean()), "ac_rms_n": rms(est.total),
-                  "std_n": est.total_std},
+                  "std_n": quad(est.total_std)},
         "static_total_ac_rms_n": rms(est.static.sum(axis=0)),
         "inertia_share": est.inertia_share, "notes": list(est.notes)}
 
@@ -105,9 +109,10 @@ def reconstruct_any_runs(rig: Rig, model: object, runs: list[Run], tare: Run | N
             est = reconstruct_any(rig, model, run, tare)
             series, _ = write_transient(est, stage, source=run.source, provenance=provenance)
             ac = float(np.std(est.total))
+            quad = float(np.sqrt(np.mean(est.total_std**2)))
             lines.append(f"{Path(output) / series.name}: any drive, band {est.band[0]:g}-"
-                         f"{est.band[1]:g} Hz, total AC RMS {ac:.4g} N, uncertainty of a sample "
-                         f"{est.total_std:.3g} N (k = 2: {2 * est.total_std:.3g} N), inertia "
+                         f"{est.band[1]:g} Hz, total AC RMS {ac:.4g} N, uncertainty of a "
+                         f"sample (RMS) {quad:.3g} N (k = 2: {2 * quad:.3g} N), inertia "
                          f"share {est.inertia_share:.1%}")
             lines += [f"note: {note}" for note in est.notes]
     return lines

@@ -1,0 +1,124 @@
+"""Short-time Wiener smoothing of force estimates whose noise spectrum is known.
+
+A drive that moves (a sweep, a chirp, a multi-tone, random) holds, at any instant, a few hertz
+of the band the smoother of :mod:`forcecal.kalman` lets through; the acceleration's noise,
+rising as f^4, fills all of it. Over short frames (Hann, three-quarter overlap, so that the
+frames add back to the record) every frequency bin of every estimate is weighted by the gain
+G = max(0, 1 - 2 N / |Z|^2), N the bin's noise power known from the channels' noise and the
+smoothers' frequency responses, |Z|^2 the bin's power averaged with its neighbours (3 bins by
+3 frames): bins far above their noise pass unchanged, bins at their noise are set aside
+(power subtraction with over-subtraction; Boll 1979, Berouti et al. 1979). The gains bias the
+bins near their noise downwards, which the stated uncertainty does not count. The noise each
+frame lets through is summed bin by bin, so every sample keeps a standard uncertainty.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.ndimage
+import scipy.signal
+
+from .kalman import BandModel, smooth_states
+
+__all__ = ["FRAME_SECONDS", "ShortTimeWiener", "smoother_response", "stft_frame",
+           "wiener_smooth"]
+
+FRAME_SECONDS = 0.2
+"""Frame length aimed at: a sweep of tens of hertz per second moves a few bins within it."""
+
+
+SMOOTH = (3, 3)
+"""Bins and frames the power is averaged over before its gain is taken (a noise-only bin's
+power then rarely reaches twice its mean)."""
+OVER = 2.0
+"""Over-subtraction: the gain is 1 - OVER N / |Z|^2 (noise-only bins set aside; a bin 100
+times above its noise keeps 98 % of its power)."""
+
+
+def stft_frame(fs: float, n: int) -> int:
+    """Samples per frame: the power of two nearest ``FRAME_SECONDS`` (at most the record)."""
+    frame = 2 ** int(round(np.log2(max(FRAME_SECONDS * fs, 16))))
+    return int(min(frame, 2 ** int(np.log2(n))))
+
+
+def smoother_response(model: BandModel, state: int, frame: int) -> np.ndarray:
+    """The RTS smoother's frequency response from the measurement to one state, at the
+    ``frame // 2 + 1`` bins of a ``frame``-sample transform (its impulse response, computed
+    in a record four frames long, folded onto the frame)."""
+    n = 4 * frame
+    impulse = np.zeros(n)
+    impulse[n // 2] = 1.0
+    h = smooth_states(model, impulse, states=(state,))[0]
+    return np.fft.rfft(np.roll(h, -n // 2))[::4]
+
+
+@dataclass(frozen=True)
+class ShortTimeWiener:
+    """Smoothed estimates and their standard uncertainty, sample by sample.
+
+    Attributes
+    ----------
+    values : (n_signals, N) array
+    std : (n_signals, N) array
+        Of each signal.
+    total : (N,) array
+        The signals' sum.
+    total_std : (N,) array
+    passed : (n_signals,) array [1]
+        Share of each signal's noise power the gains let through (over the record).
+    """
+
+    values: np.ndarray
+    std: np.ndarray
+    total: np.ndarray
+    total_std: np.ndarray
+    passed: np.ndarray
+
+
+def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int) -> ShortTimeWiener:
+    """Short-time Wiener smoothing of signals whose noise comes from known sources.
+
+    Parameters
+    ----------
+    x : (n_signals, N) array
+        The estimates.
+    noise : (n_signals, n_sources, frame // 2 + 1) complex array
+        Each source's noise in each signal, as the amplitude of its two-sided density per
+        sample at the frame's bins (sigma_s T_s(f) c_{k,s}(f): white noise of variance
+        sigma_s^2 through the smoother T_s and the signal's coefficient c_{k,s}).
+    fs : float [Hz]
+    frame : int
+        Samples per frame (:func:`stft_frame`).
+
+    Returns
+    -------
+    ShortTimeWiener
+    """
+    n = x.shape[-1]
+    kw = {"fs": fs, "window": "hann", "nperseg": frame, "noverlap": 3 * frame // 4}
+    t, z = scipy.signal.stft(x, boundary="even", padded=True, **kw)[1:]   # (k, bins, frames)
+    win = scipy.signal.get_window("hann", frame)
+    per_bin = np.sum(win**2) / np.sum(win) ** 2               # |Z|^2 per unit density
+    n_pow = np.sum(np.abs(noise) ** 2, axis=1) * per_bin      # (n_signals, n_bins)
+    power = scipy.ndimage.uniform_filter(np.abs(z) ** 2, size=(1, SMOOTH[0], SMOOTH[1]),
+                                         mode="nearest")
+    tiny = np.finfo(float).tiny
+    gain = np.clip(1.0 - OVER * n_pow[:, :, None] / np.maximum(power, tiny), 0.0, 1.0)
+    values = scipy.signal.istft(gain * z, boundary=True, **kw)[1][..., :n]
+    # the noise let through: per frame, sum over bins (both halves of the spectrum)
+    fold = np.full(noise.shape[-1], 2.0)
+    fold[0] = 1.0
+    if frame % 2 == 0:
+        fold[-1] = 1.0
+    var = np.einsum("kb,kbt->kt", np.sum(np.abs(noise) ** 2, axis=1) * fold, gain**2) / frame
+    tot = np.einsum("ksb,kbt->sbt", noise, gain)               # each source in the total
+    var_total = np.einsum("b,sbt->t", fold, np.abs(tot) ** 2) / frame
+    time = np.arange(n) / fs
+    std = np.sqrt(np.stack([np.interp(time, t, v) for v in var]))
+    total_std = np.sqrt(np.interp(time, t, var_total))
+    full = np.sum(np.abs(noise) ** 2, axis=1) @ fold
+    passed = np.mean(var, axis=-1) * frame / np.maximum(full, tiny)
+    return ShortTimeWiener(values=values, std=std, total=values.sum(axis=0),
+                           total_std=total_std, passed=passed)
