@@ -182,14 +182,16 @@ BEFORE = {
 
 @pytest.mark.parametrize("name", sorted(BEFORE))
 def test_steady_records_are_unchanged(name):
-    """The values a steady preset gave before the new drives, to rounding: the matrix products
-    of the modal model round differently from one BLAS build or thread count to another (one
-    unit in the last place was seen), far below any change of the physics."""
+    """The values a steady preset gave before the new drives, to rounding: the modal model's
+    products and eigensolutions round differently from one BLAS build, thread count or
+    NumPy/SciPy release to another (one unit in the last place was seen on one build, 6e-9
+    relative after a library update), far below any change of the physics (a changed time
+    step, damping or magnet moves these values by 1e-4 and more)."""
     preset = get_preset(name)
     r = integrate(build_model(preset), preset.magnets, preset.runs[0].drives, preset.fs, 0.05)
     now = np.array([(k, float(r.pole_force[0, k]), float(r.u[60, k]), float(r.current[-1, k]))
                     for k, *_ in BEFORE[name]])
-    np.testing.assert_allclose(now, np.array(BEFORE[name]), rtol=1e-12, atol=0)
+    np.testing.assert_allclose(now, np.array(BEFORE[name]), rtol=1e-7, atol=0)
 
 
 def test_the_existing_presets_have_no_lagging_core_and_no_waveform():

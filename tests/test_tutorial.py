@@ -8,7 +8,6 @@ Jupyter kernel is needed). The notebook keeps no outputs, so it cannot show stal
 from __future__ import annotations
 
 import ast
-import time
 from pathlib import Path
 
 import matplotlib
@@ -16,7 +15,6 @@ import nbformat
 import numpy as np
 
 NOTEBOOK = Path(__file__).resolve().parents[1] / "docs" / "tutorial.ipynb"
-SECONDS = 30.0                  # the tutorial's own promise is about 20 s
 FORCE_RTOL = 0.01               # reconstructed total force vs truth, RMS over its AC amplitude
 LAW_RTOL = 0.001                # calibrated law vs the true force, RMS over its RMS
 
@@ -55,9 +53,7 @@ def test_the_tutorial_runs_and_matches_the_truth(tmp_path, monkeypatch):
     matplotlib.use("Agg")
     monkeypatch.chdir(tmp_path)
     notebook = nbformat.read(NOTEBOOK, as_version=4)
-    start = time.perf_counter()
     ns = run_cells(code_cells(notebook))
-    elapsed = time.perf_counter() - start
     import matplotlib.pyplot as plt
 
     plt.close("all")
@@ -77,4 +73,3 @@ def test_the_tutorial_runs_and_matches_the_truth(tmp_path, monkeypatch):
     assert ns["law_error"] < LAW_RTOL, ns["law_error"]
     assert ns["cal"].law == ns["result"].calibration.law
     assert np.all(np.diff(ns["prediction"].total) > 0)     # more current, more force
-    assert elapsed < SECONDS, f"the tutorial took {elapsed:.1f} s"
