@@ -56,6 +56,14 @@ too small: ratio > 1.25 or coverage < 93 %) or ``over`` (stated too large), in c
 deviation is significant (the ratio outside its chi-square band, or the coverage interval
 excluding 95 %), with a ``?`` when it is within the sampling scatter of the seeds.
 
+A harmonic the estimate keeps (its reactions show it) without a shape (neither the scan nor
+the probes resolve its motion) carries its uncompensated inertia as a bound, not a standard
+uncertainty (``forcecal.forces``: the inertia the nearest shape would give from the probes,
+never below the whole mass moving at the probes' noise). Its rows are marked ``bounded`` and
+judged as bounds: ``bound`` when at least 95 % of the errors lie within twice the stated value,
+``BOUND EXCEEDED`` otherwise; their ratio is shown but is no target (the error is the true
+inertia, which lies below what any sensor of the rig can see).
+
 ``--off NAME ...`` switches realism components off in the simulated rig only (the rig file keeps
 declaring the same type-B uncertainties): pink, hum, adc, sensitivity, offset, gravity, walk,
 drift, and geometry (the declared rig is the true one); for diagnosing a ratio off target.
@@ -400,6 +408,7 @@ def study(name: str, run_name: str, seeds: int, off: list[str]) -> dict:
         assert est.combination_std is not None and est.combination is not None
         record = {"seed": BASE_SEED + seed, "f0": est.f0, "H": h,
                   "kept": est.kept.astype(bool).tolist(), "dc_observed": bool(est.dc_observed),
+                  "with_inertia": est.with_inertia.astype(bool).tolist(),
                   "drift_per_s": drift, "chirp_per_s": chirp,
                   "errors": errors.as_dict(), "rows": {}}
         for row in rows:
@@ -452,9 +461,11 @@ def summarize(per_seed: list[dict], rows: list[str]) -> list[dict]:
     for row in rows:
         for n in range(h + 1):
             e, u, parts = [], [], {}
+            bounded = False
             for rec in per_seed:
                 if n > rec["H"] or not rec["kept"][n] or (n == 0 and not rec["dc_observed"]):
                     continue
+                bounded |= n > 0 and not rec["with_inertia"][n]
                 err = rec["rows"][row]["error"][n]
                 std = rec["rows"][row]["std"][n]
                 comps = [err[0]] if n == 0 else err
@@ -474,7 +485,9 @@ def summarize(per_seed: list[dict], rows: list[str]) -> list[dict]:
             out.append({
                 "force": row, "n": n, "components": len(e_a), "ratio": ratio,
                 "ratio_band_95": band, "coverage_k2": cov, "coverage_ci_95": ci,
-                "verdict": verdict(ratio, cov, band, ci),
+                "bounded": bounded,
+                "verdict": (("bound" if cov >= 0.95 else "BOUND EXCEEDED") if bounded
+                            else verdict(ratio, cov, band, ci)),
                 "rms_error_N": float(np.sqrt(np.mean(e_a**2))),
                 "mean_error_N": float(np.mean(e_a)),
                 "rms_stated_N": float(np.sqrt(np.mean(u_a**2))),

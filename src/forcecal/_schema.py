@@ -264,7 +264,11 @@ def _check_scalar_shape(d: _Doc, s: dict, key: str) -> None:
     if family not in FAMILIES:
         raise d.fail(f"{key}.family", f"= {family!r}; expected one of {', '.join(FAMILIES)}")
     d.get(s, "criterion", key, str)
-    available = n_functions(order, len(domain))
+    basis_order = order
+    if s.get("basis_order") is not None:
+        basis_order = d.integer(d.get(s, "basis_order", key, int), f"{key}.basis_order", order,
+                                MAX_ORDER)
+    available = n_functions(basis_order, len(domain))
     columns = s.get("columns")
     if columns is not None:
         if not isinstance(columns, list) or not columns:

@@ -76,11 +76,14 @@ class ShapeFit:
     Attributes
     ----------
     basis : PolynomialBasis
-        The basis of the chosen order.
+        The basis of the chosen order, extended to the highest order whose Akaike weight is
+        not negligible (:func:`order_weights`).
     coefficients : (n_funcs,) or (n_funcs, k) array [unit of the values]
-        Expansion coefficients p_r, complex when the values are complex.
+        Expansion coefficients p_r, complex when the values are complex; zero for the
+        functions beyond the chosen order (the basis holds them for the covariance).
     order : int
-        The chosen order (max total degree + 1).
+        The chosen order (max total degree + 1): the shape is evaluated on the basis's
+        functions up to it.
     orders : (n_orders,) int array
         The orders tried.
     score : (n_orders,) array
@@ -91,8 +94,10 @@ class ShapeFit:
         Standard deviation of a residual of unit weight, pooled over Re, Im and all columns:
         sqrt(RSS_w / (m (n_points - n_funcs))) for m real columns.
     coefficient_covariance : (n_funcs, n_funcs) array [unit of the values ^2]
-        sigma^2 (B^T W B)^-1: the covariance of the real part of each column of coefficients,
-        and equally of the imaginary part.
+        The covariance of the real part of each column of coefficients, and equally of the
+        imaginary part: sigma^2 (B^T W B)^-1 of the chosen order when the order is fixed;
+        otherwise mixed over the orders' weights, each order's own sigma_p^2 I and its
+        coefficients' difference from the chosen ones (:func:`_averaged_covariance`).
     """
 
     basis: PolynomialBasis
@@ -117,7 +122,19 @@ class ShapeFit:
         (n_points,) or (n_points, k) array [unit of the values]
             The shape, complex when the values were.
         """
-        return self.basis.evaluate(points) @ self.coefficients
+        return self.fitted_basis.evaluate(points) @ self.fitted_coefficients
+
+    @property
+    def fitted_basis(self) -> PolynomialBasis:
+        """The basis of the chosen order (:attr:`basis` may hold more functions)."""
+        if self.basis.functions_up_to(self.order) == self.basis.n_funcs:
+            return self.basis
+        return self.basis.truncate(self.order)
+
+    @property
+    def fitted_coefficients(self) -> np.ndarray:
+        """The coefficients of :attr:`fitted_basis`."""
+        return self.coefficients[: self.basis.functions_up_to(self.order)]
 
     def std(self, points: np.ndarray) -> np.ndarray:
         """Standard uncertainty of Re (and of Im) of the fitted shape at points.
@@ -160,6 +177,7 @@ def fit_shape(
     weights: np.ndarray | None = None,
     order: int | None = None,
     family: str = "legendre",
+    min_order: int = 1,
 ) -> ShapeFit:
     """Fit a smooth shape over scan points, choosing the order from the data.
 
@@ -194,11 +212,18 @@ def fit_shape(
         Use this order instead of selecting one (``criterion`` becomes "fixed").
     family : {"legendre", "modes"}
         The raw functions (see :func:`raw_functions`).
+    min_order : int
+        Lowest order tried (capped at the largest): a weak harmonic's shape is given at
+        least the order of a strong one of the same scan, which noise would otherwise hide
+        (see :func:`forcecal.spatial.build_spatial_model`).
 
     Returns
     -------
     ShapeFit
-        The coefficients of the chosen order, with the scores of every order tried.
+        The coefficients of the chosen order, with the scores of every order tried. Its
+        covariance carries the choice of order: the coefficients of every order whose Akaike
+        (or Schwarz) weight is not negligible are part of the basis, those beyond the chosen
+        order with a zero coefficient (:func:`order_weights`).
 
     Raises
     ------
@@ -222,6 +247,8 @@ def fit_shape(
     full = orthonormal_basis(pts, dom, int(orders[-1]), w, family=family)
     if n_dim == 3 and order is None and max_order is None:
         full, orders = _body_orders(full, orders, n)
+    if order is None:
+        orders = orders[orders >= min(int(min_order), int(orders[-1]))]
     sw = np.sqrt(w)[:, None]
     b = full.evaluate(pts) * sw  # (n, P), orthonormal columns
     n_funcs = np.array([full.functions_up_to(int(p)) for p in orders])
@@ -229,18 +256,86 @@ def fit_shape(
     i_best = int(np.argmin(score))
     p_best = int(orders[i_best])
     k_best = int(n_funcs[i_best])
-    bb = b[:, :k_best]
     sigma = math.sqrt(rss[i_best] / (y.shape[1] * (n - k_best)))
+    if criterion_used == "fixed":
+        bb = b[:, :k_best]
+        return ShapeFit(basis=full.truncate(p_best), coefficients=_coefficients(bb, vals, sw),
+                        order=p_best, orders=orders, score=score, criterion=criterion_used,
+                        residual_std=sigma,
+                        coefficient_covariance=_coefficient_covariance(bb, sigma))
+    weights_p = order_weights(rss, n_funcs, n * y.shape[1], y.shape[1], criterion_used)
+    top = max(int(np.flatnonzero(weights_p)[-1]), i_best)
+    k_top = int(n_funcs[top])
+    coef = _coefficients(b[:, :k_top], vals, sw)
+    chosen = coef.copy()
+    chosen[k_best:] = 0.0
+    sigmas = np.sqrt(rss / (y.shape[1] * (n - n_funcs)))
     return ShapeFit(
-        basis=full.truncate(p_best),
-        coefficients=_coefficients(bb, vals, sw),
+        basis=full.truncate(int(orders[top])),
+        coefficients=chosen,
         order=p_best,
         orders=orders,
         score=score,
         criterion=criterion_used,
         residual_std=sigma,
-        coefficient_covariance=_coefficient_covariance(bb, sigma),
+        coefficient_covariance=_averaged_covariance(coef, n_funcs[: top + 1], k_best,
+                                                    weights_p[: top + 1], sigmas[: top + 1]),
     )
+
+
+def order_weights(rss: np.ndarray, n_funcs: np.ndarray, n_obs: int, m: int,
+                  criterion: str) -> np.ndarray:
+    """Akaike weights of the orders tried (Schwarz weights when the order is chosen by BIC):
+    w_p proportional to exp(-IC_p / 2), IC_p = n_obs ln(RSS_p / n_obs) + c p_funcs m with
+    c = 2 (AIC) or ln(n_obs) (BIC); weights below 1e-2 of the largest are set to zero and the
+    rest renormalized.
+
+    Parameters
+    ----------
+    rss : (n_orders,) array
+        Weighted residual sum of squares of every order.
+    n_funcs : (n_orders,) int array
+        Functions of every order.
+    n_obs : int
+        Real observations (points x real columns).
+    m : int
+        Real columns.
+    criterion : {"gcv", "bic"}
+
+    Returns
+    -------
+    (n_orders,) array summing to 1
+    """
+    floor = max(float(np.max(rss)) * (64.0 * np.finfo(float).eps) ** 2, np.finfo(float).tiny)
+    penalty = math.log(n_obs) if criterion == "bic" else 2.0
+    ic = n_obs * np.log(np.maximum(rss, floor) / n_obs) + penalty * n_funcs * m
+    w = np.exp(-(ic - ic.min()) / 2)
+    w[w < 1e-2 * w.max()] = 0.0
+    out: np.ndarray = w / w.sum()
+    return out
+
+
+def _averaged_covariance(coef: np.ndarray, n_funcs: np.ndarray, k_best: int,
+                         weights: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
+    """Covariance of the chosen order's coefficients (zero beyond its functions) that also
+    carries the choice of order: the mixture over the orders tried of each order's own
+    covariance sigma_p^2 I (the basis is orthonormal on the weighted points) and its
+    difference from the chosen coefficients, d_p d_p^H (Burnham and Anderson's unconditional
+    variance). The difference is complex; its Re(d d^H) / 2 serves the real part and the
+    imaginary part alike, so that the expected |error|^2 of the complex shape is kept."""
+    k_top = coef.shape[0]
+    c = coef.reshape(k_top, -1)
+    cov = np.zeros((k_top, k_top))
+    for k, wp, sp in zip(n_funcs, weights, sigmas, strict=True):
+        if wp == 0.0:
+            continue
+        d = np.zeros_like(c)
+        lo, hi = sorted((int(k), k_best))
+        d[lo:hi] = c[lo:hi] if k > k_best else -c[lo:hi]
+        outer = (d @ d.conj().T).real / ((2 if np.iscomplexobj(c) else 1) * c.shape[1])
+        cov[: int(k), : int(k)] += wp * sp**2 * np.eye(int(k))
+        cov += wp * outer
+    return 0.5 * (cov + cov.T)
 
 
 def _shape_values(values: ArrayLike, n: int) -> tuple[np.ndarray, np.ndarray]:

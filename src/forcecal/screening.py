@@ -168,7 +168,7 @@ def loo_scores(fit: Fit, points: np.ndarray, values: np.ndarray,
     relative : (n_records,) ndarray
         |r_k| / sqrt(1 - h_kk) over the RMS of the measured values.
     """
-    b = fit.basis.evaluate(points)                              # (n, p)
+    b = fit.fitted_basis.evaluate(points)                       # (n, p)
     gram = b.T @ (weights[:, None] * b)
     hat = weights * np.einsum("kp,pq,kq->k", b, np.linalg.pinv(gram), b)
     leave_out = np.abs(values - fit.evaluate(points)) / np.sqrt(np.clip(1.0 - hat, 1e-6, None))

@@ -46,7 +46,9 @@ __all__ = [
 ]
 
 MIN_SNR = 3.0
-"""A harmonic is kept when its RMS shape amplitude exceeds this many times the noise."""
+"""A harmonic is kept when its fitted shape rises this many times above its own noise
+(:func:`shape_snr`); a harmonic whose RMS amplitude per record reaches it serves the screening
+of the records."""
 ONE_SHAPE_MAC = 0.999
 """Harmonics whose shapes all agree to this MAC are served by one shape (the paper's eq. 19)."""
 
@@ -244,6 +246,7 @@ def shape_to_json(s: Fit) -> dict:
                                for a, c in zip(s.axes, s.components, strict=True)]}
     return {
         "order": s.order,
+        **({} if s.basis.order == s.order else {"basis_order": s.basis.order}),
         "criterion": s.criterion,
         "domain": s.basis.domain.tolist(),
         "family": s.basis.family,
@@ -267,7 +270,8 @@ def shape_from_json(s: dict) -> Fit:
 
 
 def _shape_fit(s: dict) -> ShapeFit:
-    basis = PolynomialBasis(int(s["order"]), np.asarray(s["domain"], dtype=float),
+    basis = PolynomialBasis(int(s.get("basis_order", s["order"])),
+                            np.asarray(s["domain"], dtype=float),
                             np.asarray(s["basis"], dtype=float), s.get("family", "legendre"),
                             np.asarray(s["columns"], dtype=int) if "columns" in s else None)
     coef = np.asarray(s["coefficients_re"]) + 1j * np.asarray(s["coefficients_im"])
@@ -374,10 +378,8 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | Sequence[Scan | Sca
                          + " or ".join(f"{b} basis (--basis {b})" for b in st.bases))
     _check_points_on_structure(rig, scan)
     points = st.coordinates(hs.points, source=f"scan '{scan.source}'")
-    fits, screening, snr = _screened_fits(rig, scan, hs, points, criterion, basis)
+    fits, screening, snr, dropped = _screened_fits(rig, scan, hs, points, criterion, basis)
     keep = screening.keep
-    dropped = {int(n): f"scan signal-to-noise {snr[k]:.1f} < {MIN_SNR:g}"
-               for k, n in enumerate(hs.harmonics) if snr[k] < MIN_SNR}
     kept = [int(n) for n in hs.harmonics if int(n) not in dropped]
     if not kept:
         raise InputError(f"scan '{scan.source}': no harmonic rises above the noise "
@@ -396,11 +398,23 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | Sequence[Scan | Sca
                         rig=rig_keys(rig), set_aside=dict(sorted(screening.reasons.items())))
 
 
+def shape_snr(snr: float, n_records: int, n_functions: int) -> float:
+    """How many times a fitted shape rises above its own noise [1]: sqrt(N (snr^2 - 1) / p)
+    for N records of RMS signal-to-noise ``snr`` (noise alone gives 1) fitted with p functions,
+    the shape's signal energy over the p coefficients' noise; 0 when ``snr`` <= 1."""
+    return math.sqrt(max(snr**2 - 1.0, 0.0) * n_records / max(n_functions, 1))
+
+
 def _screened_fits(rig: Rig, scan: Scan | ScanSpectra, hs: HarmonicShapes, points: np.ndarray,
-                   criterion: str, basis: str) -> tuple[dict[int, Fit], Screening, np.ndarray]:
+                   criterion: str, basis: str
+                   ) -> tuple[dict[int, Fit], Screening, np.ndarray, dict[int, str]]:
     """Every resolved harmonic's shape fitted over the records that survive the screening
     (:mod:`forcecal.screening`), with the records' floored weights; the screening; every
-    harmonic's signal-to-noise ratio over the records kept."""
+    harmonic's signal-to-noise ratio over the records kept; the harmonics dropped and why.
+
+    The records are screened on the harmonics whose RMS amplitude per record is ``MIN_SNR``
+    times the noise; a harmonic is resolved when its fitted shape is (:func:`shape_snr`):
+    a weak harmonic over many records is determined as well as a strong one over few."""
     st = rig.structure
     ok = (hs.reference_ok if hs.reference_ok is not None
           else np.ones(scan.n_points, dtype=bool))
@@ -410,15 +424,23 @@ def _screened_fits(rig: Rig, scan: Scan | ScanSpectra, hs: HarmonicShapes, point
     snr = hs.snr(usable)
     resolved = [(k, int(n)) for k, n in enumerate(hs.harmonics) if snr[k] >= MIN_SNR]
     cache: dict[tuple[bytes, int], Fit] = {}
+    strongest = int(np.argmax(snr))
 
     def fit(idx: np.ndarray, weights: np.ndarray, row: int) -> Fit:
         # the weights are record_weights(hs.std[row, idx]) on every call, so the records and
-        # the harmonic identify a fit: the screening's last fits serve as the final ones
+        # the harmonic identify a fit: the screening's last fits serve as the final ones.
+        # A weaker harmonic is given at least the strongest one's order over the same records
+        # (min_order): its shape is no simpler, only its noise hides the detail, and a
+        # truncated shape biases the inertia beyond what its coefficients' covariance states
         key = (idx.tobytes(), row)
         if key not in cache:
+            floor = 1
+            if row != strongest:
+                top = fit(idx, record_weights(hs.std[strongest, idx]), strongest)
+                floor = min(c.order for c in getattr(top, "components", (top,)))
             try:
                 cache[key] = st.fit_shape(points[idx], hs.values[row, idx], criterion, weights,
-                                          basis)
+                                          basis, min_order=floor)
             except DataError as exc:
                 raise InputError(f"scan '{scan.source}': {exc}") from None
         return cache[key]
@@ -426,9 +448,21 @@ def _screened_fits(rig: Rig, scan: Scan | ScanSpectra, hs: HarmonicShapes, point
     screening = screen_records(points, hs.values, hs.std, resolved, fit, reasons)
     idx = np.flatnonzero(screening.keep)
     snr = hs.snr(screening.keep)
-    fits = {int(n): fit(idx, record_weights(hs.std[k, idx]), k)
-            for k, n in enumerate(hs.harmonics) if snr[k] >= MIN_SNR}
-    return fits, screening, snr
+    fits: dict[int, Fit] = {}
+    dropped: dict[int, str] = {}
+    for k, n in enumerate(hs.harmonics):
+        if snr[k] <= 1.0:
+            dropped[int(n)] = f"scan signal-to-noise {snr[k]:.1f}: noise alone"
+            continue
+        f = fit(idx, record_weights(hs.std[k, idx]), k)
+        rise = shape_snr(float(snr[k]), len(idx), f.fitted_basis.n_funcs)
+        if rise >= MIN_SNR:
+            fits[int(n)] = f
+        else:
+            dropped[int(n)] = (f"scan signal-to-noise {snr[k]:.1f}: its shape over {len(idx)} "
+                               f"records and {f.fitted_basis.n_funcs} functions rises {rise:.1f} "
+                               f"< {MIN_SNR:g} times above its noise")
+    return fits, screening, snr, dropped
 
 
 def _set_aside_notes(scan: Scan | ScanSpectra, reasons: dict[int, str]) -> tuple[str, ...]:

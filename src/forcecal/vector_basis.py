@@ -158,6 +158,16 @@ class VectorShapeFit:
         return np.concatenate([c.coefficients for c in self.components])
 
     @cached_property
+    def fitted_basis(self) -> VectorBasis:
+        """The components' bases of their chosen orders (:attr:`basis` may hold more)."""
+        return VectorBasis(self.axes, tuple(c.fitted_basis for c in self.components))
+
+    @cached_property
+    def fitted_coefficients(self) -> np.ndarray:
+        """The coefficients of :attr:`fitted_basis`."""
+        return np.concatenate([c.fitted_coefficients for c in self.components])
+
+    @cached_property
     def coefficient_covariance(self) -> np.ndarray:
         """Block diagonal: the axes are fitted to separate records."""
         return scipy.linalg.block_diag(*[c.coefficient_covariance for c in self.components])
@@ -194,7 +204,7 @@ class VectorShapeFit:
         -------
         (n,) complex array [unit of the values]
         """
-        return self.basis.evaluate(locations) @ self.coefficients
+        return self.fitted_basis.evaluate(locations) @ self.fitted_coefficients
 
     def std(self, locations: np.ndarray) -> np.ndarray:
         """Standard uncertainty of Re (and of Im) of d . u(x) at locations.
@@ -214,7 +224,7 @@ class VectorShapeFit:
 
 def fit_vector_shape(locations: np.ndarray, values: np.ndarray, extent: ArrayLike,
                      criterion: str = "gcv", weights: np.ndarray | None = None,
-                     ) -> VectorShapeFit:
+                     min_order: int = 1) -> VectorShapeFit:
     """Fit each measured axis of a vector shape over the scan records along it.
 
     Parameters
@@ -229,6 +239,8 @@ def fit_vector_shape(locations: np.ndarray, values: np.ndarray, extent: ArrayLik
         How each component's order is chosen.
     weights : (n_records,) array, optional
         Positive relative weights (inverse variances); default 1.
+    min_order : int
+        Lowest order tried for each component (capped at the largest its records support).
 
     Returns
     -------
@@ -254,6 +266,6 @@ def fit_vector_shape(locations: np.ndarray, values: np.ndarray, extent: ArrayLik
         if not np.any(sel):
             continue
         fits.append(fit_shape(loc[sel, :3], vals[sel] * sign[sel], extent,
-                              criterion=criterion, weights=w[sel]))
+                              criterion=criterion, weights=w[sel], min_order=min_order))
         axes.append(a)
     return VectorShapeFit(tuple(axes), tuple(fits))

@@ -224,9 +224,11 @@ class Structure(ABC):
 
     @abstractmethod
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
-                  weights: np.ndarray, basis: str) -> ShapeFit | VectorShapeFit:
+                  weights: np.ndarray, basis: str,
+                  min_order: int = 1) -> ShapeFit | VectorShapeFit:
         """Fit one harmonic's measured shape over the scan points, order chosen by
-        ``criterion`` ("gcv" or "bic"), in the ``basis`` family (one of :attr:`bases`)."""
+        ``criterion`` ("gcv" or "bic") from ``min_order`` up, in the ``basis`` family (one of
+        :attr:`bases`)."""
 
     def model_notes(self, fits: Sequence[ShapeFit | VectorShapeFit]) -> tuple[str, ...]:
         """Notes a spatial model built from these fits should carry."""
@@ -291,11 +293,12 @@ class OutOfPlane(Structure, ABC):
         return np.vstack([np.ones(len(pts)), *pts[:, :self.dim].T])
 
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
-                  weights: np.ndarray, basis: str) -> ShapeFit:
+                  weights: np.ndarray, basis: str, min_order: int = 1) -> ShapeFit:
         from ..basis import fit_shape
 
         return fit_shape(coordinates, values, self.extent(), criterion=criterion,
-                         weights=weights, family="modes" if basis == "modes" else "legendre")
+                         weights=weights, family="modes" if basis == "modes" else "legendre",
+                         min_order=min_order)
 
     def combinations(self, force_points: np.ndarray,
                      force_names: Sequence[str]) -> tuple[tuple[str, ...], np.ndarray]:

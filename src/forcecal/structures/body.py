@@ -111,10 +111,11 @@ class Body(Structure):
         return np.vstack([d.T, np.cross(r, d).T / frame.scale])
 
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
-                  weights: np.ndarray, basis: str) -> VectorShapeFit:
+                  weights: np.ndarray, basis: str, min_order: int = 1) -> VectorShapeFit:
         from ..vector_basis import fit_vector_shape
 
-        return fit_vector_shape(coordinates, values, self.extent(), criterion, weights)
+        return fit_vector_shape(coordinates, values, self.extent(), criterion, weights,
+                                min_order)
 
     def model_notes(self, fits: Sequence[ShapeFit | VectorShapeFit]) -> tuple[str, ...]:
         from ..vector_basis import AXES, VectorShapeFit
