@@ -42,14 +42,14 @@ observes it, and every harmonic n = 1..H the estimate keeps. The truth's phasors
 the simulator's pole forces (``run_truth(...).pole_force``; the total is their sum) fitted on
 the estimate's own fundamental and window (``fit_harmonics(pole_force, fs, est.f0, H)``). Each
 component (the DC; Re and Im for n >= 1) is one sample: its error e against the stated
-standard uncertainty u (``ForceEstimate.combination_std`` of that force or of "total": noise and
-type-B combined). Reported: the ratio RMS(e) / RMS(u) (target 0.8-1.25), the k = 2 coverage, the
+standard uncertainty u of that component (``ForceEstimate.combination_std_re_im`` of that force
+or of "total": noise and type-B combined, Re and Im apart, since a sensitivity's or a mass's
+error lies along the phasor). Reported: the ratio RMS(e) / RMS(u) (target 0.8-1.25), the k = 2 coverage, the
 fraction of components with |e| <= 2 u (target 93-97 %), with the Clopper-Pearson 95 % interval
 of that fraction given the number of components, and the 95 % band of the ratio were the errors
 normal with exactly the stated u (chi-square with as many degrees of freedom as components).
-Both intervals treat the components as independent; Re and Im of one seed are not when one
-type-B error dominates (a sensitivity scales the whole phasor), so the bands are somewhat too
-narrow there.
+Both intervals treat the components as independent; Re and Im of one seed are not quite
+(a sensitivity scales the whole phasor), so the bands are somewhat too narrow there.
 
 Verdict: ``ok`` when both the ratio and the coverage are on target; otherwise ``under`` (stated
 too small: ratio > 1.25 or coverage < 93 %) or ``over`` (stated too large), in capitals when the
@@ -418,6 +418,8 @@ def study(name: str, run_name: str, seeds: int, off: list[str]) -> dict:
                 "true": [[float(z.real), float(z.imag)] for z in truth[row]],
                 "error": [[float(z.real), float(z.imag)] for z in e],
                 "std": est.combination_std[i].tolist(),
+                "std_re_im": (None if est.combination_std_re_im is None
+                              else est.combination_std_re_im[i].tolist()),
                 "budget": {src: b[i].tolist() for src, b in est.budget.items()}}
         record["notes"] = list(est.notes)
         per_seed.append(record)
@@ -470,7 +472,8 @@ def summarize(per_seed: list[dict], rows: list[str]) -> list[dict]:
                 std = rec["rows"][row]["std"][n]
                 comps = [err[0]] if n == 0 else err
                 e += comps
-                u += [std] * len(comps)
+                re_im = rec["rows"][row].get("std_re_im")
+                u += [std] if n == 0 else (list(re_im[n]) if re_im else [std, std])
                 for src, b in rec["rows"][row]["budget"].items():
                     parts.setdefault(src, []).extend([b[n] ** 2] * len(comps))
             if not e:

@@ -206,8 +206,8 @@ def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
     return out
 
 
-def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs
-                    ) -> dict[str, np.ndarray]:
+def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs,
+                    components: bool = False) -> dict[str, np.ndarray]:
     """Each type-B source's variance in every combination and harmonic (linear propagation).
 
     Parameters
@@ -215,16 +215,20 @@ def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs
     rig : Rig
     model : SpatialModel
     inputs : SolveInputs
+    components : bool
+        Give the variances of Re and of Im apart: a sensitivity scales a phasor, so its error
+        lies along the phasor, not evenly on Re and Im.
 
     Returns
     -------
     dict
         Source (:data:`SOURCES`) -> (n_combinations, H+1) ndarray [N^2]: of Re and of Im
-        pooled for n >= 1, of the (real) DC for n = 0.
+        pooled for n >= 1, of the (real) DC for n = 0; with ``components``,
+        (n_combinations, H+1, 2): of Re and of Im (the DC's on Re, zero on Im).
     """
     n_c = len(combinations(rig)[0])
     h = inputs.gauges.shape[1] - 1
-    out = {s: np.zeros((n_c, h + 1)) for s in SOURCES}
+    out = {s: np.zeros((n_c, h + 1, 2)) for s in SOURCES}
     for p in parameters(rig, inputs):
         ends = []
         for d in (p.std, -p.std):
@@ -232,10 +236,18 @@ def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs
             ends.append(combination_phasors(rig_p, model, inp_p,
                                             model_couplings(rig_p, model) if recouple else None))
         delta = 0.5 * (ends[0] - ends[1])
-        var = 0.5 * (delta.real**2 + delta.imag**2)
-        var[:, 0] = delta[:, 0].real ** 2
-        out[p.source] += var
-    return out
+        out[p.source] += np.stack([delta.real**2, delta.imag**2], axis=-1)
+    if components:
+        return out
+    return {s: pooled_variance(v) for s, v in out.items()}
+
+
+def pooled_variance(var: np.ndarray) -> np.ndarray:
+    """(..., H+1) from the variances of Re and Im (..., H+1, 2): their mean for n >= 1, the
+    real DC's for n = 0."""
+    pooled: np.ndarray = var.mean(axis=-1)
+    pooled[..., 0] = var[..., 0, 0]
+    return pooled
 
 
 def monte_carlo(rig: Rig, model: SpatialModel, inputs: SolveInputs, n_draws: int,

@@ -26,6 +26,7 @@ from scipy.special import gammaincinv
 from .coordinates import Coordinates
 from .harmonics import fit_harmonics
 from .line_noise import GUARD
+from .mains_hum import on_mains
 from .spatial import SpatialModel
 
 __all__ = [
@@ -240,16 +241,13 @@ def drift_notes(current: np.ndarray, fs: float, f0: float, what: str,
     return []
 
 
-MAINS_HARMONICS = 10
-"""The mains harmonics :func:`mains_notes` checks (hum above the 10th is rarely above noise)."""
-
-
 def mains_notes(mains: float | None, f0: float, kept: np.ndarray, resolution: float,
-                what: str) -> list[str]:
+                what: str, counted: frozenset[int] = frozenset()) -> list[str]:
     """A kept harmonic n f0 within :data:`~forcecal.line_noise.GUARD` + 1 lines of one of the
-    first :data:`MAINS_HARMONICS` harmonics of the mains: hum there is one with the harmonic,
-    in its estimate and not in its uncertainty (:mod:`forcecal.harmonic_noise` sees tones only
-    beside the harmonics).
+    first :data:`~forcecal.mains_hum.MAINS_HARMONICS` harmonics of the mains: hum there is one
+    with the harmonic, in its estimate; in its uncertainty only when a tare record gave its
+    level (:mod:`forcecal.mains_hum`; :mod:`forcecal.harmonic_noise` sees tones only beside
+    the harmonics).
 
     Parameters
     ----------
@@ -261,6 +259,8 @@ def mains_notes(mains: float | None, f0: float, kept: np.ndarray, resolution: fl
         The record's line spacing, fs / n_samples.
     what : str
         The run, for the note.
+    counted : frozenset of int
+        The harmonics whose hum the tare record gave and the uncertainty counts.
 
     Returns
     -------
@@ -268,15 +268,16 @@ def mains_notes(mains: float | None, f0: float, kept: np.ndarray, resolution: fl
     """
     if mains is None:
         return []
-    reach = (GUARD + 1) * resolution
     notes = []
-    for n in np.flatnonzero(kept):
-        m = int(round(n * f0 / mains))
-        gap = abs(n * f0 - m * mains)
-        if n >= 1 and 1 <= m <= MAINS_HARMONICS and gap <= reach:
-            notes.append(
-                f"{what}: harmonic {n} ({n * f0:.6g} Hz) lies {gap:.3g} Hz from the mains' "
-                f"harmonic {m} ({m * mains:g} Hz), within {reach:.3g} Hz ({GUARD + 1} lines of "
-                "the record): hum there cannot be told from the force and is not in its "
-                "uncertainty (drive at a frequency whose harmonics keep clear of the mains')")
+    for n, (m, gap) in on_mains(mains, f0, np.flatnonzero(kept), resolution).items():
+        where = (f"{what}: harmonic {n} ({n * f0:.6g} Hz) lies {gap:.3g} Hz from the mains' "
+                 f"harmonic {m} ({m * mains:g} Hz), within {(GUARD + 1) * resolution:.3g} Hz "
+                 f"({GUARD + 1} lines of the record): hum there cannot be told from the force")
+        if n in counted:
+            notes.append(where + "; its level, read from the tare record, is counted in the "
+                         "channels' noise (drive at a frequency whose harmonics keep clear of "
+                         "the mains' to be rid of it)")
+        else:
+            notes.append(where + " and is not in its uncertainty (give a tare record, or drive "
+                         "at a frequency whose harmonics keep clear of the mains')")
     return notes

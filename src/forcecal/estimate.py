@@ -67,7 +67,12 @@ class ForceEstimate:
         Every force, the total and the resultant's first moments
         (:func:`forcecal.uncertainty.combinations`).
     combination, combination_std : (n_c, H+1) arrays [N, N m]
-        Their phasors and standard uncertainties: the noise and the type-B parts combined.
+        Their phasors and standard uncertainties: the noise and the type-B parts combined,
+        of Re and of Im pooled (the DC's own for n = 0).
+    combination_std_re_im : (n_c, H+1, 2) array [N, N m] or None
+        The same, of Re and of Im apart: a sensitivity or a mass scales a phasor, so its part
+        lies along the phasor (a phasor along Re has its type-B error on Re, up to sqrt(2)
+        times the pooled value).
     dc_observed : bool
         False for AC-coupled gauges (the DC is not estimated).
     notes : tuple of str
@@ -109,6 +114,7 @@ class ForceEstimate:
     combination_names: tuple[str, ...] = ()
     combination: np.ndarray | None = None
     combination_std: np.ndarray | None = None
+    combination_std_re_im: np.ndarray | None = None
     dc_observed: bool = True
     notes: tuple[str, ...] = field(default=())
     budget: dict[str, np.ndarray] = field(default_factory=dict)

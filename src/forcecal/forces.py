@@ -13,13 +13,14 @@ channel and from the scan model's shape coefficients.
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
 
-from .budget import SolveInputs, type_b_variance
+from .budget import SolveInputs, pooled_variance, type_b_variance
 from .checks import check_clipping, check_record_length
 from .coordinates import Coordinates, deflection, generalized_coordinates
 from .diagnostics import (
@@ -35,6 +36,7 @@ from .estimate import ForceEstimate
 from .harmonic_sums import grid_series
 from .harmonics import HarmonicFit, fit_harmonics, fundamental_uncertainty, refine_fundamental
 from .inertia import inertia_term
+from .mains_hum import hum_variance, on_mains
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
@@ -252,6 +254,29 @@ def _tare_dc(rig: Rig, tare: Run | None) -> np.ndarray:
     return np.array([t_sig[g].mean() for g in rig.gauge_names])
 
 
+def _tare_hum(rig: Rig, tare: Run | None, f0: float, run: Run, n_samples: int,
+              g_fit: HarmonicFit, s_fit: HarmonicFit
+              ) -> tuple[HarmonicFit, HarmonicFit, frozenset[int]]:
+    """Step 1b: the hum on the drive harmonics that lie on a mains harmonic, read from the tare
+    record, added to the gauges' and the probes' phasor variance (:mod:`forcecal.mains_hum`);
+    the harmonics it was added to."""
+    h = g_fit.phasors.shape[-1] - 1
+    if tare is None or rig.mains is None:
+        return g_fit, s_fit, frozenset()
+    pairs = on_mains(rig.mains, f0, range(1, h + 1), run.fs / n_samples)
+    if not pairs:
+        return g_fit, s_fit, frozenset()
+    sig = channels_si(rig, tare)
+    fits = []
+    for fit, names in ((g_fit, rig.gauge_names), (s_fit, rig.sensor_names)):
+        if all(name in sig for name in names):
+            var = hum_variance(np.stack([sig[c] for c in names]), tare.fs, rig.mains, pairs, h,
+                               n_samples, run.fs)
+            fit = dataclasses.replace(fit, phasor_std=np.sqrt(fit.phasor_std**2 + var))
+        fits.append(fit)
+    return fits[0], fits[1], frozenset(pairs)
+
+
 def _inertia(rig: Rig, model: SpatialModel, coords: Coordinates, s_fit: HarmonicFit,
              a_r: np.ndarray, w0: float, h: int
              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int]]:
@@ -329,6 +354,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     f0, f0_std, notes = _fundamental(rig, model, run, rec, h)
     g_fit = fit_harmonics(rec.gauges, run.fs, f0, h, t0=run.t0)
     s_fit = fit_harmonics(rec.sensors, run.fs, f0, h, t0=run.t0)
+    g_fit, s_fit, hummed = _tare_hum(rig, tare, f0, run, rec.gauges.shape[-1], g_fit, s_fit)
     coords = generalized_coordinates(model, rig, s_fit, run.source)
     psi = force_matrix(rig)
     pinv, cond = np.linalg.pinv(psi), float(np.linalg.cond(psi))
@@ -345,17 +371,20 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
              "probe noise": var_probes, "scan shapes": var_shapes,
              "unresolved harmonics": np.zeros_like(var_probes)}
     notes += mains_notes(rig.mains, f0, kept, run.fs / rec.gauges.shape[-1],
-                         f"run '{run.source}'")
+                         f"run '{run.source}'", hummed)
     notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0,
                          noise["unresolved harmonics"])
     var = sum(noise.values(), start=np.zeros_like(var_probes))
     for a in (reactions, inertia, var, *noise.values()):
         a[:, ~kept] = 0.0
     force, static, std = _solve(pinv, inertia, reactions, var, ac_coupled)
-    budget = {name: _pooled(v, ac_coupled) for name, v in noise.items()}
-    budget.update(_type_b(rig, model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
-                          ac_coupled))
+    type_b = _type_b(rig, model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
+                     ac_coupled)
+    budget = {name: _pooled(v, ac_coupled) for name, v in {**noise, **type_b}.items()}
     std = np.sqrt(sum((b**2 for b in budget.values()), start=np.zeros_like(std)))
+    std_re_im = np.sqrt(sum(type_b.values(), start=var))
+    if ac_coupled:
+        std_re_im[:, 0, :] = 0.0
     if not rig.type_b.declared:
         notes.append(f"run '{run.source}': {rig.type_b.describe()}")
     notes += _split_note(rig, cond)
@@ -371,6 +400,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
         force=force, force_std=std[:n_f], total=force.sum(axis=0), total_std=std[n_f],
         combination_names=combo_names, combination=combo @ force, combination_std=std,
+        combination_std_re_im=std_re_im,
         static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
         kept=kept, coordinates=coords, time=_times(run), series=series,
         static_series=static_series, psi_condition=cond,
@@ -383,19 +413,20 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
 def _pooled(var: np.ndarray, ac_coupled: bool) -> np.ndarray:
     """(n_c, H+1) standard uncertainty from the variances of Re and Im (n_c, H+1, 2): pooled
     for n >= 1, the real DC's for n = 0 (zero when the gauges are AC-coupled)."""
-    std = np.sqrt(var.mean(axis=2))
-    std[:, 0] = 0.0 if ac_coupled else np.sqrt(var[:, 0, 0])
+    std = np.sqrt(pooled_variance(var))
+    if ac_coupled:
+        std[:, 0] = 0.0
     return std
 
 
 def _type_b(rig: Rig, model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFit,
             tare_dc: np.ndarray, w0: float, coords: Coordinates, kept: np.ndarray,
             with_inertia: np.ndarray, ac_coupled: bool) -> dict[str, np.ndarray]:
-    """Step 6b: each type-B source's standard uncertainty in every combination and harmonic
-    (:mod:`forcecal.budget`)."""
+    """Step 6b: each type-B source's variance of Re and of Im in every combination and
+    harmonic, (n_c, H+1, 2) (:mod:`forcecal.budget`)."""
     inputs = _solve_inputs(model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
                            ac_coupled)
-    return {name: np.sqrt(v) for name, v in type_b_variance(rig, model, inputs).items()}
+    return type_b_variance(rig, model, inputs, components=True)
 
 
 def _solve_inputs(model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFit,

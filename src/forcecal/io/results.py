@@ -42,10 +42,10 @@ def estimate_summary(est: ForceEstimate) -> dict:
         figures and generalized coordinates, ready for :func:`json.dumps`.
     """
     forces = {name: _harmonic_rows(est, est.force[k], est.force_std[k], est.static[k],
-                                   _budget(est, name))
+                                   _budget(est, name), _re_im(est, name))
               for k, name in enumerate(est.force_names)}
     forces["total"] = _harmonic_rows(est, est.total, est.total_std, est.static.sum(axis=0),
-                                     _budget(est, "total"))
+                                     _budget(est, "total"), _re_im(est, "total"))
     resultant, components = _resultant_rows(est)
     c = est.coordinates
     return {
@@ -103,9 +103,18 @@ def _budget(est: ForceEstimate, name: str) -> dict[str, np.ndarray]:
     return out
 
 
+def _re_im(est: ForceEstimate, name: str) -> np.ndarray | None:
+    """(H+1, 2) standard uncertainties of Re and of Im of combination ``name``, if known."""
+    if est.combination_std_re_im is None or name not in est.combination_names:
+        return None
+    out: np.ndarray = est.combination_std_re_im[est.combination_names.index(name)]
+    return out
+
+
 def _harmonic_rows(est: ForceEstimate, ph: np.ndarray, std: np.ndarray,
                    static: np.ndarray | None,
-                   budget: dict[str, np.ndarray] | None = None) -> _HarmonicRows:
+                   budget: dict[str, np.ndarray] | None = None,
+                   re_im: np.ndarray | None = None) -> _HarmonicRows:
     """Rows of one force's phasors ``ph`` (H+1,) [N] and their uncertainties ``std`` (H+1,)
     [N] (expanded, k = 2, beside; each source's part when ``budget`` is given), with the
     reactions-only amplitude when ``static`` (H+1,) [N] is given."""
@@ -122,6 +131,8 @@ def _harmonic_rows(est: ForceEstimate, ph: np.ndarray, std: np.ndarray,
             "expanded_k2_n": float(2 * std[n]),
             "inertia_compensated": bool(est.with_inertia[n]),
         }
+        if re_im is not None and n > 0:
+            row["std_re_n"], row["std_im_n"] = float(re_im[n, 0]), float(re_im[n, 1])
         if budget:
             row["budget_std_n"] = {src: float(b[n]) for src, b in budget.items()
                                    if src != "monte carlo"}

@@ -1,0 +1,98 @@
+"""Mains hum on a drive harmonic (METHOD.md section 9): read from the tare record.
+
+A drive harmonic n f0 within :data:`~forcecal.line_noise.GUARD` + 1 lines of one of the
+mains' first :data:`MAINS_HARMONICS` harmonics m f_mains shares its frequency with the hum:
+the fit cannot tell them apart (:mod:`forcecal.harmonic_noise` counts tones beside the
+harmonics, not on them). The hum's level is not in the run, but a zero-current record of the
+same rig (the tare) holds it alone: each channel's hum phasor a_m at m f_mains, fitted with its
+own noise sigma_m (:func:`forcecal.harmonics.fit_harmonics` at the fundamental m f_mains),
+gives the hum's power |a_m|^2 - 2 sigma_m^2 (the noise's share taken out, never below zero).
+The hum is not locked to the drive: in the run it is a tone of unknown phase, and each
+channel's phasor at harmonic n gains the variance D^2 (|a_m|^2 - 2 sigma_m^2) / 2 on Re and on
+Im, D = |sin(pi g N / fs) / (N sin(pi g / fs))| the run's response (N samples at fs) to a tone
+g = |n f0 - m f_mains| away (1 on the harmonic). Each channel's hum has its own phase: the
+variance is added to the channel's own, as its noise is.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import DataError
+from .harmonics import fit_harmonics
+from .line_noise import GUARD
+
+__all__ = ["MAINS_HARMONICS", "hum_variance", "on_mains"]
+
+MAINS_HARMONICS = 10
+"""The mains harmonics a drive harmonic is checked against."""
+
+
+def on_mains(mains: float, f0: float, harmonics: np.ndarray | range,
+             resolution: float) -> dict[int, tuple[int, float]]:
+    """The drive harmonics that lie on a mains harmonic.
+
+    Parameters
+    ----------
+    mains : float [Hz]
+        ``acquisition.mains``.
+    f0 : float [Hz]
+        The run's fundamental.
+    harmonics : iterable of int
+        The drive harmonics to check (0 is never on the mains).
+    resolution : float [Hz]
+        The run's line spacing, fs / n_samples.
+
+    Returns
+    -------
+    dict
+        n -> (m, |n f0 - m mains| [Hz]) for every n within GUARD + 1 lines of a mains harmonic
+        m = 1 .. MAINS_HARMONICS.
+    """
+    reach = (GUARD + 1) * resolution
+    out = {}
+    for n in harmonics:
+        m = int(round(n * f0 / mains))
+        gap = abs(n * f0 - m * mains)
+        if n >= 1 and 1 <= m <= MAINS_HARMONICS and gap <= reach:
+            out[int(n)] = (m, gap)
+    return out
+
+
+def hum_variance(tare: np.ndarray, tare_fs: float, mains: float,
+                 pairs: dict[int, tuple[int, float]], n_harmonics: int, n_samples: int,
+                 fs: float) -> np.ndarray:
+    """The variance the hum adds to Re and to Im of every channel's phasor at every harmonic.
+
+    Parameters
+    ----------
+    tare : (n_channels, n_tare) array [SI]
+        The channels of the zero-current record.
+    tare_fs : float [Hz]
+    mains : float [Hz]
+    pairs : dict
+        :func:`on_mains` of the run.
+    n_harmonics : int
+        H: the run's harmonics 0..H.
+    n_samples, fs : int, float
+        The run's record.
+
+    Returns
+    -------
+    (n_channels, H + 1) array [SI^2]
+        Zero but at the harmonics of ``pairs``; zero for a tare too short to resolve a mains
+        harmonic from its neighbours.
+    """
+    var = np.zeros((tare.shape[0], n_harmonics + 1))
+    for n, (m, gap) in pairs.items():
+        if n > n_harmonics:
+            continue
+        try:
+            fit = fit_harmonics(tare, tare_fs, m * mains, 1)
+        except DataError:
+            continue
+        power = np.maximum(np.abs(fit.phasors[:, 1]) ** 2 - 2 * fit.phasor_std[:, 1] ** 2, 0.0)
+        x = np.pi * gap / fs
+        leak = 1.0 if gap == 0.0 else abs(np.sin(n_samples * x) / (n_samples * np.sin(x)))
+        var[:, n] = leak**2 * power / 2
+    return var
