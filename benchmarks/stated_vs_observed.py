@@ -42,10 +42,11 @@ observes it, and every harmonic n = 1..H the estimate keeps. The truth's phasors
 the simulator's pole forces (``run_truth(...).pole_force``; the total is their sum) fitted on
 the estimate's own fundamental and window (``fit_harmonics(pole_force, fs, est.f0, H)``). Each
 component (the DC; Re and Im for n >= 1) is one sample: its error e against the stated
-standard uncertainty u of that component (``ForceEstimate.combination_std_re_im`` of that force
-or of "total": noise and type-B combined, Re and Im apart, since a sensitivity's or a mass's
-error lies along the phasor). Reported: the ratio RMS(e) / RMS(u) (target 0.8-1.25), the k = 2 coverage, the
-fraction of components with |e| <= 2 u (target 93-97 %), with the Clopper-Pearson 95 % interval
+standard uncertainty u of that component (``ForceEstimate.combination_std_re_im`` of that
+force or of "total": noise and type-B combined, Re and Im apart, since a sensitivity's or a
+mass's error lies along the phasor). Reported: the ratio RMS(e) / RMS(u) (target 0.8-1.25),
+the k = 2 coverage, the fraction of components with |e| <= 2 u (target 93-97 %), with the
+Clopper-Pearson 95 % interval
 of that fraction given the number of components, and the 95 % band of the ratio were the errors
 normal with exactly the stated u (chi-square with as many degrees of freedom as components).
 Both intervals treat the components as independent; Re and Im of one seed are not quite
