@@ -6,7 +6,8 @@ the fit cannot tell them apart (:mod:`forcecal.harmonic_noise` counts tones besi
 harmonics, not on them). The hum's level is not in the run, but a zero-current record of the
 same rig (the tare) holds it alone: each channel's hum phasor a_m at m f_mains, fitted with its
 own noise sigma_m (:func:`forcecal.harmonics.fit_harmonics` at the fundamental m f_mains),
-gives the hum's power |a_m|^2 - 2 sigma_m^2 (the noise's share taken out, never below zero).
+gives the hum's power |a_m|^2 - 2 sigma_m^2 (the noise's share taken out) where it is heard
+above the noise (:data:`HEARD`), zero elsewhere.
 The hum is not locked to the drive: in the run it is a tone of unknown phase, and each
 channel's phasor at harmonic n gains the variance D^2 (|a_m|^2 - 2 sigma_m^2) / 2 on Re and on
 Im, D = |sin(pi g N / fs) / (N sin(pi g / fs))| the run's response (N samples at fs) to a tone
@@ -26,6 +27,10 @@ __all__ = ["MAINS_HARMONICS", "hum_variance", "on_mains"]
 
 MAINS_HARMONICS = 10
 """The mains harmonics a drive harmonic is checked against."""
+HEARD = float(np.log(1e3))
+"""A tare's phasor counts as hum when its power exceeds this many times the noise's mean:
+noise alone does so once in a thousand (|a|^2 / E|a|^2 is exponential), so a harmonic on a
+quiet mains line gains no variance from the tare's own noise."""
 
 
 def on_mains(mains: float, f0: float, harmonics: np.ndarray | range,
@@ -91,7 +96,9 @@ def hum_variance(tare: np.ndarray, tare_fs: float, mains: float,
             fit = fit_harmonics(tare, tare_fs, m * mains, 1)
         except DataError:
             continue
-        power = np.maximum(np.abs(fit.phasors[:, 1]) ** 2 - 2 * fit.phasor_std[:, 1] ** 2, 0.0)
+        noise = 2 * fit.phasor_std[:, 1] ** 2                 # E|a|^2 of noise alone
+        heard = np.abs(fit.phasors[:, 1]) ** 2 >= HEARD * noise
+        power = np.where(heard, np.abs(fit.phasors[:, 1]) ** 2 - noise, 0.0)
         x = np.pi * gap / fs
         leak = 1.0 if gap == 0.0 else abs(np.sin(n_samples * x) / (n_samples * np.sin(x)))
         var[:, n] = leak**2 * power / 2
