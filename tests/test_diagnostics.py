@@ -181,7 +181,8 @@ def test_the_hum_on_a_drive_harmonic_is_read_from_the_tare():
     tare[0] += a * np.sin(2 * np.pi * 150.0 * t + 0.7)          # channel 0 hums, 1 does not
     pairs = on_mains(mains, f0, range(1, 5), fs / t.size)
     assert set(pairs) == {1, 2, 3}                               # 150, 300, 450 Hz
-    var = hum_variance(tare, fs, mains, pairs, 4, t.size, fs)
+    var, read = hum_variance(tare, fs, mains, pairs, 4, t.size, fs)
+    assert read == {1, 2, 3}
     # achieved: 0.01984 (a^2 / 2 = 0.02; the 0.06 Hz gap leaks 99.4 % in amplitude over 1 s)
     assert var[0, 1] == pytest.approx(a**2 / 2, rel=0.03)
     assert var[1, 1] == 0 and np.all(var[:, [0, 4]] == 0)      # noise alone is not hum

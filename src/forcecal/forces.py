@@ -267,14 +267,16 @@ def _tare_hum(rig: Rig, tare: Run | None, f0: float, run: Run, n_samples: int,
     if not pairs:
         return g_fit, s_fit, frozenset()
     sig = channels_si(rig, tare)
-    fits = []
+    fits: list[HarmonicFit] = []
+    read: set[int] = set()
     for fit, names in ((g_fit, rig.gauge_names), (s_fit, rig.sensor_names)):
         if all(name in sig for name in names):
-            var = hum_variance(np.stack([sig[c] for c in names]), tare.fs, rig.mains, pairs, h,
-                               n_samples, run.fs)
+            var, heard_at = hum_variance(np.stack([sig[c] for c in names]), tare.fs, rig.mains,
+                                         pairs, h, n_samples, run.fs)
             fit = dataclasses.replace(fit, phasor_std=np.sqrt(fit.phasor_std**2 + var))
+            read |= heard_at
         fits.append(fit)
-    return fits[0], fits[1], frozenset(pairs)
+    return fits[0], fits[1], frozenset(read)
 
 
 def _inertia(rig: Rig, model: SpatialModel, coords: Coordinates, s_fit: HarmonicFit,

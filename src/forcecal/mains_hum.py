@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import DataError
+from .errors import ForcecalError
 from .harmonics import fit_harmonics
 from .line_noise import GUARD
 
@@ -66,7 +66,7 @@ def on_mains(mains: float, f0: float, harmonics: np.ndarray | range,
 
 def hum_variance(tare: np.ndarray, tare_fs: float, mains: float,
                  pairs: dict[int, tuple[int, float]], n_harmonics: int, n_samples: int,
-                 fs: float) -> np.ndarray:
+                 fs: float) -> tuple[np.ndarray, frozenset[int]]:
     """The variance the hum adds to Re and to Im of every channel's phasor at every harmonic.
 
     Parameters
@@ -84,22 +84,26 @@ def hum_variance(tare: np.ndarray, tare_fs: float, mains: float,
 
     Returns
     -------
-    (n_channels, H + 1) array [SI^2]
-        Zero but at the harmonics of ``pairs``; zero for a tare too short to resolve a mains
-        harmonic from its neighbours.
+    var : (n_channels, H + 1) array [SI^2]
+        Zero but at the harmonics of ``pairs``.
+    read : frozenset of int
+        The harmonics whose hum the tare could be read at (not those where it is too short to
+        resolve the mains harmonic, or unusable).
     """
     var = np.zeros((tare.shape[0], n_harmonics + 1))
+    read = set()
     for n, (m, gap) in pairs.items():
         if n > n_harmonics:
             continue
         try:
             fit = fit_harmonics(tare, tare_fs, m * mains, 1)
-        except DataError:
+        except ForcecalError:
             continue
+        read.add(n)
         noise = 2 * fit.phasor_std[:, 1] ** 2                 # E|a|^2 of noise alone
         heard = np.abs(fit.phasors[:, 1]) ** 2 >= HEARD * noise
         power = np.where(heard, np.abs(fit.phasors[:, 1]) ** 2 - noise, 0.0)
         x = np.pi * gap / fs
         leak = 1.0 if gap == 0.0 else abs(np.sin(n_samples * x) / (n_samples * np.sin(x)))
         var[:, n] = leak**2 * power / 2
-    return var
+    return var, frozenset(read)
