@@ -10,7 +10,7 @@ import pytest
 
 from forcecal.diagnostics import mains_notes
 from forcecal.errors import DataError, RigError
-from forcecal.forces import implied_phasors, reconstruct
+from forcecal.forces import implied_phasors, reconstruct, solve_inputs
 from forcecal.mains_hum import hum_variance, on_mains
 from forcecal.records import Run
 from forcecal.rig import parse_rig, rig_to_dict
@@ -232,3 +232,7 @@ def test_reconstruct_counts_the_tare_hum_on_a_drive_harmonic():
     # |error| = 0.48 std in this draw
     err = np.abs(with_tare.combination[:, 3] - clean.combination[:, 3])
     assert np.all(err < 3 * np.sqrt(2) * with_tare.combination_std[:, 3]), err
+    # the Monte Carlo (--monte-carlo) draws the probes' phasors with the same widened std
+    drawn = solve_inputs(rig, model, run_h, with_tare, tare).sensor_std[:, 3]
+    plain = solve_inputs(rig, model, run_h, without).sensor_std[:, 3]
+    assert np.all(drawn > 10 * plain), (drawn, plain)

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -95,9 +96,10 @@ class ShapeFit:
         sqrt(RSS_w / (m (n_points - n_funcs))) for m real columns.
     coefficient_covariance : (n_funcs, n_funcs) array [unit of the values ^2]
         The covariance of the real part of each column of coefficients, and equally of the
-        imaginary part: sigma^2 (B^T W B)^-1 of the chosen order when the order is fixed;
-        otherwise mixed over the orders' weights, each order's own sigma_p^2 I and its
-        coefficients' difference from the chosen ones (:func:`_averaged_covariance`).
+        imaginary part: sigma^2 I (the basis is orthonormal on the weighted points) when the
+        order is fixed; otherwise mixed over the orders' weights, each order's own
+        sigma_p^2 I and its coefficients' difference from the chosen ones
+        (:func:`_averaged_covariance`).
     """
 
     basis: PolynomialBasis
@@ -124,7 +126,7 @@ class ShapeFit:
         """
         return self.fitted_basis.evaluate(points) @ self.fitted_coefficients
 
-    @property
+    @cached_property
     def fitted_basis(self) -> PolynomialBasis:
         """The basis of the chosen order (:attr:`basis` may hold more functions)."""
         if self.basis.functions_up_to(self.order) == self.basis.n_funcs:
@@ -257,13 +259,8 @@ def fit_shape(
     p_best = int(orders[i_best])
     k_best = int(n_funcs[i_best])
     sigma = math.sqrt(rss[i_best] / (y.shape[1] * (n - k_best)))
-    if criterion_used == "fixed":
-        bb = b[:, :k_best]
-        return ShapeFit(basis=full.truncate(p_best), coefficients=_coefficients(bb, vals, sw),
-                        order=p_best, orders=orders, score=score, criterion=criterion_used,
-                        residual_std=sigma,
-                        coefficient_covariance=_coefficient_covariance(bb, sigma))
-    weights_p = order_weights(rss, n_funcs, n * y.shape[1], y.shape[1], criterion_used)
+    weights_p = (np.ones(1) if criterion_used == "fixed"
+                 else order_weights(rss, n_funcs, n * y.shape[1], y.shape[1], criterion_used))
     top = max(int(np.flatnonzero(weights_p)[-1]), i_best)
     k_top = int(n_funcs[top])
     coef = _coefficients(b[:, :k_top], vals, sw)
@@ -432,13 +429,6 @@ def _coefficients(bb: np.ndarray, vals: np.ndarray, sw: np.ndarray) -> np.ndarra
     if np.iscomplexobj(vals):
         coef = coef_real + 1j * np.linalg.lstsq(bb, vals.reshape(n, -1).imag * sw, rcond=None)[0]
     return coef[:, 0] if vals.ndim == 1 else coef
-
-
-def _coefficient_covariance(bb: np.ndarray, sigma: float) -> np.ndarray:
-    """sigma^2 (B^T W B)^-1 of the weighted basis ``bb``, symmetrized."""
-    gram = bb.T @ bb
-    cov = sigma**2 * np.linalg.inv(gram)
-    return 0.5 * (cov + cov.T)
 
 
 def project(

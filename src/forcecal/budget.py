@@ -206,25 +206,23 @@ def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
     return out
 
 
-def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs,
-                    components: bool = False) -> dict[str, np.ndarray]:
-    """Each type-B source's variance in every combination and harmonic (linear propagation).
+def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs
+                    ) -> dict[str, np.ndarray]:
+    """Each type-B source's variance of Re and of Im in every combination and harmonic
+    (linear propagation). Kept apart: a sensitivity scales a phasor, so its error lies along
+    the phasor, not evenly on Re and Im (:func:`pooled_variance` pools them).
 
     Parameters
     ----------
     rig : Rig
     model : SpatialModel
     inputs : SolveInputs
-    components : bool
-        Give the variances of Re and of Im apart: a sensitivity scales a phasor, so its error
-        lies along the phasor, not evenly on Re and Im.
 
     Returns
     -------
     dict
-        Source (:data:`SOURCES`) -> (n_combinations, H+1) ndarray [N^2]: of Re and of Im
-        pooled for n >= 1, of the (real) DC for n = 0; with ``components``,
-        (n_combinations, H+1, 2): of Re and of Im (the DC's on Re, zero on Im).
+        Source (:data:`SOURCES`) -> (n_combinations, H+1, 2) ndarray [N^2]: of Re and of Im
+        (the DC's on Re, zero on Im).
     """
     n_c = len(combinations(rig)[0])
     h = inputs.gauges.shape[1] - 1
@@ -237,9 +235,7 @@ def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs,
                                             model_couplings(rig_p, model) if recouple else None))
         delta = 0.5 * (ends[0] - ends[1])
         out[p.source] += np.stack([delta.real**2, delta.imag**2], axis=-1)
-    if components:
-        return out
-    return {s: pooled_variance(v) for s, v in out.items()}
+    return out
 
 
 def pooled_variance(var: np.ndarray) -> np.ndarray:

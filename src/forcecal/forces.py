@@ -246,36 +246,34 @@ def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
     return f0, f0_std, notes
 
 
-def _tare_dc(rig: Rig, tare: Run | None) -> np.ndarray:
-    """(n_gauges,) [N] the gauges' DC in a zero-current record (zero without one)."""
+def _tare_dc(rig: Rig, tare: dict[str, np.ndarray] | None) -> np.ndarray:
+    """(n_gauges,) [N] the gauges' DC in a zero-current record's SI channels (zero without)."""
     if tare is None:
         return np.zeros(len(rig.gauges))
-    t_sig = channels_si(rig, tare)
-    return np.array([t_sig[g].mean() for g in rig.gauge_names])
+    return np.array([tare[g].mean() for g in rig.gauge_names])
 
 
-def _tare_hum(rig: Rig, tare: Run | None, f0: float, run: Run, n_samples: int,
-              g_fit: HarmonicFit, s_fit: HarmonicFit
-              ) -> tuple[HarmonicFit, HarmonicFit, frozenset[int]]:
-    """Step 1b: the hum on the drive harmonics that lie on a mains harmonic, read from the tare
-    record, added to the gauges' and the probes' phasor variance (:mod:`forcecal.mains_hum`);
-    the harmonics it was added to."""
-    h = g_fit.phasors.shape[-1] - 1
-    if tare is None or rig.mains is None:
+def _channel_fits(rig: Rig, run: Run, rec: _Records, f0: float, h: int,
+                  tare: Run | None, tare_sig: dict[str, np.ndarray] | None
+                  ) -> tuple[HarmonicFit, HarmonicFit, frozenset[int]]:
+    """Steps 1 and 1b: the gauges' and the probes' harmonic fits; on the drive harmonics that
+    lie on a mains harmonic, the hum the tare record shows added to their phasor variance
+    (:mod:`forcecal.mains_hum`); the harmonics it was added to."""
+    g_fit = fit_harmonics(rec.gauges, run.fs, f0, h, t0=run.t0)
+    s_fit = fit_harmonics(rec.sensors, run.fs, f0, h, t0=run.t0)
+    n_samples = rec.gauges.shape[-1]
+    if tare is None or tare_sig is None or rig.mains is None:
         return g_fit, s_fit, frozenset()
     pairs = on_mains(rig.mains, f0, range(1, h + 1), run.fs / n_samples)
     if not pairs:
         return g_fit, s_fit, frozenset()
-    sig = channels_si(rig, tare)
     fits: list[HarmonicFit] = []
     read: set[int] = set()
     for fit, names in ((g_fit, rig.gauge_names), (s_fit, rig.sensor_names)):
-        if all(name in sig for name in names):
-            var, heard_at = hum_variance(np.stack([sig[c] for c in names]), tare.fs, rig.mains,
-                                         pairs, h, n_samples, run.fs)
-            fit = dataclasses.replace(fit, phasor_std=np.sqrt(fit.phasor_std**2 + var))
-            read |= heard_at
-        fits.append(fit)
+        var, heard_at = hum_variance(np.stack([tare_sig[c] for c in names]), tare.fs,
+                                     rig.mains, pairs, h, n_samples, run.fs)
+        fits.append(dataclasses.replace(fit, phasor_std=np.sqrt(fit.phasor_std**2 + var)))
+        read |= heard_at
     return fits[0], fits[1], frozenset(read)
 
 
@@ -354,13 +352,12 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     h = n_harmonics or len(model.snr)
     rec = _records(rig, run)
     f0, f0_std, notes = _fundamental(rig, model, run, rec, h)
-    g_fit = fit_harmonics(rec.gauges, run.fs, f0, h, t0=run.t0)
-    s_fit = fit_harmonics(rec.sensors, run.fs, f0, h, t0=run.t0)
-    g_fit, s_fit, hummed = _tare_hum(rig, tare, f0, run, rec.gauges.shape[-1], g_fit, s_fit)
+    tare_sig = None if tare is None else channels_si(rig, tare)
+    g_fit, s_fit, hummed = _channel_fits(rig, run, rec, f0, h, tare, tare_sig)
     coords = generalized_coordinates(model, rig, s_fit, run.source)
     psi = force_matrix(rig)
     pinv, cond = np.linalg.pinv(psi), float(np.linalg.cond(psi))
-    tare_dc = _tare_dc(rig, tare)
+    tare_dc = _tare_dc(rig, tare_sig)
     reactions = g_fit.phasors.copy()                                 # (n_g, H+1)
     reactions[:, 0] -= tare_dc
     combo_names, combo = combinations(rig)
@@ -428,7 +425,7 @@ def _type_b(rig: Rig, model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFi
     harmonic, (n_c, H+1, 2) (:mod:`forcecal.budget`)."""
     inputs = _solve_inputs(model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
                            ac_coupled)
-    return type_b_variance(rig, model, inputs, components=True)
+    return type_b_variance(rig, model, inputs)
 
 
 def _solve_inputs(model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFit,
@@ -459,9 +456,9 @@ def solve_inputs(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimat
     """
     rec = _records(rig, run)
     h = len(estimate.harmonics) - 1
-    g_fit = fit_harmonics(rec.gauges, run.fs, estimate.f0, h, t0=run.t0)
-    s_fit = fit_harmonics(rec.sensors, run.fs, estimate.f0, h, t0=run.t0)
-    return _solve_inputs(model, g_fit, s_fit, _tare_dc(rig, tare), 2 * np.pi * estimate.f0,
+    tare_sig = None if tare is None else channels_si(rig, tare)
+    g_fit, s_fit, _ = _channel_fits(rig, run, rec, estimate.f0, h, tare, tare_sig)
+    return _solve_inputs(model, g_fit, s_fit, _tare_dc(rig, tare_sig), 2 * np.pi * estimate.f0,
                          estimate.coordinates, estimate.kept, estimate.with_inertia,
                          not estimate.dc_observed)
 
