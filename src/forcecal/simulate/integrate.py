@@ -10,6 +10,10 @@ magnetic forces of the last pass, so the slowly decaying free vibration of a lig
 never has to be waited out. Under a broadband drive (:mod:`.waveforms`) it is waited out: the
 rig starts at rest a lead time before the record (:func:`lead_time`).
 
+The trapezoidal rule steps a sine as if at a slightly higher frequency, so a coarse step makes
+the rig's inertia heavier than its mass says; under steady sines the step is cut until that
+error is negligible (:func:`steady_oversample`).
+
 A magnet with eddy currents in its core (``eddy_time``) carries its magnetising current as a
 state, stepped by the same trapezoidal rule as the flux linkage.
 """
@@ -28,8 +32,8 @@ from .response import Record, Response, _finish_record, _keep, _new_record
 from .solid import SolidModel
 from .waveforms import scalar_drive
 
-__all__ = ["LEAD_TIME_CONSTANTS", "MAX_LEAD", "Response", "SimulationError", "integrate",
-           "lead_time", "pole_points"]
+__all__ = ["INERTIA_TOLERANCE", "LEAD_TIME_CONSTANTS", "MAX_LEAD", "Response", "SimulationError",
+           "integrate", "lead_time", "pole_points", "steady_oversample"]
 
 Model = BeamModel | PlateModel | SolidModel
 """A finite-element model of the structure: beam, plate or body."""
@@ -45,6 +49,9 @@ the slowest-decaying elastic mode (its free vibration then down by e^-10, 5e-5; 
 magnets' negative stiffness lowers that mode's frequency squared by 30 %)."""
 MAX_LEAD = 30.0
 """[s] the longest lead a non-periodic drive is stepped through before its record."""
+INERTIA_TOLERANCE = 1e-3
+"""Under a steady drive the step is cut until the trapezoidal rule's relative error in the
+inertia at twice the fundamental, (w dt)^2 / 6, is at most this (:func:`steady_oversample`)."""
 
 
 class SimulationError(RuntimeError):
@@ -393,7 +400,8 @@ class _Stepper:
 
 
 def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ...],
-              fs: float, duration: float, oversample: int = 1, settle_periods: int = 3,
+              fs: float, duration: float, oversample: int | None = None,
+              settle_periods: int = 3,
               max_passes: int = 8, tol: float = 1e-8, lead: float | None = None) -> Response:
     """Simulate the rig on its steady state and sample it at ``fs`` for ``duration``.
 
@@ -416,8 +424,9 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
         Output sampling rate [Hz].
     duration : float
         Record length [s]; the first sample is at t = 0.
-    oversample : int
-        Internal steps per output sample.
+    oversample : int, optional
+        Internal steps per output sample; default :func:`steady_oversample` under steady
+        sines, 1 under a broadband drive.
     settle_periods : int
         Periods stepped per pass towards the steady state.
     max_passes : int
@@ -445,9 +454,12 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
     if len(magnets) != len(drives):
         raise ValueError("one drive per magnet")
     f0 = drives[0].frequency
+    broadband = any(d.waveform is not None for d in drives)
+    if oversample is None:
+        oversample = 1 if broadband else steady_oversample(f0, fs)
     dt = 1.0 / (fs * oversample)
     st = _Stepper(model, magnets, drives, dt, model.beta)
-    if any(d.waveform is not None for d in drives):
+    if broadband:
         return _stepped_through(st, drives, fs, duration, oversample, lead)
     per_period = max(int(round(1.0 / (f0 * dt))), 2)
     n_settle = settle_periods * per_period
@@ -462,6 +474,30 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
     _, _, rec = st.run(t_start, n_out * oversample, *state, keep_every=oversample)
     assert rec is not None, "a record of no sample"          # n_out > 0 samples were kept
     return _response(st, rec, n_out, fs)
+
+
+def steady_oversample(f0: float, fs: float) -> int:
+    """Internal steps per output sample under a steady drive at ``f0`` [Hz] sampled at ``fs``.
+
+    The trapezoidal rule steps a sine of angular frequency w as if it were at
+    (2 / dt) tan(w dt / 2): its acceleration is -(w^2)(1 + (w dt)^2 / 6 + ...) times its
+    displacement, so a rig stepped coarsely weighs more than its mass says, and an estimate
+    that is exact for the continuous physics would seem biased by the simulator's own
+    error. The step is cut until that error at twice the fundamental (a biased
+    electromagnet pulls at f0 and 2 f0) is at most :data:`INERTIA_TOLERANCE`: 1 step per
+    sample for the beams at 20 Hz and 10 kHz, 3 for the body at 150 Hz.
+
+    Parameters
+    ----------
+    f0, fs : float
+        [Hz] the fundamental and the output sampling rate.
+
+    Returns
+    -------
+    int
+    """
+    x = 2 * math.pi * 2 * f0 / fs
+    return max(int(math.ceil(x / math.sqrt(6 * INERTIA_TOLERANCE) - 1e-12)), 1)
 
 
 def lead_time(model: Model) -> float:
