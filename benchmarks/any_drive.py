@@ -12,7 +12,10 @@ compares:
   (the force's second harmonic of a 150 Hz drive lies at 300 Hz, beyond the 200 Hz scan);
 - the stepped-sine campaign (10-100 Hz, three gaps): each step's K(f) / K and lag against the
   first-order truth 1 / (1 + j 2 pi f tau) of the simulated eddy-current magnet, and the fitted
-  tau (targets: 0.2 % and 0.2 degrees).
+  tau (targets: 0.2 % and 0.2 degrees);
+- ``forcecal stream`` on the same runs (real time, :mod:`forcecal.stream.any_drive`): its
+  windows beside the batch's, how far it is from the batch in units of the batch's stated
+  uncertainty, and its wall time.
 
 Run:  .venv/bin/python benchmarks/any_drive.py
 Writes benchmarks/results/any_drive.json.
@@ -70,13 +73,24 @@ def _drive_run(folder: Path, run: str) -> dict:
              "-o", str(out)]) != 0:
         raise SystemExit(f"reconstruct of {run} failed")
     seconds = time.perf_counter() - start
+    streamed = folder / f"{run}.stream.csv"
+    start = time.perf_counter()
+    if main(["stream", str(folder / "rig.toml"), str(model), str(folder / "runs" / f"{run}.csv"),
+             "-o", str(streamed)]) != 0:
+        raise SystemExit(f"stream of {run} failed")
+    stream_s = time.perf_counter() - start
     est = pd.read_csv(out / f"{run}.forces.csv")
+    live = pd.read_csv(streamed)
     truth = pd.read_csv(folder / "truth" / f"{run}.forces.csv")
     band = json.loads(model.read_text())["band"]
+    apart = live["total"].to_numpy() - est["total"].to_numpy()
     return {"windows": _windows(est, truth, "total", 0.5),
             "windows_in_band": _windows(est, truth, "total", 0.5, top=band[1]),
             "windows_static": _windows(est, truth, "total_static", 0.5),
-            "reconstruct_s": seconds}
+            "windows_stream": _windows(live, truth, "total", 0.5),
+            "stream_vs_batch_rms_in_stated_std": float(np.sqrt(np.mean(apart**2))
+                                                       / np.sqrt(np.mean(est["total_std"]**2))),
+            "reconstruct_s": seconds, "stream_s": stream_s}
 
 
 def _campaign(folder: Path) -> dict:
@@ -123,6 +137,9 @@ def report(res: dict) -> None:
         print("  windows  " + " ".join(f"{w:7.2%}" for w in r["windows"]))
         print("  in band  " + " ".join(f"{w:7.2%}" for w in r["windows_in_band"]))
         print("  static   " + " ".join(f"{w:7.1%}" for w in r["windows_static"]))
+        print("  stream   " + " ".join(f"{w:7.2%}" for w in r["windows_stream"])
+              + f"   (stream - batch: {r['stream_vs_batch_rms_in_stated_std']:.2f} of the "
+              f"stated std RMS; stream {r['stream_s']:.2f} s)")
     c = res["stepped_sines"]
     print(f"stepped sines: tau {c['tau'] * 1e3:.4f} +/- {c['tau_std'] * 1e3:.4f} ms (true "
           f"{c['tau_true'] * 1e3:g} ms)")

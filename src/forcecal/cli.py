@@ -21,7 +21,7 @@ import numpy as np
 from .cli_parser import PROG, build_parser
 from .cli_parser import ArgumentError as _ArgumentError
 from .cluster import run_jobs
-from .errors import DataError, ForcecalError, InputError
+from .errors import ForcecalError, InputError
 from .jobs import calibrate_job, campaign_folders, reconstruct_job
 
 __all__ = ["main"]
@@ -406,9 +406,11 @@ def _cmd_predict(args) -> int:
 def _cmd_stream(args) -> int:
     """The run read, streamed and written block by block (memory flat in its length); a file
     output appears whole or not at all, ``-o -`` writes CSV to stdout as it goes."""
+    from .broadband import BroadbandModel
     from .io.blocks import check_run_blocks, open_run_blocks
     from .io.staging import clean_stale
-    from .stream.replay import stream_table
+    from .stream.any_drive import stream_any_table
+    from .stream.replay import bounded_forces, stream_table
 
     to_stdout = args.output == "-"
     suffix = Path(args.output).suffix.lower()
@@ -418,22 +420,21 @@ def _cmd_stream(args) -> int:
                              " or - (CSV on stdout)")
     rig = _load_rig(args)
     model = _model_for(args, rig)
+    broadband = isinstance(model, BroadbandModel)
+    if broadband and (args.steady or args.memory is not None):
+        raise _ArgumentError(f"{PROG} stream: argument {'--steady' if args.steady else '--memory'}"
+                             f": the model '{args.scan}' is a broadband one (any drive); its "
+                             "stream has a fixed latency and no memory to set")
     blocks = check_run_blocks(rig, open_run_blocks(args.run, rig))
-
-    def check(t, forces, static) -> None:
-        for name, values in [*forces.items(), *static.items()]:
-            bad = ~np.isfinite(values)
-            if bad.any() or np.max(np.abs(values)) > MAX_FORCE_N:
-                k = int(np.argmax(bad | (np.abs(values) > MAX_FORCE_N)))
-                raise DataError(f"run '{blocks.source}': the streamed force {name!r} is "
-                                f"{values[k]:.4g} N at t={t[k]:.6g} s, not finite or beyond "
-                                f"{MAX_FORCE_N:g} N; nothing written")
-
+    check = bounded_forces(blocks.source, MAX_FORCE_N)
     with blocks:
         if not to_stdout:
             clean_stale(Path(args.output).parent)
-        stream_table(rig, model, blocks, args.output, block=args.block, check=check,
-                     forgetting=_forgetting(args, model, blocks.fs))
+        if broadband:
+            stream_any_table(rig, model, blocks, args.output, check=check)
+        else:
+            stream_table(rig, model, blocks, args.output, block=args.block, check=check,
+                         forgetting=_forgetting(args, model, blocks.fs))
     if not to_stdout:
         _print(args.output)
     return 0

@@ -11,9 +11,14 @@ instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`)
 3. J_r = m_{r,1} q_1'' corrected frequency by frequency to the operating shape of every
    frequency (:meth:`forcecal.broadband.BroadbandModel.inertia_correction`), and
    f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the reactions-only estimate -Psi^+ R(t);
-4. batch only: short-time Wiener gains on every force (:mod:`forcecal.wiener`), which keep
-   the few hertz a moving drive holds at any instant and set the rest of the band's noise
-   aside, each sample's uncertainty being the noise they let through.
+4. short-time Wiener gains on every force (:mod:`forcecal.wiener`), which keep the few hertz
+   a moving drive holds at any instant and set the rest of the band's noise aside, each
+   sample's uncertainty being the noise they let through.
+
+In real time (``stream``, :mod:`forcecal.stream.any_drive`) the same estimate is computed
+over a window that slides with the stream: every sample is given once the samples a fixed
+latency after it have arrived (a smoother needs the future a causal filter lacks: the best
+causal estimate of an acceleration from displacements lags it).
 
 Force content above the scan's band (a drive's harmonics beyond it) has no operating shape
 and is smoothed away.
@@ -32,14 +37,15 @@ import scipy.signal
 from .broadband import BroadbandModel
 from .errors import DataError, InputError
 from .forces import channels_si
-from .kalman import band_model, filter_states, smooth_states
+from .kalman import BandModel, band_model, smooth_states
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
 from .spatial import check_rig_keys
 from .wiener import smoother_response, stft_frame, wiener_smooth
 
-__all__ = ["TransientEstimate", "channel_noise", "reconstruct_any"]
+__all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
+           "channel_noise", "check_length", "reconstruct_any", "run_channels", "window_forces"]
 
 
 @dataclass(frozen=True)
@@ -165,6 +171,193 @@ def _corrected(inertia: np.ndarray, fs: float, correction) -> np.ndarray:
     return out[:, pad:pad + n]
 
 
+@dataclass(frozen=True)
+class AnyDriveSetup:
+    """What the estimate under any drive fixes before its first sample.
+
+    Attributes
+    ----------
+    band : (low, high) [Hz]
+    fs : float [Hz]
+    probe_shapes : (n_probes, n_shapes) array [m]
+        The span's shapes at the probes.
+    probe_weights : (n_probes,) array [1/m^2]
+        Their inverse noise variances.
+    coordinate_map : (n_probes,) array [1/m]
+        q_1 = coordinate_map @ probes (eq. 15-16 on the first shape).
+    var_q : float [1]
+        The noise variance of one sample of q_1.
+    coordinate_model : BandModel
+        The band model of q_1.
+    reaction_models : tuple of BandModel
+        Every gauge's reaction's.
+    var_g : (n_gauges,) array [N^2]
+        Every gauge's noise variance per sample.
+    couplings : (n_gauges,) array [kg]
+        m_{r,1}, every gauge's coupling with the first shape.
+    pinv : (n_forces, n_gauges) array
+        Psi^+.
+    """
+
+    band: tuple[float, float]
+    fs: float
+    probe_shapes: np.ndarray
+    probe_weights: np.ndarray
+    coordinate_map: np.ndarray
+    var_q: float
+    coordinate_model: BandModel
+    reaction_models: tuple[BandModel, ...]
+    var_g: np.ndarray
+    couplings: np.ndarray
+    pinv: np.ndarray
+
+
+def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
+                    fs: float) -> AnyDriveSetup:
+    """What the estimate under any drive needs before its first sample, from a record of the
+    gauges and probes (the whole run in batch; the first seconds of a stream): every channel's
+    noise from its spectrum above the band, the probes' weights and the first shape's
+    coordinate map, and the band models of the coordinate and of every reaction.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : BroadbandModel
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+    fs : float [Hz]
+
+    Returns
+    -------
+    AnyDriveSetup
+    """
+    band = model.band
+    var_s = channel_noise(probes, fs, band)
+    var_g = channel_noise(gauges, fs, band)
+    gam = model.values(rig.structure.coordinates(rig.sensor_points,
+                                                 source=f"rig '{rig.source}'")).real
+    w = 1.0 / var_s
+    g1 = gam[:, 0]
+    var_q = 1.0 / float(g1 @ (w * g1))
+    q_map = var_q * (g1 * w)
+    bm_q = band_model(fs, *_prior(q_map @ probes, fs, band, var_q), var_q)
+    bm_r = tuple(band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r])
+                 for r in range(len(gauges)))
+    return AnyDriveSetup(band=band, fs=fs, probe_shapes=gam, probe_weights=w,
+                         coordinate_map=q_map, var_q=var_q, coordinate_model=bm_q,
+                         reaction_models=bm_r, var_g=var_g, couplings=model.couplings[:, 0],
+                         pinv=np.linalg.pinv(force_matrix(rig)))
+
+
+@dataclass(frozen=True)
+class WindowEstimate:
+    """The forces over a stretch of samples (a whole run, or a stream's window).
+
+    ``force``, ``force_std`` (n_forces, N); ``total``, ``total_std`` (N,); ``static``
+    (n_forces, N) reactions only; ``inertia``, ``reactions`` (n_gauges, N); ``coordinate``
+    (N,); ``passed`` (n_forces,): the share of each force's smoothed noise the Wiener gains
+    let through.
+    """
+
+    force: np.ndarray
+    force_std: np.ndarray
+    total: np.ndarray
+    total_std: np.ndarray
+    static: np.ndarray
+    inertia: np.ndarray
+    reactions: np.ndarray
+    coordinate: np.ndarray
+    passed: np.ndarray
+
+
+def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarray,
+                  probes: np.ndarray, frame: int, source: str = "<run>") -> WindowEstimate:
+    """Steps 1-4 over a stretch of samples with a fixed setup and Wiener frame.
+
+    Parameters
+    ----------
+    setup : AnyDriveSetup
+    model : BroadbandModel
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+    frame : int
+        Samples per Wiener frame (:func:`forcecal.wiener.stft_frame`).
+    source : str
+        Named in messages.
+
+    Returns
+    -------
+    WindowEstimate
+
+    Raises
+    ------
+    DataError
+        Forces that are not finite.
+    """
+    fs = setup.fs
+    q = setup.coordinate_map @ probes                            # the first shape's coordinate
+    bm_q, bm_r = setup.coordinate_model, setup.reaction_models
+    acc = smooth_states(bm_q, q, states=(2,))[0]
+    reactions = np.stack([smooth_states(bm_r[r], gauges[r], states=(0,))[0]
+                          for r in range(len(gauges))])
+    m1 = setup.couplings
+    inertia = m1[:, None] * acc[None, :]
+    gam, w = setup.probe_shapes, setup.probe_weights
+
+    def correction(f: np.ndarray) -> np.ndarray:
+        return (model.inertia_correction(f, gam, w) if model.n_shapes > 1
+                else np.ones((len(m1), len(f))))
+
+    if model.n_shapes > 1:
+        inertia = _corrected(inertia, fs, correction)
+    pinv = setup.pinv
+    force = pinv @ (inertia - reactions)
+    if not np.all(np.isfinite(force)):
+        raise DataError(f"run '{source}': the forces are not finite (a channel holds "
+                        "non-finite samples?)")
+    f = np.fft.rfftfreq(frame, 1.0 / fs)
+    t_a = smoother_response(bm_q, 2, frame)
+    noise = np.concatenate([
+        (np.sqrt(setup.var_q) * t_a * (pinv @ (m1[:, None] * correction(f))))[:, None, :],
+        np.stack([-pinv[:, r, None] * np.sqrt(setup.var_g[r])
+                  * smoother_response(bm_r[r], 0, frame) for r in range(len(gauges))],
+                 axis=1)], axis=1)
+    sw = wiener_smooth(force, noise, fs, frame)
+    return WindowEstimate(force=sw.values, force_std=sw.std, total=sw.total,
+                          total_std=sw.total_std, static=-pinv @ gauges, inertia=inertia,
+                          reactions=reactions, coordinate=q, passed=sw.passed)
+
+
+def run_channels(rig: Rig, run: Run, tare: Run | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """The run's gauges (n_gauges, N) [N] and probes (n_probes, N) [m], less the tare's means.
+
+    Raises
+    ------
+    DataError
+        A gauge or probe channel that is constant.
+    """
+    sig = channels_si(rig, run)
+    for name in (*rig.gauge_names, *rig.sensor_names):
+        if np.ptp(sig[name]) == 0:
+            raise DataError(f"run '{run.source}': channel '{name}' is constant over the run; "
+                            "a dead or disconnected sensor cannot follow any drive")
+    gauges = np.stack([sig[g] for g in rig.gauge_names])
+    probes = np.stack([sig[s] for s in rig.sensor_names])
+    if tare is not None:
+        tsig = channels_si(rig, tare)
+        gauges -= np.array([np.mean(tsig[g]) for g in rig.gauge_names])[:, None]
+        probes -= np.array([np.mean(tsig[s]) for s in rig.sensor_names])[:, None]
+    return gauges, probes
+
+
+def check_length(model: BroadbandModel, n: int, fs: float, source: str) -> None:
+    """DataError unless ``n`` samples at ``fs`` are long enough for the model's band."""
+    band = model.band
+    if n < 4 * fs / max(band[0], 1.0) or n < 8 * fs / band[1]:
+        raise DataError(f"run '{source}': {n} samples are too short for the band "
+                        f"{band[0]:g}-{band[1]:g} Hz")
+
+
 def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,
                     smooth: bool = True) -> TransientEstimate:
     """The forces of a run under any drive, sample by sample.
@@ -180,7 +373,9 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     tare : Run, optional
         A zero-current record: its mean gauge and probe values are the zero.
     smooth : bool
-        The Kalman smoother (batch, default) or the causal filter (real time).
+        The batch estimate over the whole record (default), or the real-time one that
+        ``stream`` gives (:class:`forcecal.stream.any_drive.AnyDriveStream`: every sample from
+        the samples up to a fixed latency after it, its setup from the run's first seconds).
 
     Returns
     -------
@@ -194,78 +389,22 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
         A record too short for the band, or a gauge or probe channel that is constant.
     """
     check_rig_keys(model.rig, model.source, rig)
-    band = model.band
     fs = run.fs
     n = run.n_samples
-    if n < 4 * fs / max(band[0], 1.0) or n < 8 * fs / band[1]:
-        raise DataError(f"run '{run.source}': {n} samples are too short for the band "
-                        f"{band[0]:g}-{band[1]:g} Hz")
-    sig = channels_si(rig, run)
-    for name in (*rig.gauge_names, *rig.sensor_names):
-        if np.ptp(sig[name]) == 0:
-            raise DataError(f"run '{run.source}': channel '{name}' is constant over the run; "
-                            "a dead or disconnected sensor cannot follow any drive")
-    gauges = np.stack([sig[g] for g in rig.gauge_names])
-    probes = np.stack([sig[s] for s in rig.sensor_names])
-    if tare is not None:
-        tsig = channels_si(rig, tare)
-        gauges -= np.array([np.mean(tsig[g]) for g in rig.gauge_names])[:, None]
-        probes -= np.array([np.mean(tsig[s]) for s in rig.sensor_names])[:, None]
-    var_s = channel_noise(probes, fs, band)
-    var_g = channel_noise(gauges, fs, band)
-    st = rig.structure
-    gam = model.values(st.coordinates(rig.sensor_points, source=f"rig '{rig.source}'")).real
-    w = 1.0 / var_s
-    g1 = gam[:, 0]
-    var_q = 1.0 / float(g1 @ (w * g1))
-    q = var_q * ((g1 * w) @ probes)                              # the first shape's coordinate
-    estimate = smooth_states if smooth else filter_states
-    bm_q = band_model(fs, *_prior(q, fs, band, var_q), var_q)
-    acc = estimate(bm_q, q, states=(2,))[0]
-    var_acc = float((bm_q.smoothed_cov if smooth else bm_q.filtered_cov)[2, 2])
-    reactions = np.empty_like(gauges)
-    var_r = np.empty(len(gauges))
-    bm_r = []
-    for r in range(len(gauges)):
-        bm_r.append(band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r]))
-        reactions[r] = estimate(bm_r[r], gauges[r], states=(0,))[0]
-        var_r[r] = (bm_r[r].smoothed_cov if smooth else bm_r[r].filtered_cov)[0, 0]
-    m1 = model.couplings[:, 0]
-    inertia = m1[:, None] * acc[None, :]
+    check_length(model, n, fs, run.source)
+    gauges, probes = run_channels(rig, run, tare)
+    if not smooth:
+        from .stream.any_drive import stream_arrays
 
-    def correction(f: np.ndarray) -> np.ndarray:
-        return (model.inertia_correction(f, gam, w) if model.n_shapes > 1
-                else np.ones((len(m1), len(f))))
-
-    if model.n_shapes > 1:
-        inertia = _corrected(inertia, fs, correction)
-    pinv = np.linalg.pinv(force_matrix(rig))
-    force = pinv @ (inertia - reactions)
-    static = -pinv @ gauges
-    if not np.all(np.isfinite(force)):
-        raise DataError(f"run '{run.source}': the forces are not finite (a channel holds "
-                        "non-finite samples?)")
-    rows = np.vstack([pinv, np.ones(len(rig.forces)) @ pinv])
-    # every gauge's inertia comes from the one coordinate: its noise is common to them
-    var = (rows @ m1) ** 2 * var_acc + (rows**2) @ var_r
-    force_std = np.repeat(np.sqrt(var[:-1, None]), n, axis=1)
-    total_std = np.full(n, np.sqrt(var[-1]))
-    total = force.sum(axis=0)
-    notes: list[str] = []
-    if smooth:
-        frame = stft_frame(fs, n)
-        f = np.fft.rfftfreq(frame, 1.0 / fs)
-        t_a = smoother_response(bm_q, 2, frame)
-        noise = np.concatenate([
-            (np.sqrt(var_q) * t_a * (pinv @ (m1[:, None] * correction(f))))[:, None, :],
-            np.stack([-pinv[:, r, None] * np.sqrt(var_g[r]) * smoother_response(bm_r[r], 0, frame)
-                      for r in range(len(gauges))], axis=1)], axis=1)
-        sw = wiener_smooth(force, noise, fs, frame)
-        force, force_std, total, total_std = sw.values, sw.std, sw.total, sw.total_std
-        notes.append(f"short-time Wiener gains ({frame} samples a frame) let through "
-                     f"{100 * float(np.max(sw.passed)):.3g} % of the smoothed noise at most")
+        return stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name)
+    setup = any_drive_setup(rig, model, gauges, probes, fs)
+    frame = stft_frame(fs, n)
+    est = window_forces(setup, model, gauges, probes, frame, run.source)
+    notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
+             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",)
     return TransientEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
-        time=run.t0 + np.arange(n) / fs, force=force, force_std=force_std,
-        total=total, total_std=total_std, static=static, inertia=inertia,
-        reactions=reactions, coordinates=q[None, :], band=band, smoothed=smooth, notes=tuple(notes))
+        time=run.t0 + np.arange(n) / fs, force=est.force, force_std=est.force_std,
+        total=est.total, total_std=est.total_std, static=est.static, inertia=est.inertia,
+        reactions=est.reactions, coordinates=est.coordinate[None, :], band=model.band,
+        smoothed=True, notes=notes)

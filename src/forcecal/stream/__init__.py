@@ -1,6 +1,7 @@
 """Forces in real time (METHOD.md section 3, step 7): the recursive least-squares kernel
 (:mod:`.rls`), the streaming estimator built on it (:mod:`.estimator`), and the replay of a
-recorded run through it with its table writer (:mod:`.replay`)."""
+recorded run through it with its table writer (:mod:`.replay`); under any drive, the batch
+estimate over a window that slides with the stream (:mod:`.any_drive`)."""
 
 from .estimator import DEFAULT_MEMORY_PERIODS, StreamEstimator
 from .replay import replay, write_stream_csv

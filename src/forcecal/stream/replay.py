@@ -16,7 +16,7 @@ from typing import IO
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import DataError, InputError
 from ..io.blocks import RunBlocks
 from ..io.table_writer import CSV_DIGITS, table_writer
 from ..records import Run
@@ -24,10 +24,26 @@ from ..rig import Rig
 from ..spatial import SpatialModel
 from .estimator import StreamEstimator
 
-__all__ = ["replay", "stream_forces", "stream_table", "write_stream_csv"]
+__all__ = ["bounded_forces", "replay", "stream_columns", "stream_forces", "stream_rows",
+           "stream_table", "write_stream_csv"]
 
 Check = Callable[[np.ndarray, Mapping[str, np.ndarray], Mapping[str, np.ndarray]], None]
 """A test of each block of streamed forces before it is written: (time, forces, static)."""
+
+
+def bounded_forces(source: str, limit: float) -> Check:
+    """A :data:`Check` that stops a stream (DataError naming the run, the force and the time)
+    at a streamed force that is not finite or beyond ``limit`` [N]."""
+    def check(t: np.ndarray, forces: Mapping[str, np.ndarray],
+              static: Mapping[str, np.ndarray]) -> None:
+        for name, values in [*forces.items(), *static.items()]:
+            bad = ~np.isfinite(values) | (np.abs(values) > limit)
+            if bad.any():
+                k = int(np.argmax(bad))
+                raise DataError(f"run '{source}': the streamed force {name!r} is "
+                                f"{values[k]:.4g} N at t={t[k]:.6g} s, not finite or beyond "
+                                f"{limit:g} N; nothing written")
+    return check
 
 
 STREAM_READ = 1 << 14
@@ -149,14 +165,17 @@ def replay(rig: Rig, model: SpatialModel, run: Run, block: int = 256, *,
             {k: static[i] for i, k in enumerate(names)})
 
 
-def _columns(names: Sequence[str], std: bool = False) -> list[str]:
+def stream_columns(names: Sequence[str], std: bool = False) -> list[str]:
     """The table's columns after ``time``: one per force, ``total``, the same ``_static``, and
     with ``std`` the same ``_std`` (the forces' and the total's standard uncertainty)."""
     return [*names, "total", *(f"{n}_static" for n in names), "total_static",
             *((*(f"{n}_std" for n in names), "total_std") if std else ())]
 
 
-def _rows(force: np.ndarray, static: np.ndarray, std: np.ndarray | None = None) -> np.ndarray:
+def stream_rows(force: np.ndarray, static: np.ndarray,
+                std: np.ndarray | None = None) -> np.ndarray:
+    """The table's rows (columns of :func:`stream_columns`) of forces, reactions-only forces
+    and, when given, their standard uncertainties (each force's, then the total's)."""
     return np.concatenate([force, force.sum(axis=0)[None], static, static.sum(axis=0)[None],
                            *(() if std is None else (std,))])
 
@@ -200,14 +219,14 @@ def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str |
     est = _estimator(rig, model, blocks.fs, blocks.t0, f0_guess, dict(options))
     names = est.force_names
     size = block * max(1, STREAM_READ // block)   # whole calls of ``block`` a read
-    with table_writer(target, _columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
+    with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
                       rows=blocks.n_samples, stdout=stdout) as out:
         for time, force, static, std in stream_forces(
                 est, blocks.blocks(est.channel_names, size), block, blocks.t0):
             if check is not None:
                 check(time, dict(zip(names, force, strict=True)),
                       dict(zip(names, static, strict=True)))
-            out.write(time, _rows(force, static, std))
+            out.write(time, stream_rows(force, static, std))
         return out.rows
 
 
@@ -248,8 +267,8 @@ def write_stream_csv(path: str | Path, time: np.ndarray, forces: Mapping[str, np
             raise InputError(f"table '{path}': column {name!r} has {column.size} values, time "
                              f"has {time.size}")
     step = float(np.mean(np.diff(time))) if time.size > 1 else 1.0
-    with table_writer(path, _columns(list(forces)), 1.0 / step,
+    with table_writer(path, stream_columns(list(forces)), 1.0 / step,
                       float(time[0]) if time.size else 0.0, digits=digits,
                       rows=time.size) as out:
-        out.write(time, _rows(force.reshape(-1, time.size), stat.reshape(-1, time.size)))
+        out.write(time, stream_rows(force.reshape(-1, time.size), stat.reshape(-1, time.size)))
     return Path(path)

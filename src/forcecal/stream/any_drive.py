@@ -1,0 +1,274 @@
+"""Forces under any drive in real time: the batch estimate of :mod:`forcecal.transient` over a
+window that slides with the stream.
+
+A smoother needs the future a causal filter lacks: the best causal estimate of an acceleration
+from displacements lags it (on the ``sweep`` rig the steady Kalman filter's acceleration is
+off the smoother's by 87 % of its RMS). So the stream gives every sample once the samples a
+fixed ``latency`` after it have arrived, computed over a window that also keeps ``history``
+before the samples it gives:
+
+- the first ``warmup`` seconds set what the batch estimate takes from the whole record: every
+  channel's noise, the probes' weights, the band models (:func:`forcecal.transient
+  .any_drive_setup`); nothing is given before they have arrived;
+- then, whenever ``step`` seconds can be given, the window from ``history`` before them to
+  the newest sample goes through :func:`forcecal.transient.window_forces` (the smoothers, the
+  inertia's correction to the operating shapes, the short-time Wiener gains) and the samples
+  at least ``latency`` old are given. The window starts on the Wiener frames' hop, as the
+  batch's frames do, so that inside the record the two use the same frames;
+- at the end of the record the rest is given at once.
+
+Memory and work per sample stay flat in the record's length. With the batch's setup the
+stream matches the batch estimate inside the record to a small part of its uncertainty (the
+windows' edges are ``history`` and ``latency`` away); with its own, from the first seconds,
+to what those seconds tell of the noise.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO
+
+import numpy as np
+
+from ..broadband import BroadbandModel
+from ..errors import InputError
+from ..io.blocks import RunBlocks
+from ..io.table_writer import CSV_DIGITS, table_writer
+from ..rig import Rig
+from ..spatial import check_rig_keys
+from ..transient import (
+    AnyDriveSetup,
+    TransientEstimate,
+    any_drive_setup,
+    check_length,
+    window_forces,
+)
+from ..wiener import stft_frame
+from .replay import Check, stream_columns, stream_rows
+
+__all__ = ["HISTORY", "LATENCY", "STEP", "WARMUP", "AnyDriveStream", "StreamChunk",
+           "stream_any_table", "stream_arrays"]
+
+LATENCY = 0.5
+"""[s] every sample is given once this much of the record after it has arrived (at least two
+Wiener frames and the smoothers' settling)."""
+HISTORY = 0.5
+"""[s] the past the window keeps before the samples it gives (as long as :data:`LATENCY`)."""
+WARMUP = 2.0
+"""[s] the first seconds, from which the channels' noise and the band models are set."""
+STEP = 0.5
+"""[s] the window is computed again once this much more can be given."""
+
+
+@dataclass(frozen=True)
+class StreamChunk:
+    """Samples the stream gives at once: ``time`` (n,) [s], ``force`` and ``static``
+    (n_forces, n) [N], ``std`` (n_forces + 1, n) [N], each force's then the total's."""
+
+    time: np.ndarray
+    force: np.ndarray
+    static: np.ndarray
+    std: np.ndarray
+
+
+class AnyDriveStream:
+    """The real-time estimate under any drive, fed block by block.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : BroadbandModel
+    fs : float
+        [Hz] the stream's sampling rate.
+    t0 : float
+        [s] the time of its first sample.
+    setup : AnyDriveSetup, optional
+        The channels' noise and band models; default: from the first ``warmup`` seconds.
+    latency, history, warmup, step : float
+        [s] see the module's account (defaults :data:`LATENCY`, :data:`HISTORY`,
+        :data:`WARMUP`, :data:`STEP`).
+
+    Raises
+    ------
+    InputError
+        A model of another rig.
+    """
+
+    def __init__(self, rig: Rig, model: BroadbandModel, fs: float, t0: float = 0.0,
+                 setup: AnyDriveSetup | None = None, latency: float = LATENCY,
+                 history: float = HISTORY, warmup: float = WARMUP, step: float = STEP):
+        check_rig_keys(model.rig, model.source, rig)
+        self.rig, self.model, self.fs, self.t0 = rig, model, float(fs), float(t0)
+        self._setup = setup
+        self._frame = stft_frame(fs, 1 << 62)
+        self._hop = self._frame // 4
+        self._warmup = int(math.ceil(warmup * fs))
+        self._latency = max(int(math.ceil(latency * fs)), 2 * self._frame)
+        self._history = max(int(math.ceil(history * fs)), 2 * self._frame)
+        self._step = max(int(math.ceil(step * fs)), 1)
+        self._scale = np.array([g.scale for g in rig.gauges] + [s.scale for s in rig.sensors])
+        self._n_g = len(rig.gauges)
+        self._buffer = np.empty((len(self._scale), 0))
+        self._start = 0          # absolute index of the buffer's first sample
+        self._received = 0
+        self._given = 0
+
+    @property
+    def channel_names(self) -> list[str]:
+        """The channels a block holds, in order: the gauges', then the probes'."""
+        return [*self.rig.gauge_names, *self.rig.sensor_names]
+
+    @property
+    def latency(self) -> float:
+        """[s] how long after a sample it is given."""
+        return self._latency / self.fs
+
+    @property
+    def setup(self) -> AnyDriveSetup | None:
+        """The setup in use (None before the warm-up has arrived)."""
+        return self._setup
+
+    def process(self, block: np.ndarray) -> list[StreamChunk]:
+        """Feed raw samples of :attr:`channel_names` (n_channels, m); returns what can now be
+        given (possibly nothing)."""
+        block = np.asarray(block, dtype=float)
+        if block.ndim != 2 or block.shape[0] != len(self._scale):
+            raise InputError(f"stream: a block must hold {len(self._scale)} channels "
+                             f"({', '.join(self.channel_names)}); got shape {block.shape}")
+        self._buffer = np.hstack([self._buffer, block * self._scale[:, None]])
+        self._received += block.shape[1]
+        return self._give(final=False)
+
+    def finish(self) -> list[StreamChunk]:
+        """The end of the record: every sample not yet given."""
+        if self._received:
+            check_length(self.model, self._received, self.fs, "<stream>")
+        return self._give(final=True)
+
+    def _give(self, final: bool) -> list[StreamChunk]:
+        out: list[StreamChunk] = []
+        if self._setup is None:
+            if not self._received or (self._received < self._warmup and not final):
+                return out
+            g, p = self._buffer[:self._n_g], self._buffer[self._n_g:]
+            self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs)
+        end = self._received if final else self._received - self._latency
+        if end - self._given < (1 if final else self._step):
+            return out
+        start = max(self._given - self._history, 0)
+        start -= start % self._hop                       # on the batch's frames
+        window = self._buffer[:, start - self._start:]
+        est = window_forces(self._setup, self.model, window[:self._n_g], window[self._n_g:],
+                            min(self._frame, stft_frame(self.fs, window.shape[1])))
+        part = slice(self._given - start, end - start)
+        out.append(StreamChunk(
+            time=self.t0 + np.arange(self._given, end) / self.fs, force=est.force[:, part],
+            static=est.static[:, part],
+            std=np.vstack([est.force_std[:, part], est.total_std[None, part]])))
+        self._given = end
+        keep = max(self._given - self._history, 0)
+        keep -= keep % self._hop
+        self._buffer = self._buffer[:, keep - self._start:]
+        self._start = keep
+        return out
+
+
+def _chunks(stream: AnyDriveStream, blocks: Iterator[np.ndarray]) -> Iterator[StreamChunk]:
+    for block in blocks:
+        yield from stream.process(block)
+    yield from stream.finish()
+
+
+def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
+                  fs: float, t0: float = 0.0, name: str = "<run>",
+                  setup: AnyDriveSetup | None = None, block: int = 1 << 14
+                  ) -> TransientEstimate:
+    """A run held in memory through :class:`AnyDriveStream`, in blocks of ``block`` samples.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : BroadbandModel
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+        In SI (the stream's scales are then 1: the rig's are applied before).
+    fs, t0 : float
+        [Hz], [s].
+    name : str
+        The run's name.
+    setup : AnyDriveSetup, optional
+        As :class:`AnyDriveStream`.
+    block : int
+        Samples per block.
+
+    Returns
+    -------
+    TransientEstimate
+        ``smoothed`` False; ``inertia``, ``reactions`` and ``coordinates`` are not kept by a
+        stream (zeros).
+    """
+    import dataclasses
+
+    unit = dataclasses.replace(
+        rig, gauges=tuple(dataclasses.replace(g, scale=1.0) for g in rig.gauges),
+        sensors=tuple(dataclasses.replace(s, scale=1.0) for s in rig.sensors))
+    stream = AnyDriveStream(unit, model, fs, t0, setup=setup)
+    data = np.vstack([gauges, probes])
+    chunks = list(_chunks(stream, (data[:, k:k + block]
+                                   for k in range(0, data.shape[1], block))))
+    force = np.hstack([c.force for c in chunks])
+    std = np.hstack([c.std for c in chunks])
+    n = force.shape[1]
+    return TransientEstimate(
+        run_name=name, force_names=tuple(rig.force_names), time=np.hstack([c.time for c in chunks]),
+        force=force, force_std=std[:-1], total=force.sum(axis=0), total_std=std[-1],
+        static=np.hstack([c.static for c in chunks]), inertia=np.zeros((len(gauges), n)),
+        reactions=np.zeros((len(gauges), n)), coordinates=np.zeros((1, n)), band=model.band,
+        smoothed=False,
+        notes=(f"real time: every sample given {stream.latency:.3g} s after it, from a window "
+               f"of the samples up to then; noise and band models from the first "
+               f"{WARMUP:g} s",))
+
+
+def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
+                     *, check: Check | None = None, digits: int = CSV_DIGITS,
+                     stdout: IO[bytes] | None = None, read: int = 1 << 14) -> int:
+    """Stream a run file under any drive into the table ``stream`` writes.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : BroadbandModel
+    blocks : RunBlocks
+        The run, open and checked.
+    target : str or Path
+        As :func:`forcecal.stream.replay.stream_table`, with its columns.
+    check : callable, optional
+        Called with (time, forces, static) of every chunk before it is written.
+    digits : int
+        Significant digits of the CSV columns.
+    stdout : binary file, optional
+        Where ``-`` writes.
+    read : int
+        Samples read at a time.
+
+    Returns
+    -------
+    int
+        Rows written.
+    """
+    check_length(model, blocks.n_samples, blocks.fs, blocks.source)
+    stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0)
+    names = list(rig.force_names)
+    with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
+                      rows=blocks.n_samples, stdout=stdout) as out:
+        for c in _chunks(stream, blocks.blocks(stream.channel_names, read)):
+            if check is not None:
+                check(c.time, dict(zip(names, c.force, strict=True)),
+                      dict(zip(names, c.static, strict=True)))
+            out.write(c.time, stream_rows(c.force, c.static, c.std))
+        return out.rows
+
