@@ -60,6 +60,21 @@ def _windows(est: pd.DataFrame, truth: pd.DataFrame, column: str, width: float,
     return out
 
 
+def _stated(est: pd.DataFrame, truth: pd.DataFrame, top: float) -> dict:
+    """The total's RMS error over its RMS stated uncertainty, and the share of samples within
+    2 u, against the truth within the scan's band (content above it has no shape and is not
+    claimed)."""
+    t = truth["time"].to_numpy()
+    fs = 1.0 / (t[1] - t[0])
+    true = truth["total"].to_numpy()
+    spec = np.fft.rfft(true)
+    spec[np.fft.rfftfreq(true.size, 1.0 / fs) > top] = 0.0
+    err = est["total"].to_numpy() - np.fft.irfft(spec, true.size)
+    u = est["total_std"].to_numpy()
+    return {"ratio": float(np.sqrt(np.mean(err**2)) / np.sqrt(np.mean(u**2))),
+            "within_2u": float(np.mean(np.abs(err) <= 2 * u))}
+
+
 def _drive_run(folder: Path, run: str) -> dict:
     model = folder / "model.json"
     if main(["scan", "-q", str(folder / "rig.toml"), str(folder / "scan.uff"), "-o",
@@ -90,6 +105,8 @@ def _drive_run(folder: Path, run: str) -> dict:
             "windows_stream": _windows(live, truth, "total", 0.5),
             "stream_vs_batch_rms_in_stated_std": float(np.sqrt(np.mean(apart**2))
                                                        / np.sqrt(np.mean(est["total_std"]**2))),
+            "observed_to_stated": _stated(est, truth, band[1]),
+            "observed_to_stated_stream": _stated(live, truth, band[1]),
             "reconstruct_s": seconds, "stream_s": stream_s}
 
 
@@ -140,6 +157,11 @@ def report(res: dict) -> None:
         print("  stream   " + " ".join(f"{w:7.2%}" for w in r["windows_stream"])
               + f"   (stream - batch: {r['stream_vs_batch_rms_in_stated_std']:.2f} of the "
               f"stated std RMS; stream {r['stream_s']:.2f} s)")
+        for key, label in (("observed_to_stated", "batch"),
+                           ("observed_to_stated_stream", "stream")):
+            o = r[key]
+            print(f"  {label}: observed / stated {o['ratio']:.2f}, {o['within_2u']:.1%} of the "
+                  "samples within 2 u (against the truth within the band)")
     c = res["stepped_sines"]
     print(f"stepped sines: tau {c['tau'] * 1e3:.4f} +/- {c['tau_std'] * 1e3:.4f} ms (true "
           f"{c['tau_true'] * 1e3:g} ms)")

@@ -323,9 +323,37 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                   * smoother_response(bm_r[r], 0, frame) for r in range(len(gauges))],
                  axis=1)], axis=1)
     sw = wiener_smooth(force, noise, fs, frame)
-    return WindowEstimate(force=sw.values, force_std=sw.std, total=sw.total,
-                          total_std=sw.total_std, static=-pinv @ gauges, inertia=inertia,
-                          reactions=reactions, coordinate=q, passed=sw.passed)
+    part = pinv @ inertia
+    edge = _edge_std(np.vstack([part, part.sum(axis=0)]), fs, bm_q)
+    return WindowEstimate(force=sw.values, force_std=np.hypot(sw.std, edge[:-1]),
+                          total=sw.total, total_std=np.hypot(sw.total_std, edge[-1]),
+                          static=-pinv @ gauges, inertia=inertia, reactions=reactions,
+                          coordinate=q, passed=sw.passed)
+
+
+EDGE_PERIODS = 2.0
+"""The record's first and last this many periods of the coordinate's cutoff hold an inertia
+the smoother cannot see whole (:func:`_edge_std`)."""
+
+
+def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
+    """(n, N) [N]: the uncertainty of the inertia's part ``part`` (n, N) at the record's ends.
+
+    The smoother extends the record by its odd reflection, which sets the coordinate's second
+    derivative to zero at the ends: within about a period of the cutoff of them the inertia is
+    lost, by up to its whole size there (on the beam's random force the error in the first
+    50 ms is 4-13 times the noise's). Stated as the inertia part's RMS over the
+    ``EDGE_PERIODS`` periods next to each end, tapered as (1 - t / T_e)^2 from the end."""
+    n = part.shape[-1]
+    m = min(int(np.ceil(EDGE_PERIODS * fs / (bm.scale[1] / (2 * np.pi)))), n // 2)
+    out = np.zeros_like(part)
+    if m < 1:
+        return out
+    taper = (1.0 - np.arange(m) / m) ** 2
+    for ends, take in ((slice(0, m), lambda x: x), (slice(n - m, n), lambda x: x[..., ::-1])):
+        size = np.sqrt(np.mean(part[:, ends] ** 2, axis=1))
+        out[:, ends] = take(size[:, None] * taper[None, :])
+    return out
 
 
 def run_channels(rig: Rig, run: Run, tare: Run | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -7,9 +7,11 @@ frames add back to the record) every frequency bin of every estimate is weighted
 G = max(0, 1 - 2 N / |Z|^2), N the bin's noise power known from the channels' noise and the
 smoothers' frequency responses, |Z|^2 the bin's power averaged with its neighbours (3 bins by
 3 frames): bins far above their noise pass unchanged, bins at their noise are set aside
-(power subtraction with over-subtraction; Boll 1979, Berouti et al. 1979). The gains bias the
-bins near their noise downwards, which the stated uncertainty does not count. The noise each
-frame lets through is summed bin by bin, so every sample keeps a standard uncertainty.
+(power subtraction with over-subtraction; Boll 1979, Berouti et al. 1979). Every sample keeps
+a standard uncertainty, summed bin by bin over its frames: the noise the gains let through,
+G^2 N, and the signal they take, (1 - G)^2 S with S = G |Z|^2 the power they keep (a bin near
+its noise loses part of its signal: on a swept tone the observed error is then 0.86 of the
+stated, 1.14 without that part; inside a random force's record 0.87-0.95, 1.01-1.13 without).
 """
 
 from __future__ import annotations
@@ -115,6 +117,14 @@ def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int) -> Sh
     var = np.einsum("kb,kbt->kt", np.sum(np.abs(noise) ** 2, axis=1) * fold, gain**2) / frame
     tot = np.einsum("ksb,kbt->sbt", noise, gain)               # each source in the total
     var_total = np.einsum("b,sbt->t", fold, np.abs(tot) ** 2) / frame
+    # what the gains take of the signal itself: (1 - G) of its amplitude, the signal's power
+    # read as the power they keep, G |Z|^2 (in density units: the power above the
+    # over-subtracted noise; a noise-only bin's excess over its mean is not signal), with the
+    # bin's phase, so that the forces' parts add up coherently in the total
+    signal = np.sqrt(gain * power / per_bin)
+    cut = (1.0 - gain) * signal * np.exp(1j * np.angle(z))
+    var = var + np.einsum("b,kbt->kt", fold, np.abs(cut) ** 2) / frame
+    var_total = var_total + np.einsum("b,bt->t", fold, np.abs(cut.sum(axis=0)) ** 2) / frame
     time = np.arange(n) / fs
     std = np.sqrt(np.stack([np.interp(time, t, v) for v in var]))
     total_std = np.sqrt(np.interp(time, t, var_total))
