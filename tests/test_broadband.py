@@ -342,6 +342,9 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     assert np.max(d) < 0.4, np.max(d)
     for k in range(2):
         assert np.max(np.abs(streamed.force[k] - batch.force[k])[inner]) < 0.1 * u_b
+    # the inertia inside the record: 1.6e-4 of its RMS (the windows' own Fourier transforms)
+    j_rms = np.sqrt(np.mean(batch.inertia[:, inner] ** 2))
+    assert np.max(np.abs(streamed.inertia - batch.inertia)[:, inner]) < 1e-3 * j_rms
     own = reconstruct_any(rig, bb_model, run, smooth=False)
     assert not own.smoothed and own.total.shape == batch.total.shape
     assert np.sqrt(np.mean((own.total - batch.total) ** 2)) < 0.3 * u_b

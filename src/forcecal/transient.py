@@ -6,8 +6,8 @@ instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`)
 1. the first shape's coordinate at every sample from the probes,
    q_1(t) = (g_1^T W s(t)) / (g_1^T W g_1), g_1 = phi_1 at the probes, W their inverse noise
    variances (eq. 15-16);
-2. its acceleration, and every gauge's reaction, from a Kalman smoother (batch) or filter
-   (real time) of a band-limited signal (:mod:`forcecal.kalman`), with its steady covariance;
+2. its acceleration, and every gauge's reaction, from a Kalman smoother of a band-limited
+   signal (:mod:`forcecal.kalman`), with its steady covariance;
 3. J_r = m_{r,1} q_1'' corrected frequency by frequency to the operating shape of every
    frequency (:meth:`forcecal.broadband.BroadbandModel.inertia_correction`), and
    f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the reactions-only estimate -Psi^+ R(t);
@@ -61,7 +61,8 @@ class TransientEstimate:
         Reactions and inertia.
     force_std : (n_forces, N) array [N]
         Standard uncertainty of every sample: the smoother's noise the short-time Wiener gains
-        let through (the filter: its steady covariance, propagated).
+        let through and the signal they take, and at the record's ends the inertia the
+        smoother cannot see whole.
     total : (N,) array [N]
     total_std : (N,) array [N]
     static : (n_forces, N) array [N]
@@ -74,7 +75,8 @@ class TransientEstimate:
         The first shape's coordinate q_1(t) from the probes.
     band : (low, high) [Hz]
     smoothed : bool
-        True for the smoother (batch), False for the causal filter (real time).
+        True for the batch estimate, False for the real-time one (``stream``: each sample
+        from the samples up to a fixed latency after it).
     notes : tuple of str
     """
 

@@ -66,12 +66,16 @@ STEP = 0.5
 @dataclass(frozen=True)
 class StreamChunk:
     """Samples the stream gives at once: ``time`` (n,) [s], ``force`` and ``static``
-    (n_forces, n) [N], ``std`` (n_forces + 1, n) [N], each force's then the total's."""
+    (n_forces, n) [N], ``std`` (n_forces + 1, n) [N], each force's then the total's;
+    ``inertia`` and ``reactions`` (n_gauges, n) [N], ``coordinate`` (n,) [1]."""
 
     time: np.ndarray
     force: np.ndarray
     static: np.ndarray
     std: np.ndarray
+    inertia: np.ndarray
+    reactions: np.ndarray
+    coordinate: np.ndarray
 
 
 class AnyDriveStream:
@@ -167,7 +171,9 @@ class AnyDriveStream:
         out.append(StreamChunk(
             time=self.t0 + np.arange(self._given, end) / self.fs, force=est.force[:, part],
             static=est.static[:, part],
-            std=np.vstack([est.force_std[:, part], est.total_std[None, part]])))
+            std=np.vstack([est.force_std[:, part], est.total_std[None, part]]),
+            inertia=est.inertia[:, part], reactions=est.reactions[:, part],
+            coordinate=est.coordinate[part]))
         self._given = end
         keep = max(self._given - self._history, 0)
         keep -= keep % self._hop
@@ -207,8 +213,7 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     Returns
     -------
     TransientEstimate
-        ``smoothed`` False; ``inertia``, ``reactions`` and ``coordinates`` are not kept by a
-        stream (zeros).
+        ``smoothed`` False.
     """
     import dataclasses
 
@@ -221,12 +226,13 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
                                    for k in range(0, data.shape[1], block))))
     force = np.hstack([c.force for c in chunks])
     std = np.hstack([c.std for c in chunks])
-    n = force.shape[1]
     return TransientEstimate(
         run_name=name, force_names=tuple(rig.force_names), time=np.hstack([c.time for c in chunks]),
         force=force, force_std=std[:-1], total=force.sum(axis=0), total_std=std[-1],
-        static=np.hstack([c.static for c in chunks]), inertia=np.zeros((len(gauges), n)),
-        reactions=np.zeros((len(gauges), n)), coordinates=np.zeros((1, n)), band=model.band,
+        static=np.hstack([c.static for c in chunks]),
+        inertia=np.hstack([c.inertia for c in chunks]),
+        reactions=np.hstack([c.reactions for c in chunks]),
+        coordinates=np.hstack([c.coordinate for c in chunks])[None, :], band=model.band,
         smoothed=False,
         notes=(f"real time: every sample given {stream.latency:.3g} s after it, from a window "
                f"of the samples up to then; noise and band models from the first "
