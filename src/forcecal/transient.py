@@ -338,6 +338,39 @@ EDGE_PERIODS = 2.0
 the smoother cannot see whole (:func:`_edge_std`)."""
 
 
+ABOVE_BAND = 1e-4
+"""A run whose drive's i^2 holds more than this share of its AC power above the scan's band,
+in some half second, is noted (1 % in amplitude): that content has no operating shape."""
+
+
+def _above_band(current: np.ndarray, fs: float, band: tuple[float, float],
+                source: str) -> tuple[str, ...]:
+    """A note when the coil current's square (the magnet's force at a fixed gap) holds more
+    than ``ABOVE_BAND`` of its AC power above the scan's band in any half second, its white
+    noise (read between 0.4 and 0.45 of the sampling rate) taken out: that content has no
+    operating shape, so the smoothers set it aside and its inertia is not compensated. A
+    biased magnet pulls at twice its drive's frequencies, which a scan over the drive's band
+    alone misses."""
+    x = current**2
+    n = max(int(0.5 * fs), 256)
+    worst, at = 0.0, 0.0
+    for start in range(0, max(x.size - n, 0) + 1, n):
+        seg = x[start:start + n]
+        f, p = scipy.signal.welch(seg, fs=fs, nperseg=min(seg.size, 1024))
+        floor = float(np.median(p[(f >= 0.4 * fs) & (f <= 0.45 * fs)]))
+        above = (f > band[1]) & (f < 0.4 * fs)
+        share = float(np.sum(np.maximum(p[above] - floor, 0.0)) / max(np.sum(p[1:]), 1e-300))
+        if share > worst:
+            worst, at = share, start / fs
+    if worst <= ABOVE_BAND:
+        return ()
+    return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(worst):.2g} % of its "
+            f"AC amplitude above the scan's band ({band[1]:g} Hz) in the half second from "
+            f"{at:.3g} s: no operating shape is known there, so that part of the force is "
+            "smoothed away and its inertia not compensated; scan over a band that covers it (a "
+            "biased magnet pulls at twice its drive's frequencies)",)
+
+
 def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
     """(n, N) [N]: the uncertainty of the inertia's part ``part`` (n, N) at the record's ends.
 
@@ -431,7 +464,9 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
-             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",)
+             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
+             *_above_band(channels_si(rig, run)[rig.actuator.current], fs, model.band,
+                          run.source))
     return TransientEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
         time=run.t0 + np.arange(n) / fs, force=est.force, force_std=est.force_std,
