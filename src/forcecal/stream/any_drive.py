@@ -25,6 +25,7 @@ to what those seconds tell of the noise.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -215,8 +216,6 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     TransientEstimate
         ``smoothed`` False.
     """
-    import dataclasses
-
     unit = dataclasses.replace(
         rig, gauges=tuple(dataclasses.replace(g, scale=1.0) for g in rig.gauges),
         sensors=tuple(dataclasses.replace(s, scale=1.0) for s in rig.sensors))
