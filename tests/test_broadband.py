@@ -321,40 +321,40 @@ def random_run(beam):
 
 def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     """With the batch's setup, every sample the stream gives (in blocks, from a window reaching
-    0.5 s before and after it) is the batch's to 0.1 of its stated uncertainty inside the record
-    (achieved 0.019) and 0.4 at its ends (achieved 0.12); from its own first two seconds, to
-    0.3 (achieved 0.10) and within 0.8 % of the true total's AC RMS (achieved 0.26 %, the batch
-    0.27 %)."""
+    0.5 s before and after it) is the batch's to 0.05 of its median stated uncertainty inside
+    the record (achieved 0.017; each force 0.014-0.020) and 0.3 at its ends (achieved 0.10);
+    from its own first two seconds, to 0.25 RMS (achieved 0.090) and within 0.8 % of the true
+    total's AC RMS (achieved 0.26 %, the batch 0.27 %)."""
     from forcecal.stream.any_drive import stream_arrays
     from forcecal.transient import any_drive_setup, run_channels
 
     rig = beam[3]
     run, u, _ = random_run
     batch = reconstruct_any(rig, bb_model, run)
-    gauges, probes = run_channels(rig, run)
+    gauges, probes, _ = run_channels(rig, run)
     setup = any_drive_setup(rig, bb_model, gauges, probes, FS)
     streamed = stream_arrays(rig, bb_model, gauges, probes, FS, setup=setup, block=1000)
     np.testing.assert_array_equal(streamed.time, batch.time)
-    u_b = float(np.mean(batch.total_std))
+    u_b = float(np.median(batch.total_std))
     d = np.abs(streamed.total - batch.total) / u_b
     inner = slice(int(0.5 * FS), -int(0.5 * FS))
-    assert np.max(d[inner]) < 0.1, np.max(d[inner])
-    assert np.max(d) < 0.4, np.max(d)
+    assert np.max(d[inner]) < 0.05, np.max(d[inner])
+    assert np.max(d) < 0.3, np.max(d)
     for k in range(2):
-        assert np.max(np.abs(streamed.force[k] - batch.force[k])[inner]) < 0.1 * u_b
+        assert np.max(np.abs(streamed.force[k] - batch.force[k])[inner]) < 0.05 * u_b
     # the inertia inside the record: 1.6e-4 of its RMS (the windows' own Fourier transforms)
     j_rms = np.sqrt(np.mean(batch.inertia[:, inner] ** 2))
     assert np.max(np.abs(streamed.inertia - batch.inertia)[:, inner]) < 1e-3 * j_rms
     own = reconstruct_any(rig, bb_model, run, smooth=False)
     assert not own.smoothed and own.total.shape == batch.total.shape
-    assert np.sqrt(np.mean((own.total - batch.total) ** 2)) < 0.3 * u_b
+    assert np.sqrt(np.mean((own.total - batch.total) ** 2)) < 0.25 * u_b
     truth = 2 * u
     assert np.sqrt(np.mean((own.total - truth) ** 2)) / np.std(truth) < 0.008
 
 
 def test_cli_streams_a_run_under_any_drive(beam, scan, random_run, tmp_path, capsys):
     """``stream`` with a broadband model writes the steady stream's columns, every sample, the
-    batch's series to 0.3 of its uncertainty (achieved 0.10); ``--memory`` and ``--steady``,
+    batch's series to 0.2 of its uncertainty (achieved 0.061); ``--memory`` and ``--steady``,
     which set a steady stream's memory, are refused in one line with exit status 2."""
     import pandas as pd
     import tomli_w
@@ -381,7 +381,7 @@ def test_cli_streams_a_run_under_any_drive(beam, scan, random_run, tmp_path, cap
                                       "total_static", "F1_std", "F2_std", "total_std"]
     assert len(streamed) == run.n_samples
     d = streamed["total"].to_numpy() - batch["total"].to_numpy()
-    assert np.sqrt(np.mean(d**2)) < 0.3 * batch["total_std"].mean()
+    assert np.sqrt(np.mean(d**2)) < 0.2 * batch["total_std"].mean()
     capsys.readouterr()
     for option in (["--memory", "5"], ["--steady"]):
         assert main(["stream", *args, "-o", str(tmp_path / "x.csv"), *option]) == 2

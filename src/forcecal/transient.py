@@ -29,7 +29,9 @@ reach), so that a probe's noise sets its weight and the smoother's gain.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import dataclasses
+from collections.abc import Sequence
+from dataclasses import dataclass, fields
 
 import numpy as np
 import scipy.signal
@@ -94,6 +96,18 @@ class TransientEstimate:
     band: tuple[float, float]
     smoothed: bool = True
     notes: tuple[str, ...] = ()
+
+    @classmethod
+    def from_window(cls, rig: Rig, run_name: str, t0: float, fs: float,
+                    est: WindowEstimate, band: tuple[float, float], smoothed: bool,
+                    notes: tuple[str, ...]) -> TransientEstimate:
+        """The estimate of a run whose samples, from ``t0``, ``est`` holds."""
+        return cls(run_name=run_name, force_names=tuple(rig.force_names),
+                   time=t0 + np.arange(est.total.size) / fs, force=est.force,
+                   force_std=est.force_std, total=est.total, total_std=est.total_std,
+                   static=est.static, inertia=est.inertia, reactions=est.reactions,
+                   coordinates=est.coordinate[None, :], band=band, smoothed=smoothed,
+                   notes=notes)
 
     @property
     def inertia_share(self) -> float:
@@ -271,6 +285,19 @@ class WindowEstimate:
     coordinate: np.ndarray
     passed: np.ndarray
 
+    def part(self, samples: slice) -> WindowEstimate:
+        """The ``samples`` of the stretch (``passed`` is the window's)."""
+        return WindowEstimate(**{f.name: getattr(self, f.name) if f.name == "passed"
+                                 else getattr(self, f.name)[..., samples] for f in fields(self)})
+
+    @staticmethod
+    def join(parts: Sequence[WindowEstimate]) -> WindowEstimate:
+        """Stretches one after another (``passed``: the largest share)."""
+        return WindowEstimate(**{
+            f.name: np.max([p.passed for p in parts], axis=0) if f.name == "passed"
+            else np.concatenate([getattr(p, f.name) for p in parts], axis=-1)
+            for f in fields(WindowEstimate)})
+
 
 def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarray,
                   probes: np.ndarray, frame: int, source: str = "<run>") -> WindowEstimate:
@@ -347,7 +374,7 @@ def _above_band(current: np.ndarray, fs: float, band: tuple[float, float],
                 source: str) -> tuple[str, ...]:
     """A note when the coil current's square (the magnet's force at a fixed gap) holds more
     than ``ABOVE_BAND`` of its AC power above the scan's band in any half second, its white
-    noise (read between 0.4 and 0.45 of the sampling rate) taken out: that content has no
+    noise (:func:`channel_noise`) taken out: that content has no
     operating shape, so the smoothers set it aside and its inertia is not compensated. A
     biased magnet pulls at twice its drive's frequencies, which a scan over the drive's band
     alone misses."""
@@ -357,8 +384,8 @@ def _above_band(current: np.ndarray, fs: float, band: tuple[float, float],
     for start in range(0, max(x.size - n, 0) + 1, n):
         seg = x[start:start + n]
         f, p = scipy.signal.welch(seg, fs=fs, nperseg=min(seg.size, 1024))
-        floor = float(np.median(p[(f >= 0.4 * fs) & (f <= 0.45 * fs)]))
-        above = (f > band[1]) & (f < 0.4 * fs)
+        floor = 2.0 * float(channel_noise(seg[None, :], fs, band)[0]) / fs
+        above = f > band[1]
         share = float(np.sum(np.maximum(p[above] - floor, 0.0)) / max(np.sum(p[1:]), 1e-300))
         if share > worst:
             worst, at = share, start / fs
@@ -384,15 +411,16 @@ def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
     out = np.zeros_like(part)
     if m < 1:
         return out
-    taper = (1.0 - np.arange(m) / m) ** 2
-    for ends, take in ((slice(0, m), lambda x: x), (slice(n - m, n), lambda x: x[..., ::-1])):
-        size = np.sqrt(np.mean(part[:, ends] ** 2, axis=1))
-        out[:, ends] = take(size[:, None] * taper[None, :])
+    taper = (1.0 - np.arange(m) / m) ** 2                        # from the end inwards
+    out[:, :m] = np.sqrt(np.mean(part[:, :m] ** 2, axis=1))[:, None] * taper
+    out[:, n - m:] = np.sqrt(np.mean(part[:, n - m:] ** 2, axis=1))[:, None] * taper[::-1]
     return out
 
 
-def run_channels(rig: Rig, run: Run, tare: Run | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """The run's gauges (n_gauges, N) [N] and probes (n_probes, N) [m], less the tare's means.
+def run_channels(rig: Rig, run: Run, tare: Run | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The run's gauges (n_gauges, N) [N] and probes (n_probes, N) [m], less the tare's means,
+    and its coil current (N,) [A].
 
     Raises
     ------
@@ -410,7 +438,7 @@ def run_channels(rig: Rig, run: Run, tare: Run | None = None) -> tuple[np.ndarra
         tsig = channels_si(rig, tare)
         gauges -= np.array([np.mean(tsig[g]) for g in rig.gauge_names])[:, None]
         probes -= np.array([np.mean(tsig[s]) for s in rig.sensor_names])[:, None]
-    return gauges, probes
+    return gauges, probes, sig[rig.actuator.current]
 
 
 def check_length(model: BroadbandModel, n: int, fs: float, source: str) -> None:
@@ -455,21 +483,17 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     fs = run.fs
     n = run.n_samples
     check_length(model, n, fs, run.source)
-    gauges, probes = run_channels(rig, run, tare)
+    gauges, probes, current = run_channels(rig, run, tare)
+    above = _above_band(current, fs, model.band, run.source)
     if not smooth:
         from .stream.any_drive import stream_arrays
 
-        return stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name)
+        live = stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name)
+        return dataclasses.replace(live, notes=live.notes + above)
     setup = any_drive_setup(rig, model, gauges, probes, fs)
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
-             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
-             *_above_band(channels_si(rig, run)[rig.actuator.current], fs, model.band,
-                          run.source))
-    return TransientEstimate(
-        run_name=run.name, force_names=tuple(rig.force_names),
-        time=run.t0 + np.arange(n) / fs, force=est.force, force_std=est.force_std,
-        total=est.total, total_std=est.total_std, static=est.static, inertia=est.inertia,
-        reactions=est.reactions, coordinates=est.coordinate[None, :], band=model.band,
-        smoothed=True, notes=notes)
+             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most", *above)
+    return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
+                                         notes)

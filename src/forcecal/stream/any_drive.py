@@ -43,6 +43,7 @@ from ..spatial import check_rig_keys
 from ..transient import (
     AnyDriveSetup,
     TransientEstimate,
+    WindowEstimate,
     any_drive_setup,
     check_length,
     window_forces,
@@ -66,17 +67,15 @@ STEP = 0.5
 
 @dataclass(frozen=True)
 class StreamChunk:
-    """Samples the stream gives at once: ``time`` (n,) [s], ``force`` and ``static``
-    (n_forces, n) [N], ``std`` (n_forces + 1, n) [N], each force's then the total's;
-    ``inertia`` and ``reactions`` (n_gauges, n) [N], ``coordinate`` (n,) [1]."""
+    """Samples the stream gives at once: their ``time`` (n,) [s] and ``estimate``."""
 
     time: np.ndarray
-    force: np.ndarray
-    static: np.ndarray
-    std: np.ndarray
-    inertia: np.ndarray
-    reactions: np.ndarray
-    coordinate: np.ndarray
+    estimate: WindowEstimate
+
+    @property
+    def std(self) -> np.ndarray:
+        """(n_forces + 1, n) [N]: each force's standard uncertainty, then the total's."""
+        return np.vstack([self.estimate.force_std, self.estimate.total_std[None, :]])
 
 
 class AnyDriveStream:
@@ -108,11 +107,11 @@ class AnyDriveStream:
         check_rig_keys(model.rig, model.source, rig)
         self.rig, self.model, self.fs, self.t0 = rig, model, float(fs), float(t0)
         self._setup = setup
-        self._frame = stft_frame(fs, 1 << 62)
-        self._hop = self._frame // 4
+        frame = stft_frame(fs, 1 << 62)            # the Wiener frame of any record long enough
+        self._hop = frame // 4
         self._warmup = int(math.ceil(warmup * fs))
-        self._latency = max(int(math.ceil(latency * fs)), 2 * self._frame)
-        self._history = max(int(math.ceil(history * fs)), 2 * self._frame)
+        self._latency = max(int(math.ceil(latency * fs)), 2 * frame)
+        self._history = max(int(math.ceil(history * fs)), 2 * frame)
         self._step = max(int(math.ceil(step * fs)), 1)
         self._scale = np.array([g.scale for g in rig.gauges] + [s.scale for s in rig.sensors])
         self._n_g = len(rig.gauges)
@@ -167,14 +166,9 @@ class AnyDriveStream:
         start -= start % self._hop                       # on the batch's frames
         window = self._buffer[:, start - self._start:]
         est = window_forces(self._setup, self.model, window[:self._n_g], window[self._n_g:],
-                            min(self._frame, stft_frame(self.fs, window.shape[1])))
-        part = slice(self._given - start, end - start)
-        out.append(StreamChunk(
-            time=self.t0 + np.arange(self._given, end) / self.fs, force=est.force[:, part],
-            static=est.static[:, part],
-            std=np.vstack([est.force_std[:, part], est.total_std[None, part]]),
-            inertia=est.inertia[:, part], reactions=est.reactions[:, part],
-            coordinate=est.coordinate[part]))
+                            stft_frame(self.fs, window.shape[1]))
+        out.append(StreamChunk(time=self.t0 + np.arange(self._given, end) / self.fs,
+                               estimate=est.part(slice(self._given - start, end - start))))
         self._given = end
         keep = max(self._given - self._history, 0)
         keep -= keep % self._hop
@@ -223,19 +217,11 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     data = np.vstack([gauges, probes])
     chunks = list(_chunks(stream, (data[:, k:k + block]
                                    for k in range(0, data.shape[1], block))))
-    force = np.hstack([c.force for c in chunks])
-    std = np.hstack([c.std for c in chunks])
-    return TransientEstimate(
-        run_name=name, force_names=tuple(rig.force_names), time=np.hstack([c.time for c in chunks]),
-        force=force, force_std=std[:-1], total=force.sum(axis=0), total_std=std[-1],
-        static=np.hstack([c.static for c in chunks]),
-        inertia=np.hstack([c.inertia for c in chunks]),
-        reactions=np.hstack([c.reactions for c in chunks]),
-        coordinates=np.hstack([c.coordinate for c in chunks])[None, :], band=model.band,
-        smoothed=False,
-        notes=(f"real time: every sample given {stream.latency:.3g} s after it, from a window "
-               f"of the samples up to then; noise and band models from the first "
-               f"{WARMUP:g} s",))
+    note = (f"real time: every sample given {stream.latency:.3g} s after it, from a window of "
+            f"the samples up to then; noise and band models from the first {WARMUP:g} s")
+    return TransientEstimate.from_window(rig, name, t0, fs,
+                                         WindowEstimate.join([c.estimate for c in chunks]),
+                                         model.band, False, (note,))
 
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
@@ -271,9 +257,10 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
                       rows=blocks.n_samples, stdout=stdout) as out:
         for c in _chunks(stream, blocks.blocks(stream.channel_names, read)):
+            est = c.estimate
             if check is not None:
-                check(c.time, dict(zip(names, c.force, strict=True)),
-                      dict(zip(names, c.static, strict=True)))
-            out.write(c.time, stream_rows(c.force, c.static, c.std))
+                check(c.time, dict(zip(names, est.force, strict=True)),
+                      dict(zip(names, est.static, strict=True)))
+            out.write(c.time, stream_rows(est.force, est.static, c.std))
         return out.rows
 
