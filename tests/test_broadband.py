@@ -277,8 +277,10 @@ def test_campaign_row_takes_its_frequency_from_the_manifest(beam, bb_model, tmp_
 
 
 def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
-    """A dead probe, a broadband model whose arrays disagree or hold NaN, and a harmonic the
-    scan's lines do not resolve: refused or left out with the reason, never a NaN."""
+    """A dead probe (in batch and in real time, where it would otherwise take the weight of a
+    noiseless one and zero the inertia), a broadband model whose arrays disagree or hold NaN,
+    and a harmonic the scan's lines do not resolve: refused or left out with the reason, never
+    a NaN."""
     import json
 
     from forcecal.broadband import load_any_model
@@ -287,8 +289,9 @@ def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
     rig = beam[3]
     run, _, _ = _run(beam, np.random.default_rng(8), 40.0, seconds=2.0)
     dead = dataclasses.replace(run, channels={**run.channels, "s2": np.full(run.n_samples, 3e-5)})
-    with pytest.raises(DataError, match="'s2' is constant"):
-        reconstruct_any(rig, bb_model, dead)
+    for smooth in (True, False):               # the batch, and the stream's setup alike
+        with pytest.raises(DataError, match="'s2' is constant"):
+            reconstruct_any(rig, bb_model, dead, smooth=smooth)
     doc = bb_model.to_json()
     for change, what in ((lambda d: d["couplings"].pop(), "couplings"),
                          (lambda d: d["line_snr"].__setitem__(0, None), "broadband"),

@@ -229,7 +229,7 @@ class AnyDriveSetup:
 
 
 def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
-                    fs: float) -> AnyDriveSetup:
+                    fs: float, source: str = "<run>") -> AnyDriveSetup:
     """What the estimate under any drive needs before its first sample, from a record of the
     gauges and probes (the whole run in batch; the first seconds of a stream): every channel's
     noise from its spectrum above the band, the probes' weights and the first shape's
@@ -242,11 +242,24 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
     gauges : (n_gauges, N) array [N]
     probes : (n_probes, N) array [m]
     fs : float [Hz]
+    source : str
+        The run, named in messages.
 
     Returns
     -------
     AnyDriveSetup
+
+    Raises
+    ------
+    DataError
+        A gauge or probe channel that is constant over the record: a dead sensor would take
+        the weight of a noiseless one.
     """
+    for name, x in zip((*rig.gauge_names, *rig.sensor_names), (*gauges, *probes), strict=True):
+        if np.ptp(x) == 0:
+            raise DataError(f"run '{source}': channel '{name}' is constant over "
+                            f"{x.size / fs:.3g} s; a dead or disconnected sensor cannot follow "
+                            "any drive")
     band = model.band
     var_s = channel_noise(probes, fs, band)
     var_g = channel_noise(gauges, fs, band)
@@ -420,18 +433,8 @@ def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
 def run_channels(rig: Rig, run: Run, tare: Run | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The run's gauges (n_gauges, N) [N] and probes (n_probes, N) [m], less the tare's means,
-    and its coil current (N,) [A].
-
-    Raises
-    ------
-    DataError
-        A gauge or probe channel that is constant.
-    """
+    and its coil current (N,) [A]."""
     sig = channels_si(rig, run)
-    for name in (*rig.gauge_names, *rig.sensor_names):
-        if np.ptp(sig[name]) == 0:
-            raise DataError(f"run '{run.source}': channel '{name}' is constant over the run; "
-                            "a dead or disconnected sensor cannot follow any drive")
     gauges = np.stack([sig[g] for g in rig.gauge_names])
     probes = np.stack([sig[s] for s in rig.sensor_names])
     if tare is not None:
@@ -490,7 +493,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
 
         live = stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name)
         return dataclasses.replace(live, notes=live.notes + above)
-    setup = any_drive_setup(rig, model, gauges, probes, fs)
+    setup = any_drive_setup(rig, model, gauges, probes, fs, run.source)
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "

@@ -94,6 +94,8 @@ class AnyDriveStream:
     latency, history, warmup, step : float
         [s] see the module's account (defaults :data:`LATENCY`, :data:`HISTORY`,
         :data:`WARMUP`, :data:`STEP`).
+    source : str
+        The run, named in messages.
 
     Raises
     ------
@@ -103,9 +105,11 @@ class AnyDriveStream:
 
     def __init__(self, rig: Rig, model: BroadbandModel, fs: float, t0: float = 0.0,
                  setup: AnyDriveSetup | None = None, latency: float = LATENCY,
-                 history: float = HISTORY, warmup: float = WARMUP, step: float = STEP):
+                 history: float = HISTORY, warmup: float = WARMUP, step: float = STEP,
+                 source: str = "<stream>"):
         check_rig_keys(model.rig, model.source, rig)
         self.rig, self.model, self.fs, self.t0 = rig, model, float(fs), float(t0)
+        self.source = source
         self._setup = setup
         frame = stft_frame(fs, 1 << 62)            # the Wiener frame of any record long enough
         self._hop = frame // 4
@@ -149,7 +153,7 @@ class AnyDriveStream:
     def finish(self) -> list[StreamChunk]:
         """The end of the record: every sample not yet given."""
         if self._received:
-            check_length(self.model, self._received, self.fs, "<stream>")
+            check_length(self.model, self._received, self.fs, self.source)
         return self._give(final=True)
 
     def _give(self, final: bool) -> list[StreamChunk]:
@@ -158,7 +162,7 @@ class AnyDriveStream:
             if not self._received or (self._received < self._warmup and not final):
                 return out
             g, p = self._buffer[:self._n_g], self._buffer[self._n_g:]
-            self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs)
+            self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs, self.source)
         end = self._received if final else self._received - self._latency
         if end - self._given < (1 if final else self._step):
             return out
@@ -213,7 +217,7 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     unit = dataclasses.replace(
         rig, gauges=tuple(dataclasses.replace(g, scale=1.0) for g in rig.gauges),
         sensors=tuple(dataclasses.replace(s, scale=1.0) for s in rig.sensors))
-    stream = AnyDriveStream(unit, model, fs, t0, setup=setup)
+    stream = AnyDriveStream(unit, model, fs, t0, setup=setup, source=name)
     data = np.vstack([gauges, probes])
     chunks = list(_chunks(stream, (data[:, k:k + block]
                                    for k in range(0, data.shape[1], block))))
@@ -252,7 +256,7 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         Rows written.
     """
     check_length(model, blocks.n_samples, blocks.fs, blocks.source)
-    stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0)
+    stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0, source=blocks.source)
     names = list(rig.force_names)
     with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
                       rows=blocks.n_samples, stdout=stdout) as out:
