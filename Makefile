@@ -21,10 +21,12 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/forcecal demo demo-output
 
+# The suite runs on two workers (pytest-xdist), each test file on one, so that a file's
+# fixtures are made once.
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/mypy
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n 2 --dist loadfile
 
 # HTML documentation into docs/_build/html (Sphinx, MyST, autodoc); the docs extra is installed
 # once, after which the build needs no network.
