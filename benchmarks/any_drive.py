@@ -13,6 +13,10 @@ compares:
 - the stepped-sine campaign (10-100 Hz, three gaps): each step's K(f) / K and lag against the
   first-order truth 1 / (1 + j 2 pi f tau) of the simulated eddy-current magnet, and the fitted
   tau (targets: 0.2 % and 0.2 degrees);
+- an oracle: the best gains any short-time filter of the same estimate could apply, taken
+  from the truth's own power and the estimate's own error, bin by bin (the Wiener gain
+  S / (S + N) over 0.2 s frames); what it leaves is the error of the probes' noise that no
+  gain rule removes, the floor the targets are measured against;
 - ``forcecal stream`` on the same runs (real time, :mod:`forcecal.stream.any_drive`): its
   windows beside the batch's, how far it is from the batch in units of the batch's stated
   uncertainty, and its wall time.
@@ -32,11 +36,24 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+import scipy.ndimage
+import scipy.signal
 
+from forcecal.broadband import load_any_model
 from forcecal.cli import main
+from forcecal.io.run_files import read_run
+from forcecal.relaxation import force_matrix
+from forcecal.rig import load_rig
 from forcecal.simulate.export import write_simulation
 
 RESULTS = Path(__file__).parent / "results"
+
+
+def _in_band(x: np.ndarray, fs: float, top: float) -> np.ndarray:
+    """``x`` without its content above ``top`` Hz."""
+    spec = np.fft.rfft(x)
+    spec[np.fft.rfftfreq(x.size, 1.0 / fs) > top] = 0.0
+    return np.fft.irfft(spec, x.size)
 
 
 def _windows(est: pd.DataFrame, truth: pd.DataFrame, column: str, width: float,
@@ -47,11 +64,7 @@ def _windows(est: pd.DataFrame, truth: pd.DataFrame, column: str, width: float,
     fs = 1.0 / (t[1] - t[0])
     n = int(round(width * fs))
     true = truth["total"].to_numpy()
-    ref = true
-    if top is not None:
-        spec = np.fft.rfft(true)
-        spec[np.fft.rfftfreq(true.size, 1.0 / fs) > top] = 0.0
-        ref = np.fft.irfft(spec, true.size)
+    ref = true if top is None else _in_band(true, fs, top)
     err = est[column].to_numpy() - ref
     out = []
     for k in range(0, len(true) - n + 1, n):
@@ -67,12 +80,35 @@ def _stated(est: pd.DataFrame, truth: pd.DataFrame, top: float) -> dict:
     t = truth["time"].to_numpy()
     fs = 1.0 / (t[1] - t[0])
     true = truth["total"].to_numpy()
-    spec = np.fft.rfft(true)
-    spec[np.fft.rfftfreq(true.size, 1.0 / fs) > top] = 0.0
-    err = est["total"].to_numpy() - np.fft.irfft(spec, true.size)
+    err = est["total"].to_numpy() - _in_band(true, fs, top)
     u = est["total_std"].to_numpy()
     return {"ratio": float(np.sqrt(np.mean((err / u) ** 2))),
             "within_2u": float(np.mean(np.abs(err) <= 2 * u))}
+
+
+def _oracle(folder: Path, model: Path, run: str, truth: pd.DataFrame) -> list[float]:
+    """Each 0.5 s window's error, against the truth within the band, of the estimate before
+    its short-time Wiener gains when the gains are the oracle's, S / (S + N) bin by bin: S
+    the truth's power, N the estimate's own error's (averaged over 5 bins by 5 frames)."""
+    from forcecal.transient import reconstruct_any
+
+    rig = load_rig(folder / "rig.toml")
+    broadband = load_any_model(model)
+    est = reconstruct_any(rig, broadband, read_run(folder / "runs" / f"{run}.csv", rig))
+    total = np.ones(len(rig.force_names)) @ np.linalg.pinv(force_matrix(rig))
+    raw = total @ (est.inertia - est.reactions)
+    t = truth["time"].to_numpy()
+    fs = 1.0 / (t[1] - t[0])
+    true = _in_band(truth["total"].to_numpy(), fs, broadband.band[1])
+    frame = 2 ** int(round(np.log2(0.2 * fs)))
+    kw = {"fs": fs, "window": "hann", "nperseg": frame, "noverlap": 3 * frame // 4}
+    z, s, e = (scipy.signal.stft(x, boundary="even", padded=True, **kw)[2]
+               for x in (raw, true, raw - true))
+    sig = np.abs(s) ** 2
+    gain = sig / (sig + scipy.ndimage.uniform_filter(np.abs(e) ** 2, 5) + 1e-300)
+    best = scipy.signal.istft(gain * z, boundary=True, **kw)[1][:raw.size]
+    frame = pd.DataFrame({"total": best})
+    return _windows(frame, truth, "total", 0.5, top=broadband.band[1])
 
 
 def _drive_run(folder: Path, run: str) -> dict:
@@ -102,6 +138,7 @@ def _drive_run(folder: Path, run: str) -> dict:
     return {"windows": _windows(est, truth, "total", 0.5),
             "windows_in_band": _windows(est, truth, "total", 0.5, top=band[1]),
             "windows_static": _windows(est, truth, "total_static", 0.5),
+            "windows_oracle": _oracle(folder, model, run, truth),
             "windows_stream": _windows(live, truth, "total", 0.5),
             "stream_vs_batch_rms_in_stated_std": float(np.sqrt(np.mean(apart**2))
                                                        / np.sqrt(np.mean(est["total_std"]**2))),
@@ -153,6 +190,8 @@ def report(res: dict) -> None:
               f"reconstruct {r['reconstruct_s']:.2f} s")
         print("  windows  " + " ".join(f"{w:7.2%}" for w in r["windows"]))
         print("  in band  " + " ".join(f"{w:7.2%}" for w in r["windows_in_band"]))
+        print("  oracle   " + " ".join(f"{w:7.2%}" for w in r["windows_oracle"])
+              + "   (in band, the best gains of the truth's own power)")
         print("  static   " + " ".join(f"{w:7.1%}" for w in r["windows_static"]))
         print("  stream   " + " ".join(f"{w:7.2%}" for w in r["windows_stream"])
               + f"   (stream - batch: {r['stream_vs_batch_rms_in_stated_std']:.2f} of the "
