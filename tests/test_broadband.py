@@ -278,9 +278,10 @@ def test_campaign_row_takes_its_frequency_from_the_manifest(beam, bb_model, tmp_
 
 def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
     """A dead probe (in batch and in real time, where it would otherwise take the weight of a
-    noiseless one and zero the inertia), a broadband model whose arrays disagree or hold NaN,
-    and a harmonic the scan's lines do not resolve: refused or left out with the reason, never
-    a NaN."""
+    noiseless one and zero the inertia), one that dies or a gauge that comes loose while the
+    run goes on (the stream had set its noise from the first two seconds), a broadband model
+    whose arrays disagree or hold NaN, and a harmonic the scan's lines do not resolve: refused
+    or left out with the reason, never a NaN."""
     import json
 
     from forcecal.broadband import load_any_model
@@ -292,6 +293,19 @@ def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
     for smooth in (True, False):               # the batch, and the stream's setup alike
         with pytest.raises(DataError, match="'s2' is constant"):
             reconstruct_any(rig, bb_model, dead, smooth=smooth)
+    # a probe that dies, and a gauge that comes loose (ten times its noise), after the
+    # stream's first two seconds: refused where it happens, in batch and in real time
+    late, _, _ = _run(beam, np.random.default_rng(8), 40.0, seconds=4.0)
+    cut = int(2.5 * FS)
+    s2 = late.channels["s2"].copy()
+    s2[cut:] = s2[cut]
+    r1 = late.channels["R1"].copy()
+    r1[cut:] += 0.1 * np.random.default_rng(9).standard_normal(r1.size - cut)
+    for channel, values in (("s2", s2), ("R1", r1)):
+        broken = dataclasses.replace(late, channels={**late.channels, channel: values})
+        for smooth in (True, False):
+            with pytest.raises(DataError, match=f"'{channel}' from 2.5 s to 3 s"):
+                reconstruct_any(rig, bb_model, broken, smooth=smooth)
     doc = bb_model.to_json()
     for change, what in ((lambda d: d["couplings"].pop(), "couplings"),
                          (lambda d: d["line_snr"].__setitem__(0, None), "broadband"),

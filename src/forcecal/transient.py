@@ -47,7 +47,8 @@ from .spatial import check_rig_keys
 from .wiener import smoother_response, stft_frame, wiener_smooth
 
 __all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
-           "channel_noise", "check_length", "reconstruct_any", "run_channels", "window_forces"]
+           "channel_noise", "check_channel_noise", "check_length", "reconstruct_any",
+           "run_channels", "window_forces"]
 
 
 @dataclass(frozen=True)
@@ -430,6 +431,63 @@ def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
     return out
 
 
+NOISE_BLOCK = 0.5
+"""[s] the stretch over which every channel's noise is checked."""
+NOISE_CHANGE = 10.0
+"""A channel whose noise variance above the band is this many times (3.2 times in standard
+deviation) above or below its usual level in some stretch has changed: died, saturated or come
+loose. The level of half a second is read to a few percent."""
+
+
+def check_channel_noise(gauges: np.ndarray, probes: np.ndarray, names: Sequence[str],
+                        fs: float, band: tuple[float, float], t0: float, source: str,
+                        reference: np.ndarray | None = None) -> None:
+    """Refuse a record in which some gauge or probe changes while it runs: every channel's
+    noise above the band (:func:`channel_noise`) over each :data:`NOISE_BLOCK`, against its
+    usual level, a change of :data:`NOISE_CHANGE` times either way. A channel whose level is
+    its floor (a noise-free record) is not checked.
+
+    Parameters
+    ----------
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+    names : sequence of str
+        The gauges' then the probes' channel names.
+    fs : float [Hz]
+    band : (low, high) [Hz]
+    t0 : float [s]
+        The time of the first sample.
+    source : str
+        The run, for the message.
+    reference : (n_gauges + n_probes,) array or None
+        The usual levels (a stream's, from its first seconds); None takes the median over the
+        record's stretches.
+
+    Raises
+    ------
+    DataError
+        Naming the channel, the stretch and the change.
+    """
+    x = np.vstack([gauges, probes])
+    n = int(round(NOISE_BLOCK * fs))
+    starts = range(0, x.shape[-1] - n + 1, n)
+    if not starts:
+        return
+    levels = np.column_stack([channel_noise(x[:, k:k + n], fs, band) for k in starts])
+    usual = np.median(levels, axis=1) if reference is None else reference
+    live = usual > 1e-18 * np.mean(x**2, axis=-1) + np.finfo(float).tiny
+    ratio = levels / usual[:, None]
+    bad = live[:, None] & ((ratio > NOISE_CHANGE) | (ratio < 1.0 / NOISE_CHANGE))
+    if np.any(bad):
+        block = int(np.flatnonzero(bad.any(axis=0))[0])
+        k = int(np.flatnonzero(bad[:, block])[0])
+        when = t0 + block * NOISE_BLOCK
+        raise DataError(f"run '{source}': channel '{names[k]}' from {when:.3g} s to "
+                        f"{when + NOISE_BLOCK:.3g} s: its noise above the band is "
+                        f"{np.sqrt(ratio[k, block]):.3g} times its usual level; a sensor that "
+                        "died, saturated or came loose cannot follow any drive")
+
+
 def run_channels(rig: Rig, run: Run, tare: Run | None = None
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The run's gauges (n_gauges, N) [N] and probes (n_probes, N) [m], less the tare's means,
@@ -480,7 +538,8 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     InputError
         More span shapes than probes, or a model of another rig.
     DataError
-        A record too short for the band, or a gauge or probe channel that is constant.
+        A record too short for the band, or a gauge or probe channel that is constant or
+        changes while it runs (:func:`check_channel_noise`).
     """
     check_rig_keys(model.rig, model.source, rig)
     fs = run.fs
@@ -494,6 +553,8 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
         live = stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name)
         return dataclasses.replace(live, notes=live.notes + above)
     setup = any_drive_setup(rig, model, gauges, probes, fs, run.source)
+    check_channel_noise(gauges, probes, (*rig.gauge_names, *rig.sensor_names), fs, model.band,
+                        run.t0, run.source)
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "

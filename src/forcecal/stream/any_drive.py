@@ -41,10 +41,12 @@ from ..io.table_writer import CSV_DIGITS, table_writer
 from ..rig import Rig
 from ..spatial import check_rig_keys
 from ..transient import (
+    NOISE_BLOCK,
     AnyDriveSetup,
     TransientEstimate,
     WindowEstimate,
     any_drive_setup,
+    check_channel_noise,
     check_length,
     window_forces,
 )
@@ -101,6 +103,9 @@ class AnyDriveStream:
     ------
     InputError
         A model of another rig.
+    DataError
+        From :meth:`process` and :meth:`finish`: a gauge or probe constant over the first
+        seconds, or whose noise changes later (:func:`forcecal.transient.check_channel_noise`).
     """
 
     def __init__(self, rig: Rig, model: BroadbandModel, fs: float, t0: float = 0.0,
@@ -123,6 +128,8 @@ class AnyDriveStream:
         self._start = 0          # absolute index of the buffer's first sample
         self._received = 0
         self._given = 0
+        self._checked = 0        # samples whose channels' noise has been checked
+        self._block = int(round(NOISE_BLOCK * fs))
 
     @property
     def channel_names(self) -> list[str]:
@@ -161,8 +168,10 @@ class AnyDriveStream:
         if self._setup is None:
             if not self._received or (self._received < self._warmup and not final):
                 return out
-            g, p = self._buffer[:self._n_g], self._buffer[self._n_g:]
+            first = self._buffer[:, :self._warmup]     # the first seconds, whatever the blocks
+            g, p = first[:self._n_g], first[self._n_g:]
             self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs, self.source)
+        self._check()
         end = self._received if final else self._received - self._latency
         if end - self._given < (1 if final else self._step):
             return out
@@ -179,6 +188,21 @@ class AnyDriveStream:
         self._buffer = self._buffer[:, keep - self._start:]
         self._start = keep
         return out
+
+
+    def _check(self) -> None:
+        """Every complete stretch of ``NOISE_BLOCK`` not yet checked, against the setup's
+        noise (:func:`forcecal.transient.check_channel_noise`): a sensor that dies after the
+        first seconds is refused where it dies."""
+        assert self._setup is not None
+        n = (self._received - self._checked) // self._block * self._block
+        if n:
+            part = self._buffer[:, self._checked - self._start:self._checked - self._start + n]
+            setup = self._setup
+            check_channel_noise(part[:self._n_g], part[self._n_g:], self.channel_names,
+                                self.fs, setup.band, self.t0 + self._checked / self.fs,
+                                self.source, np.r_[setup.var_g, 1.0 / setup.probe_weights])
+            self._checked += n
 
 
 def _chunks(stream: AnyDriveStream, blocks: Iterator[np.ndarray]) -> Iterator[StreamChunk]:
