@@ -427,10 +427,11 @@ def _chi2(a: np.ndarray, noise: np.ndarray, basis: np.ndarray) -> float:
 def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -> SpatialModel:
     """The harmonic path's model of a steady run at ``f0`` from a broadband model: every
     harmonic in the band gets the operating shape of its own frequency
-    (:meth:`BroadbandModel.operating_shapes`), as a steady scan at ``f0`` would have measured
-    it. Its scan signal-to-noise ratio is that of the scan's lines at n f0; one below
-    :data:`forcecal.spatial.MIN_SNR` is noted, not dropped (the shapes rest on the span of all
-    lines, and near a resonance the inertia matters most).
+    (:meth:`BroadbandModel.mixing`), as a steady scan at ``f0`` would have measured it, and
+    the DC deflection the operating shape of the band's lowest line (its quasi-static shape,
+    which a steady scan lacks). Its scan signal-to-noise ratio is that of the scan's lines at
+    n f0; one below :data:`forcecal.spatial.MIN_SNR` is noted, not dropped (the shapes rest on
+    the span of all lines, and near a resonance the inertia matters most).
 
     Parameters
     ----------
@@ -470,10 +471,13 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
     # their coefficients
     mac = np.array([[shape_similarity(p.coefficients, q.coefficients) for q in shapes]
                     for p in shapes])
+    static = dataclasses.replace(first, coefficients=coefs @ model.mixing(
+        model.frequencies[:1])[:, 0])
     return SpatialModel(
         f0=f0, harmonics=kept, shapes=shapes, couplings=couplings, similarity=mac,
         snr=snr, gauge_names=model.gauge_names, dropped=dict(sorted(dropped.items())),
-        n_points=model.n_points, source=model.source, notes=notes, rig=model.rig)
+        n_points=model.n_points, source=model.source, notes=notes, rig=model.rig,
+        static_shape=static)
 
 
 def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:

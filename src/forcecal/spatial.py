@@ -77,6 +77,11 @@ class SpatialModel:
     scans : the scans the model was built from (``source`` is the first)
     member_scans : per harmonic, the scan (index into ``scans``) of each member of its span,
         ``shapes[k]``'s first
+    static_shape : the quasi-static shape, when the scan measured one (a broadband scan's
+        operating shape at the lowest line of its band, :func:`forcecal.broadband.
+        steady_model`); None: the fundamental's shape stands in for it
+        (:func:`forcecal.gaps.quasi_static_shape`). Not written to the model file: a model
+        that has one is built from a broadband model, which is.
     """
 
     f0: float
@@ -96,6 +101,7 @@ class SpatialModel:
     span_couplings: tuple[np.ndarray, ...] = ()
     scans: tuple[str, ...] = ()
     member_scans: tuple[tuple[int, ...], ...] = ()
+    static_shape: ShapeFit | VectorShapeFit | None = None
 
     @property
     def one_shape(self) -> bool:

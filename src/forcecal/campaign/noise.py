@@ -434,8 +434,11 @@ def run_noise(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
     _, dc_gain, dc_shape = _dc_amplitude(rig, model, dc, var_run + var_tare)
     n1 = 1 if 1 in model.harmonics else int(np.min(model.harmonics))
     base = quasi_static_shape(model, rig)
+    rotor = _rotor(model, rig, n1)
+    if model.static_shape is not None:       # a DC shape of its own: no harmonic's errors move it
+        n1, rotor = -1, 1.0
     shapes = _ShapeRun(rig=rig, model=model, inputs=inputs, a_total=_total_gain(rig), dc=dc,
-                       dc_var=var_run + var_tare, n1=n1, rotor=_rotor(model, rig, n1),
+                       dc_var=var_run + var_tare, n1=n1, rotor=rotor,
                        dc_probes=base(rig.sensor_points), dc_poles=base(rig.force_points),
                        ops=shape_operators(model, rig))
     shared = _shape_effects(shapes)
