@@ -109,6 +109,8 @@ class BroadbandModel:
     ratios : (n_shapes, n_lines) complex array or None
         The operating shape's smoothed ratios a_k / a_1 at every line (the first row 1); None
         (a model written before they were kept) takes each line's own ratio.
+    ratio_std : (n_shapes, n_lines) array or None
+        Their standard uncertainty, of Re and of Im each (:func:`smooth_ratios`).
     """
 
     band: tuple[float, float]
@@ -125,6 +127,7 @@ class BroadbandModel:
     notes: tuple[str, ...] = ()
     rig: dict[str, float | str] = field(default_factory=dict)
     ratios: np.ndarray | None = None
+    ratio_std: np.ndarray | None = None
 
     @property
     def n_shapes(self) -> int:
@@ -165,6 +168,14 @@ class BroadbandModel:
                       + 1j * np.interp(f, lines, ratio[k].imag))
         return out
 
+    def mixing_std(self, frequencies: np.ndarray) -> np.ndarray:
+        """(n_shapes, n_freq) [1]: the standard uncertainty of Re and of Im of each ratio of
+        :meth:`mixing` (interpolated as the ratios are; zero when the model has none)."""
+        f = np.atleast_1d(np.asarray(frequencies, float))
+        if self.ratio_std is None:
+            return np.zeros((self.n_shapes, len(f)))
+        return np.array([np.interp(f, self.frequencies, s) for s in self.ratio_std])
+
     def inertia_correction(self, frequencies: np.ndarray, probe_shapes: np.ndarray,
                            weights: np.ndarray) -> np.ndarray:
         """(n_gauges, n_freq) complex [1]: what the inertia J_r = m_{r,1} q''_1 of the first
@@ -202,7 +213,8 @@ class BroadbandModel:
                 "gauge_names": list(self.gauge_names), "n_points": self.n_points,
                 "source": self.source, "notes": list(self.notes), "rig": self.rig,
                 **({} if self.ratios is None else {"ratios": {
-                    "re": self.ratios.real.tolist(), "im": self.ratios.imag.tolist()}})}
+                    "re": self.ratios.real.tolist(), "im": self.ratios.imag.tolist()}}),
+                **({} if self.ratio_std is None else {"ratio_std": self.ratio_std.tolist()})}
 
     @classmethod
     def from_json(cls, doc: dict[str, Any], source: str = "<model>") -> BroadbandModel:
@@ -219,6 +231,7 @@ class BroadbandModel:
             shapes = tuple(_real_shape(shape_from_json(s)) for s in doc["shapes"])
             coords = _complex(doc["coordinates"])
             ratios = _complex(doc["ratios"]) if "ratios" in doc else None
+            ratio_std = np.asarray(doc["ratio_std"], float) if "ratio_std" in doc else None
             model = cls(band=(float(doc["band"][0]), float(doc["band"][1])), shapes=shapes,
                         couplings=np.asarray(doc["couplings"], float),
                         frequencies=np.asarray(doc["frequencies"], float), coordinates=coords,
@@ -227,7 +240,7 @@ class BroadbandModel:
                         line_snr=np.asarray(doc["line_snr"], float),
                         gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
                         source=str(doc["source"]), notes=tuple(doc["notes"]),
-                        rig=dict(doc["rig"]), ratios=ratios)
+                        rig=dict(doc["rig"]), ratios=ratios, ratio_std=ratio_std)
         except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
             raise InputError(f"model '{source}': not a broadband model ({exc!r})") from None
         _check_sizes(model, source)
@@ -251,9 +264,14 @@ def _check_sizes(m: BroadbandModel, source: str) -> None:
              if m.couplings.shape != (len(m.gauge_names), n_k) else
              "its coordinates are not (shapes, lines)"
              if m.coordinates.shape != (n_k, n_lines) or m.line_snr.shape != (n_lines,) else
+             "its ratios are not (shapes, lines)" if any(
+                 a is not None and a.shape != (n_k, n_lines) for a in (m.ratios, m.ratio_std))
+             else
              "it holds non-finite numbers" if not all(
                  np.all(np.isfinite(a)) for a in (m.couplings, m.frequencies, m.coordinates,
-                                                  m.line_snr, *(f.coefficients for f in m.shapes)))
+                                                  m.line_snr, *(f.coefficients for f in m.shapes),
+                                                  *(a for a in (m.ratios, m.ratio_std)
+                                                    if a is not None)))
              else "")
     if wrong:
         raise InputError(f"model '{source}': not a broadband model ({wrong})")
@@ -332,6 +350,7 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     solve = np.linalg.solve(basis.T @ (basis * weights[:, None]), (basis * weights[:, None]).T)
     coords = solve @ resp.values
     cov = np.einsum("kp,pl,jp->lkj", solve, resp.std**2, solve)
+    ratios, ratio_std = smooth_ratios(resp.frequencies, coords, cov)
     line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
                 / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
     return BroadbandModel(band=rig.band, shapes=shapes, couplings=couplings,
@@ -339,11 +358,12 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
                           singular_values=sv[:min(len(sv), 12)], chi2=chi2, line_snr=line_snr,
                           gauge_names=tuple(rig.gauge_names), n_points=len(points),
                           source=scan.source, notes=tuple(notes), rig=rig_keys(rig),
-                          ratios=smooth_ratios(resp.frequencies, coords, cov))
+                          ratios=ratios, ratio_std=ratio_std)
 
 
-def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray) -> np.ndarray:
-    """(n_shapes, n_lines) complex: the ratios a_k / a_1 smoothed over the lines.
+def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The ratios a_k / a_1 smoothed over the lines, and their standard uncertainty.
 
     Parameters
     ----------
@@ -352,6 +372,14 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray) 
         Every line's coordinates.
     cov : (n_lines, n_shapes, n_shapes) array
         Their covariance, of Re and of Im each.
+
+    Returns
+    -------
+    ratios : (n_shapes, n_lines) complex array
+        The first row 1.
+    std : (n_shapes, n_lines) array
+        Of Re and of Im each (the first row 0): the lines' noise through the smoother,
+        sqrt(sum_j S_ij^2 var_j), S the spline's linear map from the lines to its values.
 
     Every ratio's Re and Im get a smoothing spline (:func:`scipy.interpolate.
     make_smoothing_spline`) weighted by the inverse variance of the line's ratio, to first
@@ -362,41 +390,48 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray) 
     tiny = np.finfo(float).tiny
     first = np.where(np.abs(coords[0]) > tiny, coords[0], tiny)
     ratios = coords / first
-    out = np.ones_like(ratios)
-    if frequencies.size < 5:
-        return ratios
+    out, std = np.ones_like(ratios), np.zeros(ratios.shape)
     for k in range(1, coords.shape[0]):
         r = ratios[k]
-        var = (cov[:, k, k] + np.abs(r) ** 2 * cov[:, 0, 0]
-               - 2.0 * r.real * cov[:, k, 0]) / np.abs(first) ** 2
-        w = 1.0 / np.maximum(var, tiny)
+        var = np.maximum((cov[:, k, k] + np.abs(r) ** 2 * cov[:, 0, 0]
+                          - 2.0 * r.real * cov[:, k, 0]) / np.abs(first) ** 2, tiny)
+        w = 1.0 / var
         top = float(np.max(w))                # weights scaled to at most 1 for the spline
-        out[k] = _discrepancy_spline(frequencies, r, w / top, top)
-    return out
+        lam = _discrepancy_penalty(frequencies, r, w / top, top) if r.size >= 5 else None
+        if lam is None:                       # no smoothing within the noise
+            out[k], std[k] = r, np.sqrt(var)
+            continue
+        smoother = np.column_stack([_spline(frequencies, e, w / top, lam)
+                                    for e in np.eye(r.size)])
+        out[k] = smoother @ r
+        std[k] = np.sqrt(smoother**2 @ var)
+    return out, std
 
 
-def _discrepancy_spline(x: np.ndarray, y: np.ndarray, w: np.ndarray, scale: float) -> np.ndarray:
-    """The smoothing spline of complex ``y`` at ``x``, weights ``w`` (the inverse variances
-    over ``scale``), with the largest penalty whose residuals' chi-square per value is <= 1."""
-    def fit(lam: float) -> tuple[float, np.ndarray]:
-        values = (scipy.interpolate.make_smoothing_spline(x, y.real, w=w, lam=lam)(x)
-                  + 1j * scipy.interpolate.make_smoothing_spline(x, y.imag, w=w, lam=lam)(x))
-        return float(np.sum(w * np.abs(values - y) ** 2) * scale / (2 * y.size)), values
+def _spline(x: np.ndarray, y: np.ndarray, w: np.ndarray, lam: float) -> np.ndarray:
+    return scipy.interpolate.make_smoothing_spline(x, y, w=w, lam=lam)(x)
 
-    best = y
+
+def _discrepancy_penalty(x: np.ndarray, y: np.ndarray, w: np.ndarray, scale: float
+                         ) -> float | None:
+    """The largest penalty of the smoothing spline of complex ``y`` at ``x`` (weights ``w``,
+    the inverse variances over ``scale``) whose residuals' chi-square per value is <= 1; None
+    when even the smallest tried exceeds it."""
+    def chi2(lam: float) -> float:
+        values = _spline(x, y.real, w, lam) + 1j * _spline(x, y.imag, w, lam)
+        return float(np.sum(w * np.abs(values - y) ** 2) * scale / (2 * y.size))
+
+    best = None
     lam = 1e-12 * float(np.ptp(x)) ** 3
     for _ in range(40):                        # decades: the last that stays within the noise
-        chi2, values = fit(lam)
-        if chi2 > 1.0:
+        if chi2(lam) > 1.0:
             break
-        best, lam = values, lam * 10.0
-    step = lam / 10.0
-    for _ in range(3):                         # then halvings of the last decade
-        step = step * 2.0
-        chi2, values = fit(step)
-        if chi2 > 1.0:
-            break
-        best = values
+        best, lam = lam, lam * 10.0
+    if best is None:
+        return None
+    for factor in (8.0, 4.0, 2.0):             # then the largest of 8, 4, 2 times it that does
+        if factor * best < lam and chi2(factor * best) <= 1.0:
+            return factor * best
     return best
 
 
@@ -462,10 +497,16 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
         for k, r in zip(n[inside], snr[inside], strict=True) if r < MIN_SNR)
     kept = n[inside]
     mix = model.mixing(kept * f0)                                # (n_shapes, n_kept)
+    mix_std = model.mixing_std(kept * f0)
     first = model.shapes[0]
     coefs = np.column_stack([s.coefficients for s in model.shapes]).astype(complex)
-    shapes = tuple(dataclasses.replace(first, coefficients=coefs @ mix[:, j])
-                   for j in range(len(kept)))
+    # each shape's coefficient covariance: the first span shape's fit, and the ratios'
+    # uncertainty along the span's other shapes (delta phi = sum_k phi_k delta r_k)
+    real = coefs.real
+    shapes = tuple(dataclasses.replace(
+        first, coefficients=coefs @ mix[:, j],
+        coefficient_covariance=first.coefficient_covariance
+        + (real * mix_std[:, j] ** 2) @ real.T) for j in range(len(kept)))
     couplings = (model.couplings.astype(complex) @ mix).T       # (n_kept, n_gauges)
     # the shapes share one basis, orthonormal over the scan points: their MAC is that of
     # their coefficients

@@ -73,6 +73,11 @@ class SteadyRecord:
         gives H).
     name : str
         The run, for the messages.
+    shared : tuple of (str, (n,) array, (n, n_poles) array)
+        Errors this run shares with others, each per standard uncertainty: its name (runs'
+        errors with one name are one error), and its change of the force and of the gaps at
+        the ``n`` instants. :func:`forcecal.actuator.frequency_fit.fit_frequency_law` adds
+        them to the parameters' covariance.
     """
 
     f0: float
@@ -82,6 +87,7 @@ class SteadyRecord:
     force_std: np.ndarray | float | None = None
     n_harmonics: int | None = None
     name: str = ""
+    shared: tuple[tuple[str, np.ndarray, np.ndarray], ...] = ()
 
     def __post_init__(self) -> None:
         what = f"record '{self.name}'" if self.name else "record"
@@ -115,8 +121,18 @@ class SteadyRecord:
             if std.shape != (h + 1,) or not np.all(np.isfinite(std)) or np.any(std <= 0):
                 raise InputError(f"{what}: force_std must hold {h + 1} positive finite values "
                                  f"(harmonics 0..{h}), found {std.shape}")
+        shared = []
+        for label, df, dg in self.shared:
+            df, dg = np.asarray(df, dtype=float), np.asarray(dg, dtype=float)
+            dg = dg[:, None] if dg.ndim == 1 else dg
+            if df.shape != (n,) or dg.shape != g.shape or not (
+                    np.all(np.isfinite(df)) and np.all(np.isfinite(dg))):
+                raise InputError(f"{what}: shared error '{label}' must give finite changes of "
+                                 f"the force {(n,)} and the gaps {g.shape}")
+            shared.append((str(label), df, dg))
         for key, value in (("current", i), ("gaps", g), ("force", f), ("force_std", std),
-                           ("n_harmonics", h), ("f0", float(self.f0))):
+                           ("n_harmonics", h), ("f0", float(self.f0)),
+                           ("shared", tuple(shared))):
             object.__setattr__(self, key, value)
 
     @classmethod
@@ -134,7 +150,9 @@ class SteadyRecord:
         force_std : float, (H+1,) array or None [N]
             The force phasors' uncertainty; None takes the run's independent force noise
             (``samples.noise``: the estimate's budget and the probes' noise through the
-            coordinates, their effect on the force) when described.
+            coordinates, their effect on the force) when described. The errors the run
+            shares with others (the tare's, the scan shapes', the rig's type-B) come from
+            ``samples.noise`` too.
         name : str
             The run.
 
@@ -150,8 +168,16 @@ class SteadyRecord:
         noise = getattr(samples, "noise", None)
         if force_std is None and noise is not None:
             force_std = _noise_std(noise)
+        shared: tuple[tuple[str, np.ndarray, np.ndarray], ...] = ()
+        if noise is not None:
+            from ..gaps import fourier_series
+
+            shared = tuple(
+                (e.name, fourier_series(e.total, f0, t),
+                 -fourier_series(e.motion, f0, t).T)          # the gap is s_0 - w
+                for e in (*getattr(noise, "shared", ()), *getattr(noise, "type_b", ())))
         return cls(f0=float(f0), current=samples.current, gaps=samples.gaps,
-                   force=samples.force, force_std=force_std, name=name)
+                   force=samples.force, force_std=force_std, name=name, shared=shared)
 
     @property
     def n(self) -> int:

@@ -343,7 +343,9 @@ def _shape_change(run: _ShapeRun, k: int, member: int, at_poles: np.ndarray, del
 def _shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
     """The scan shapes' errors: for every harmonic's members, each principal direction of the
     coefficients' covariance (Re and Im), its signed change of the total force and of the pole
-    displacement (central differences)."""
+    displacement (central differences). Each is named with its harmonic's frequency: runs share
+    it when their model's shape at that frequency is one (a steady scan's at its fundamental; a
+    broadband model's differs from one frequency to the next)."""
     out = []
     model = run.model
     xp = run.rig.structure.coordinates(run.rig.force_points)
@@ -362,7 +364,8 @@ def _shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
                     plus = _shape_change(run, k, member, at_poles, step)
                     minus = _shape_change(run, k, member, at_poles, -step)
                     out.append(SharedEffect(
-                        name=f"shape n={int(n)} member {member} direction {d} {part}",
+                        name=f"shape n={int(n)} ({int(n) * model.f0:.4g} Hz) member "
+                             f"{member} direction {d} {part}",
                         source="scan shapes", total=0.5 * (plus[0] - minus[0]),
                         motion=0.5 * (plus[1] - minus[1])))
     return tuple(out)
