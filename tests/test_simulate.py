@@ -29,7 +29,12 @@ from forcecal.simulate.beam import (
     pinned_static_deflection,
 )
 from forcecal.simulate.export import write_simulation
-from forcecal.simulate.integrate import INERTIA_TOLERANCE, integrate, steady_oversample
+from forcecal.simulate.integrate import (
+    INERTIA_TOLERANCE,
+    drive_oversample,
+    integrate,
+    steady_oversample,
+)
 from forcecal.simulate.magnet import MU0, Drive, Magnet, Pole
 from forcecal.simulate.presets import NoiseSpec, get_preset
 from forcecal.simulate.virtual_rig import (
@@ -171,6 +176,20 @@ def test_a_steady_drive_is_stepped_finely_enough_for_its_inertia():
     assert steady_oversample(20.0, preset.fs) == 1
     assert _inertia_mismatch(preset, model, drives, None) < INERTIA_TOLERANCE
     assert _inertia_mismatch(preset, model, drives, 1) > 4 * INERTIA_TOLERANCE
+
+
+def test_a_broadband_drive_is_stepped_for_the_top_of_its_band():
+    """A sweep to 150 Hz and a chirp to 200 Hz at 10 kHz: stepped as a steady sine at their
+    band's top would be, 3 and 4 steps a sample, so that the rig's inertia at twice that
+    frequency is within INERTIA_TOLERANCE of its mass's ((w dt)^2 / 6; with one step, 0.26 %
+    at 200 Hz and 1.05 % at 400 Hz)."""
+    preset = get_preset("sweep")
+    sweep = next(r for r in preset.runs if r.name == "sweep").drives
+    for drives, steps, top in ((sweep, 3, 150.0), (preset.scan.drives, 4, 200.0)):
+        n = drive_oversample(drives, preset.fs)
+        assert n == steps
+        assert (2 * math.pi * 2 * top / (preset.fs * n)) ** 2 / 6 <= INERTIA_TOLERANCE
+    assert drive_oversample(preset.runs[1].drives, preset.fs) == 1       # a steady 10 Hz step
 
 
 # --------------------------------------------------------------------------------------------
