@@ -371,13 +371,16 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
 
 def test_cli_streams_a_run_under_any_drive(beam, scan, random_run, tmp_path, capsys):
     """``stream`` with a broadband model writes the steady stream's columns, every sample, the
-    batch's series to 0.2 of its uncertainty (achieved 0.061); ``--memory`` and ``--steady``,
-    which set a steady stream's memory, are refused in one line with exit status 2."""
+    batch's series to 0.2 of its uncertainty (achieved 0.061); it says, once the run is
+    through, what ``reconstruct`` says of a force above the scan's band; ``--memory`` and
+    ``--steady``, which set a steady stream's memory, are refused in one line with exit
+    status 2."""
     import pandas as pd
     import tomli_w
 
+    from forcecal.broadband import load_any_model
     from forcecal.cli import main
-    from forcecal.io.run_files import write_run_csv
+    from forcecal.io.run_files import read_run, write_run_csv
     from forcecal.io.scan_files import write_scan_npz
     from forcecal.rig import rig_to_dict
 
@@ -399,7 +402,18 @@ def test_cli_streams_a_run_under_any_drive(beam, scan, random_run, tmp_path, cap
     assert len(streamed) == run.n_samples
     d = streamed["total"].to_numpy() - batch["total"].to_numpy()
     assert np.sqrt(np.mean(d**2)) < 0.2 * batch["total_std"].mean()
-    capsys.readouterr()
+    assert "note:" not in capsys.readouterr().err         # a current of nothing: no note
+    # a current over 5-150 Hz puts i^2 above the 200 Hz scan: the stream says so at the end,
+    # in the words and figures of the batch's note
+    drive = 2.0 + 1.0 * _band_noise(np.random.default_rng(9), run.n_samples, 5.0, 150.0)
+    write_run_csv(dataclasses.replace(run, channels={**run.channels, "i": drive}),
+                  tmp_path / "wide.csv")
+    assert main(["stream", *args[:2], str(tmp_path / "wide.csv"), "-o",
+                 str(tmp_path / "wide.stream.csv")]) == 0
+    said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note:")]
+    batch_notes = reconstruct_any(rig, load_any_model(model),
+                                  read_run(tmp_path / "wide.csv", rig)).notes
+    assert len(said) == 1 and said[0][len("note: "):] in batch_notes, (said, batch_notes)
     for option in (["--memory", "5"], ["--steady"]):
         assert main(["stream", *args, "-o", str(tmp_path / "x.csv"), *option]) == 2
         err = capsys.readouterr().err.strip()

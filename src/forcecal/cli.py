@@ -431,7 +431,8 @@ def _cmd_stream(args) -> int:
         if not to_stdout:
             clean_stale(Path(args.output).parent)
         if broadband:
-            stream_any_table(rig, model, blocks, args.output, check=check)
+            stream_any_table(rig, model, blocks, args.output, check=check,
+                             note=lambda text: _say(f"note: {text}"))
         else:
             stream_table(rig, model, blocks, args.output, block=args.block, check=check,
                          forgetting=_forgetting(args, model, blocks.fs))

@@ -46,9 +46,9 @@ from .rig import Rig
 from .spatial import check_rig_keys
 from .wiener import smoother_response, stft_frame, wiener_smooth
 
-__all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
-           "channel_noise", "check_channel_noise", "check_length", "reconstruct_any",
-           "run_channels", "window_forces"]
+__all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "above_band_note",
+           "above_band_share", "any_drive_setup", "channel_noise", "check_channel_noise",
+           "check_length", "reconstruct_any", "run_channels", "window_forces"]
 
 
 @dataclass(frozen=True)
@@ -384,28 +384,36 @@ ABOVE_BAND = 1e-4
 in some half second, is noted (1 % in amplitude): that content has no operating shape."""
 
 
-def _above_band(current: np.ndarray, fs: float, band: tuple[float, float],
+def _above_band(current: np.ndarray, fs: float, t0: float, band: tuple[float, float],
                 source: str) -> tuple[str, ...]:
     """A note when the coil current's square (the magnet's force at a fixed gap) holds more
-    than ``ABOVE_BAND`` of its AC power above the scan's band in any half second, its white
-    noise (:func:`channel_noise`) taken out: that content has no
-    operating shape, so the smoothers set it aside and its inertia is not compensated. A
-    biased magnet pulls at twice its drive's frequencies, which a scan over the drive's band
-    alone misses."""
-    x = current**2
+    than ``ABOVE_BAND`` of its AC power above the scan's band in any half second
+    (:func:`above_band_share`): that content has no operating shape, so the smoothers set it
+    aside and its inertia is not compensated. A biased magnet pulls at twice its drive's
+    frequencies, which a scan over the drive's band alone misses."""
     n = max(int(0.5 * fs), 256)
-    worst, at = 0.0, 0.0
-    for start in range(0, max(x.size - n, 0) + 1, n):
-        seg = x[start:start + n]
-        f, p = scipy.signal.welch(seg, fs=fs, nperseg=min(seg.size, 1024))
-        floor = 2.0 * float(channel_noise(seg[None, :], fs, band)[0]) / fs
-        above = f > band[1]
-        share = float(np.sum(np.maximum(p[above] - floor, 0.0)) / max(np.sum(p[1:]), 1e-300))
-        if share > worst:
-            worst, at = share, start / fs
-    if worst <= ABOVE_BAND:
+    shares = [(above_band_share(current[k:k + n], fs, band), t0 + k / fs)
+              for k in range(0, max(current.size - n, 0) + 1, n)]
+    return above_band_note(*max(shares), band, source)
+
+
+def above_band_share(current: np.ndarray, fs: float, band: tuple[float, float]) -> float:
+    """The share of the AC power of the current's square above the band, its white noise
+    (:func:`channel_noise`) taken out, over a stretch of samples (half a second)."""
+    x = current**2
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=min(x.size, 1024))
+    floor = 2.0 * float(channel_noise(x[None, :], fs, band)[0]) / fs
+    above = f > band[1]
+    return float(np.sum(np.maximum(p[above] - floor, 0.0)) / max(np.sum(p[1:]), 1e-300))
+
+
+def above_band_note(share: float, at: float, band: tuple[float, float],
+                    source: str) -> tuple[str, ...]:
+    """The note of :func:`_above_band` for the largest ``share`` (in the half second from
+    ``at`` [s]); none when it is at most :data:`ABOVE_BAND`."""
+    if share <= ABOVE_BAND:
         return ()
-    return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(worst):.2g} % of its "
+    return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(share):.2g} % of its "
             f"AC amplitude above the scan's band ({band[1]:g} Hz) in the half second from "
             f"{at:.3g} s: no operating shape is known there, so that part of the force is "
             "smoothed away and its inertia not compensated; scan over a band that covers it (a "
@@ -546,7 +554,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     n = run.n_samples
     check_length(model, n, fs, run.source)
     gauges, probes, current = run_channels(rig, run, tare)
-    above = _above_band(current, fs, model.band, run.source)
+    above = _above_band(current, fs, run.t0, model.band, run.source)
     if not smooth:
         from .stream.any_drive import stream_arrays
 

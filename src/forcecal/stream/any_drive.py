@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
@@ -45,6 +45,8 @@ from ..transient import (
     AnyDriveSetup,
     TransientEstimate,
     WindowEstimate,
+    above_band_note,
+    above_band_share,
     any_drive_setup,
     check_channel_noise,
     check_length,
@@ -254,7 +256,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
                      *, check: Check | None = None, digits: int = CSV_DIGITS,
-                     stdout: IO[bytes] | None = None, read: int = 1 << 14) -> int:
+                     stdout: IO[bytes] | None = None, read: int = 1 << 14,
+                     note: Callable[[str], None] | None = None) -> int:
     """Stream a run file under any drive into the table ``stream`` writes.
 
     Parameters
@@ -273,6 +276,11 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         Where ``-`` writes.
     read : int
         Samples read at a time.
+    note : callable, optional
+        Called once the table is written with the note of the half second in which the
+        drive's force held the most above the scan's band, when it held more than
+        :data:`forcecal.transient.ABOVE_BAND` (:func:`forcecal.transient.above_band_note`:
+        a stream cannot see ahead, but it can say so at the end).
 
     Returns
     -------
@@ -282,13 +290,51 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     check_length(model, blocks.n_samples, blocks.fs, blocks.source)
     stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0, source=blocks.source)
     names = list(rig.force_names)
+    above = _AboveBand(blocks.fs, model.band)
+    current = rig.actuator.current
+
+    def channels() -> Iterator[np.ndarray]:
+        for block in blocks.blocks([*stream.channel_names, current], read):
+            above.add(block[-1] * rig.actuator.current_scale, blocks.t0)
+            yield block[:-1]
+
     with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
                       rows=blocks.n_samples, stdout=stdout) as out:
-        for c in _chunks(stream, blocks.blocks(stream.channel_names, read)):
+        for c in _chunks(stream, channels()):
             est = c.estimate
             if check is not None:
                 check(c.time, dict(zip(names, est.force, strict=True)),
                       dict(zip(names, est.static, strict=True)))
             out.write(c.time, stream_rows(est.force, est.static, c.std))
-        return out.rows
+        rows = out.rows
+    if note is not None:
+        for text in above.notes(blocks.source):
+            note(text)
+    return rows
+
+
+class _AboveBand:
+    """The current's square above the scan's band, half a second at a time as it streams
+    (:func:`forcecal.transient.above_band_share`), its largest share kept."""
+
+    def __init__(self, fs: float, band: tuple[float, float]):
+        self.fs, self.band = fs, band
+        self.n = max(int(0.5 * fs), 256)
+        self.buffer = np.empty(0)
+        self.done = 0
+        self.worst = (0.0, 0.0)
+        self.t0 = 0.0
+
+    def add(self, current: np.ndarray, t0: float) -> None:
+        self.t0 = t0
+        self.buffer = np.concatenate([self.buffer, current])
+        while self.buffer.size >= self.n:
+            share = above_band_share(self.buffer[:self.n], self.fs, self.band)
+            self.worst = max(self.worst, (share, t0 + self.done / self.fs))
+            self.buffer, self.done = self.buffer[self.n:], self.done + self.n
+
+    def notes(self, source: str) -> tuple[str, ...]:
+        if not self.done and self.buffer.size:        # a record shorter than half a second
+            self.worst = (above_band_share(self.buffer, self.fs, self.band), self.t0)
+        return above_band_note(*self.worst, self.band, source)
 
