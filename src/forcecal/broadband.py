@@ -384,8 +384,8 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     Every ratio's Re and Im get a smoothing spline (:func:`scipy.interpolate.
     make_smoothing_spline`) weighted by the inverse variance of the line's ratio, to first
     order (var(a_k) + |r|^2 var(a_1) - 2 Re(r) cov(a_k, a_1)) / |a_1|^2, with the largest
-    roughness penalty (over decades, then halvings) that leaves the weighted residuals at most
-    one per value.
+    roughness penalty (over decades, then 2, 4 or 8 times the last) that leaves the weighted
+    residuals at most one per value.
     """
     tiny = np.finfo(float).tiny
     first = np.where(np.abs(coords[0]) > tiny, coords[0], tiny)
