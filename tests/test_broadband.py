@@ -150,8 +150,8 @@ def test_broadband_span_shapes_and_couplings(beam, bb_model):
 def test_steady_model_from_broadband(beam, bb_model):
     """Each harmonic of a steady run gets the operating shape of its own frequency: the ratio
     of its mass coupling to its value at a probe is the FE beam's own at that frequency
-    (achieved within 0.26 % at 36-180 Hz, test 0.6 %, where one shape for all is up to 7.3 %
-    off)."""
+    (achieved within 0.12 % at 36-180 Hz with the smoothed ratios, 0.26 % with each line's
+    own; test 0.35 %, where one shape for all is up to 7.3 % off)."""
     from forcecal.simulate.virtual_rig import _inertia
 
     preset, model, phi, rig, modal = beam
@@ -167,7 +167,7 @@ def test_steady_model_from_broadband(beam, bb_model):
         first = bb_model.couplings[:, 0] / bb_model.values(np.array([0.1]))[0, 0]
         errors.append(np.max(np.abs(got / want - 1)))
         one_shape.append(np.max(np.abs(first / want - 1)))
-    assert max(errors) < 6e-3
+    assert max(errors) < 3.5e-3
     assert max(one_shape) > 3e-2
     with pytest.raises(InputError, match="lies above the band"):
         steady_model(bb_model, rig, 250.0, 3)
