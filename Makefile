@@ -22,7 +22,7 @@ demo: $(STAMP)
 	$(BIN)/forcecal demo demo-output
 
 # The suite runs on two workers (pytest-xdist), each test file on one, so that a file's
-# fixtures are made once.
+# fixtures are made once and the guide's commands (tests/test_docs.py) run in their order.
 test: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/mypy

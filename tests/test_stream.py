@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import tracemalloc
+import types
 
 import numpy as np
 import pytest
@@ -516,6 +517,22 @@ def test_stream_writes_csv_to_stdout_and_nothing_on_error(paper, paper_dir, tmp_
     assert main([*args, "-o", str(tmp_path / "s.csv")]) == 0
     capsysbinary.readouterr()
     assert (tmp_path / "s.csv").read_text() == out
+
+    class ClosedPipe:                       # stdout whose reader has gone (`... | head`)
+        def write(self, data):
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self):
+            pass
+
+    monkeypatch.setattr(sys, "stdout", types.SimpleNamespace(buffer=ClosedPipe(),
+                                                             write=ClosedPipe().write,
+                                                             flush=ClosedPipe().flush))
+    assert main([*args, "-o", "-"]) == 2
+    monkeypatch.undo()
+    err = capsysbinary.readouterr().err.decode().strip()
+    assert err == ("forcecal: stdout: its reader closed the pipe; the table written there is "
+                   "cut short"), err
 
     calls = []
 

@@ -6,7 +6,6 @@ names the file, key or channel), 130 when interrupted. Output files are written 
 
 from __future__ import annotations
 
-import argparse
 import io
 import json
 import os
@@ -18,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .cli_parser import PROG, build_parser
+from .cli_parser import PROG, build_parser, check_arguments
 from .cli_parser import ArgumentError as _ArgumentError
 from .cluster import run_jobs
 from .errors import ForcecalError, InputError
@@ -513,7 +512,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         _VERBOSITY[0] = 0 if getattr(args, "quiet", False) else (
             2 if getattr(args, "verbose", False) else 1)
         _STARTED[0] = time.perf_counter()
-        _check_arguments(args)
+        for note in check_arguments(args, MAX_HARMONICS):
+            _print(f"note: {note}")
         for stream in (sys.stdout, sys.stderr):  # a file name's undecodable bytes: replaced
             reconfigure = getattr(stream, "reconfigure", None)
             if reconfigure is not None:
@@ -537,8 +537,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         _say(f"{PROG}: interrupted; no output file was left half-written")
         return 130
-    except OSError as exc:
-        _say(f"{PROG}: {exc.filename or ''}: {exc.strerror or exc}".replace("\n", " "))
+    except BrokenPipeError:                # `forcecal stream ... -o - | head`
+        _say(f"{PROG}: stdout: its reader closed the pipe; the table written there is cut short")
+        return 2
+    except OSError as exc:                 # a file's name when the error has one
+        where = [str(x) for x in (exc.filename, exc.strerror or exc) if x]
+        _say(f"{PROG}: {': '.join(where)}".replace("\n", " "))
         return 2
     except Exception as exc:  # a bug: say so in one line; the traceback on demand
         if os.environ.get("FORCECAL_DEBUG"):
@@ -546,49 +550,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say(f"{PROG}: internal error ({type(exc).__name__}: {exc}); "
              "set FORCECAL_DEBUG=1 for the traceback and please report it")
         return 1
-
-
-def _check_arguments(args: argparse.Namespace) -> None:
-    """What argparse's types cannot say: ranges, empty paths, missing folders."""
-    prog = f"{PROG} {args.command}"
-    harmonics = getattr(args, "harmonics", None)
-    if harmonics is not None and not 1 <= harmonics <= MAX_HARMONICS:
-        raise _ArgumentError(f"{prog}: argument --harmonics: {harmonics} is not a number of "
-                             f"harmonics from 1 to {MAX_HARMONICS}")
-    for name in ("output", "out"):
-        value = getattr(args, name, None)
-        if isinstance(value, str) and not value.strip():
-            option = "-o/--output" if name == "output" else "OUT"
-            raise _ArgumentError(f"{prog}: argument {option}: an empty path; name the output "
-                                 "(use '.' for the current folder)")
-    seed = getattr(args, "seed", None)
-    if seed is not None and seed < 0:
-        raise _ArgumentError(f"{prog}: argument --seed: {seed} is negative; expected a whole "
-                             "number >= 0")
-    block = getattr(args, "block", None)
-    if block is not None and block < 1:
-        raise _ArgumentError(f"{prog}: argument --block: {block} is not a positive number of "
-                             "samples")
-    _expand_run_folders(args)
-
-
-def _expand_run_folders(args: argparse.Namespace) -> None:
-    """A folder given as RUN stands for the run files in it (sorted); what is skipped is noted
-    on stdout. ``stream`` replays one run: its folder must hold exactly one."""
-    from .io.run_files import run_paths
-
-    if isinstance(getattr(args, "runs", None), list):
-        args.runs, notes = run_paths(args.runs)
-    elif isinstance(getattr(args, "run", None), str) and Path(args.run).is_dir():
-        runs, notes = run_paths([args.run])
-        if len(runs) != 1:
-            raise InputError(f"run folder '{args.run}': {len(runs)} run files; "
-                             f"'{PROG} {args.command}' replays one run, name its file")
-        args.run = runs[0]
-    else:
-        return
-    for note in notes:
-        _print(f"note: {note}")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
