@@ -512,8 +512,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         _VERBOSITY[0] = 0 if getattr(args, "quiet", False) else (
             2 if getattr(args, "verbose", False) else 1)
         _STARTED[0] = time.perf_counter()
-        for note in check_arguments(args, MAX_HARMONICS):
-            _print(f"note: {note}")
+        check_arguments(args, MAX_HARMONICS)
+        _expand_run_folders(args)
         for stream in (sys.stdout, sys.stderr):  # a file name's undecodable bytes: replaced
             reconfigure = getattr(stream, "reconfigure", None)
             if reconfigure is not None:
@@ -550,6 +550,25 @@ def main(argv: Sequence[str] | None = None) -> int:
         _say(f"{PROG}: internal error ({type(exc).__name__}: {exc}); "
              "set FORCECAL_DEBUG=1 for the traceback and please report it")
         return 1
+
+
+def _expand_run_folders(args) -> None:
+    """A folder given as RUN stands for the run files in it (sorted); what is skipped is noted
+    on stdout. ``stream`` replays one run: its folder must hold exactly one."""
+    from .io.run_files import run_paths
+
+    if isinstance(getattr(args, "runs", None), list):
+        args.runs, notes = run_paths(args.runs)
+    elif isinstance(getattr(args, "run", None), str) and Path(args.run).is_dir():
+        runs, notes = run_paths([args.run])
+        if len(runs) != 1:
+            raise InputError(f"run folder '{args.run}': {len(runs)} run files; "
+                             f"'{PROG} {args.command}' replays one run, name its file")
+        args.run = runs[0]
+    else:
+        return
+    for note in notes:
+        _print(f"note: {note}")
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -4,7 +4,6 @@ help and an example (INTERFACES.md section 5); :mod:`forcecal.cli` runs them."""
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 from typing import Any
 
 __all__ = ["PROG", "ArgumentError", "build_parser", "check_arguments"]
@@ -195,9 +194,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def check_arguments(args: argparse.Namespace, max_harmonics: int) -> list[str]:
-    """What argparse's types cannot say: ranges, empty paths, missing folders. Returns the
-    notes on run folders (what is skipped in them)."""
+def check_arguments(args: argparse.Namespace, max_harmonics: int) -> None:
+    """What argparse's types cannot say: ranges and empty paths."""
     prog = f"{PROG} {args.command}"
     harmonics = getattr(args, "harmonics", None)
     if harmonics is not None and not 1 <= harmonics <= max_harmonics:
@@ -217,23 +215,3 @@ def check_arguments(args: argparse.Namespace, max_harmonics: int) -> list[str]:
     if block is not None and block < 1:
         raise ArgumentError(f"{prog}: argument --block: {block} is not a positive number of "
                             "samples")
-    return _expand_run_folders(args)
-
-
-def _expand_run_folders(args: argparse.Namespace) -> list[str]:
-    """A folder given as RUN stands for the run files in it (sorted); returns what is skipped.
-    ``stream`` replays one run: its folder must hold exactly one."""
-    from .errors import InputError
-    from .io.run_files import run_paths
-
-    if isinstance(getattr(args, "runs", None), list):
-        args.runs, notes = run_paths(args.runs)
-    elif isinstance(getattr(args, "run", None), str) and Path(args.run).is_dir():
-        runs, notes = run_paths([args.run])
-        if len(runs) != 1:
-            raise InputError(f"run folder '{args.run}': {len(runs)} run files; "
-                             f"'{PROG} {args.command}' replays one run, name its file")
-        args.run = runs[0]
-    else:
-        return []
-    return list(notes)
