@@ -24,7 +24,9 @@ Force content above the scan's band (a drive's harmonics beyond it) has no opera
 and is smoothed away.
 
 The noise of every channel is read from its spectrum above the band (white beyond the drive's
-reach), so that a probe's noise sets its weight and the smoother's gain.
+reach), so that a probe's noise sets its weight and the smoother's gain; a channel whose noise
+changes while the run goes on is refused, and force above the scan's band noted
+(:mod:`forcecal.channel_checks`).
 """
 
 from __future__ import annotations
@@ -37,7 +39,8 @@ import numpy as np
 import scipy.signal
 
 from .broadband import BroadbandModel
-from .errors import DataError, InputError
+from .channel_checks import AboveBand, channel_noise, check_channel_noise
+from .errors import DataError
 from .forces import channels_si
 from .kalman import BandModel, band_model, smooth_states
 from .records import Run
@@ -46,8 +49,7 @@ from .rig import Rig
 from .spatial import check_rig_keys
 from .wiener import smoother_response, stft_frame, wiener_smooth
 
-__all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "above_band_note",
-           "above_band_share", "any_drive_setup", "channel_noise", "check_channel_noise",
+__all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
            "check_length", "reconstruct_any", "run_channels", "window_forces"]
 
 
@@ -118,40 +120,6 @@ class TransientEstimate:
         part = (self.total - static) - (self.total - static).mean()
         rms = float(np.sqrt(np.mean(total**2)))
         return float(np.sqrt(np.mean(part**2))) / rms if rms > 0 else 0.0
-
-
-def channel_noise(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
-    """Each channel's white-noise variance per sample, from its spectrum above the band.
-
-    Parameters
-    ----------
-    x : (n_channels, N) array
-    fs : float [Hz]
-    band : (low, high) [Hz]
-
-    Returns
-    -------
-    (n_channels,) array [unit^2]
-        The median one-sided density between 2 x the band's top (at most 0.6 of Nyquist) and
-        0.9 of Nyquist, times fs / 2 (Welch's averages are nearly Gaussian, so their median is
-        their mean), at least 1e-20 of the channel's mean square (a noise-free channel still
-        has a weight).
-
-    Raises
-    ------
-    InputError
-        When the sampling leaves no room above the band.
-    """
-    nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 10)))))
-    f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg, axis=-1)
-    lo, hi = min(2 * band[1], 0.3 * fs), 0.45 * fs
-    sel = (f >= lo) & (f <= hi)
-    if np.count_nonzero(sel) < 4:
-        raise InputError(f"sampling at {fs:g} Hz leaves no lines above the band's top "
-                         f"{band[1]:g} Hz to measure the noise")
-    level = np.median(p[..., sel], axis=-1) * fs / 2
-    floor = 1e-20 * np.mean(x**2, axis=-1) + np.finfo(float).tiny
-    return np.maximum(level, floor)
 
 
 TOP_MARGIN = 100.0
@@ -379,47 +347,6 @@ EDGE_PERIODS = 2.0
 the smoother cannot see whole (:func:`_edge_std`)."""
 
 
-ABOVE_BAND = 1e-4
-"""A run whose drive's i^2 holds more than this share of its AC power above the scan's band,
-in some half second, is noted (1 % in amplitude): that content has no operating shape."""
-
-
-def _above_band(current: np.ndarray, fs: float, t0: float, band: tuple[float, float],
-                source: str) -> tuple[str, ...]:
-    """A note when the coil current's square (the magnet's force at a fixed gap) holds more
-    than ``ABOVE_BAND`` of its AC power above the scan's band in any half second
-    (:func:`above_band_share`): that content has no operating shape, so the smoothers set it
-    aside and its inertia is not compensated. A biased magnet pulls at twice its drive's
-    frequencies, which a scan over the drive's band alone misses."""
-    n = max(int(0.5 * fs), 256)
-    shares = [(above_band_share(current[k:k + n], fs, band), t0 + k / fs)
-              for k in range(0, max(current.size - n, 0) + 1, n)]
-    return above_band_note(*max(shares), band, source)
-
-
-def above_band_share(current: np.ndarray, fs: float, band: tuple[float, float]) -> float:
-    """The share of the AC power of the current's square above the band, its white noise
-    (:func:`channel_noise`) taken out, over a stretch of samples (half a second)."""
-    x = current**2
-    f, p = scipy.signal.welch(x, fs=fs, nperseg=min(x.size, 1024))
-    floor = 2.0 * float(channel_noise(x[None, :], fs, band)[0]) / fs
-    above = f > band[1]
-    return float(np.sum(np.maximum(p[above] - floor, 0.0)) / max(np.sum(p[1:]), 1e-300))
-
-
-def above_band_note(share: float, at: float, band: tuple[float, float],
-                    source: str) -> tuple[str, ...]:
-    """The note of :func:`_above_band` for the largest ``share`` (in the half second from
-    ``at`` [s]); none when it is at most :data:`ABOVE_BAND`."""
-    if share <= ABOVE_BAND:
-        return ()
-    return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(share):.2g} % of its "
-            f"AC amplitude above the scan's band ({band[1]:g} Hz) in the half second from "
-            f"{at:.3g} s: no operating shape is known there, so that part of the force is "
-            "smoothed away and its inertia not compensated; scan over a band that covers it (a "
-            "biased magnet pulls at twice its drive's frequencies)",)
-
-
 def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
     """(n, N) [N]: the uncertainty of the inertia's part ``part`` (n, N) at the record's ends.
 
@@ -437,63 +364,6 @@ def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
     out[:, :m] = np.sqrt(np.mean(part[:, :m] ** 2, axis=1))[:, None] * taper
     out[:, n - m:] = np.sqrt(np.mean(part[:, n - m:] ** 2, axis=1))[:, None] * taper[::-1]
     return out
-
-
-NOISE_BLOCK = 0.5
-"""[s] the stretch over which every channel's noise is checked."""
-NOISE_CHANGE = 10.0
-"""A channel whose noise variance above the band is this many times (3.2 times in standard
-deviation) above or below its usual level in some stretch has changed: died, saturated or come
-loose. The level of half a second is read to a few percent."""
-
-
-def check_channel_noise(gauges: np.ndarray, probes: np.ndarray, names: Sequence[str],
-                        fs: float, band: tuple[float, float], t0: float, source: str,
-                        reference: np.ndarray | None = None) -> None:
-    """Refuse a record in which some gauge or probe changes while it runs: every channel's
-    noise above the band (:func:`channel_noise`) over each :data:`NOISE_BLOCK`, against its
-    usual level, a change of :data:`NOISE_CHANGE` times either way. A channel whose level is
-    its floor (a noise-free record) is not checked.
-
-    Parameters
-    ----------
-    gauges : (n_gauges, N) array [N]
-    probes : (n_probes, N) array [m]
-    names : sequence of str
-        The gauges' then the probes' channel names.
-    fs : float [Hz]
-    band : (low, high) [Hz]
-    t0 : float [s]
-        The time of the first sample.
-    source : str
-        The run, for the message.
-    reference : (n_gauges + n_probes,) array or None
-        The usual levels (a stream's, from its first seconds); None takes the median over the
-        record's stretches.
-
-    Raises
-    ------
-    DataError
-        Naming the channel, the stretch and the change.
-    """
-    x = np.vstack([gauges, probes])
-    n = int(round(NOISE_BLOCK * fs))
-    starts = range(0, x.shape[-1] - n + 1, n)
-    if not starts:
-        return
-    levels = np.column_stack([channel_noise(x[:, k:k + n], fs, band) for k in starts])
-    usual = np.median(levels, axis=1) if reference is None else reference
-    live = usual > 1e-18 * np.mean(x**2, axis=-1) + np.finfo(float).tiny
-    ratio = levels / usual[:, None]
-    bad = live[:, None] & ((ratio > NOISE_CHANGE) | (ratio < 1.0 / NOISE_CHANGE))
-    if np.any(bad):
-        block = int(np.flatnonzero(bad.any(axis=0))[0])
-        k = int(np.flatnonzero(bad[:, block])[0])
-        when = t0 + block * NOISE_BLOCK
-        raise DataError(f"run '{source}': channel '{names[k]}' from {when:.3g} s to "
-                        f"{when + NOISE_BLOCK:.3g} s: its noise above the band is "
-                        f"{np.sqrt(ratio[k, block]):.3g} times its usual level; a sensor that "
-                        "died, saturated or came loose cannot follow any drive")
 
 
 def run_channels(rig: Rig, run: Run, tare: Run | None = None
@@ -554,7 +424,9 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     n = run.n_samples
     check_length(model, n, fs, run.source)
     gauges, probes, current = run_channels(rig, run, tare)
-    above = _above_band(current, fs, run.t0, model.band, run.source)
+    reach = AboveBand(fs, model.band, run.t0)
+    reach.add(current)
+    above = reach.notes(run.source)
     if not smooth:
         from .stream.any_drive import stream_arrays
 

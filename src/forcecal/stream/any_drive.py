@@ -35,20 +35,17 @@ from typing import IO
 import numpy as np
 
 from ..broadband import BroadbandModel
+from ..channel_checks import NOISE_BLOCK, AboveBand, check_channel_noise
 from ..errors import InputError
 from ..io.blocks import RunBlocks
 from ..io.table_writer import CSV_DIGITS, table_writer
 from ..rig import Rig
 from ..spatial import check_rig_keys
 from ..transient import (
-    NOISE_BLOCK,
     AnyDriveSetup,
     TransientEstimate,
     WindowEstimate,
-    above_band_note,
-    above_band_share,
     any_drive_setup,
-    check_channel_noise,
     check_length,
     window_forces,
 )
@@ -107,7 +104,7 @@ class AnyDriveStream:
         A model of another rig.
     DataError
         From :meth:`process` and :meth:`finish`: a gauge or probe constant over the first
-        seconds, or whose noise changes later (:func:`forcecal.transient.check_channel_noise`).
+        seconds, or whose noise changes later (:func:`forcecal.channel_checks.check_channel_noise`).
     """
 
     def __init__(self, rig: Rig, model: BroadbandModel, fs: float, t0: float = 0.0,
@@ -194,7 +191,7 @@ class AnyDriveStream:
 
     def _check(self) -> None:
         """Every complete stretch of ``NOISE_BLOCK`` not yet checked, against the setup's
-        noise (:func:`forcecal.transient.check_channel_noise`): a sensor that dies after the
+        noise (:func:`forcecal.channel_checks.check_channel_noise`): a sensor that dies after the
         first seconds is refused where it dies."""
         assert self._setup is not None
         n = (self._received - self._checked) // self._block * self._block
@@ -279,8 +276,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     note : callable, optional
         Called once the table is written with the note of the half second in which the
         drive's force held the most above the scan's band, when it held more than
-        :data:`forcecal.transient.ABOVE_BAND` (:func:`forcecal.transient.above_band_note`:
-        a stream cannot see ahead, but it can say so at the end).
+        :data:`forcecal.channel_checks.ABOVE_BAND` (:class:`forcecal.channel_checks.AboveBand`: a
+        stream cannot see ahead, but it can say so at the end).
 
     Returns
     -------
@@ -290,12 +287,12 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     check_length(model, blocks.n_samples, blocks.fs, blocks.source)
     stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0, source=blocks.source)
     names = list(rig.force_names)
-    above = _AboveBand(blocks.fs, model.band)
+    above = AboveBand(blocks.fs, model.band, blocks.t0)
     current = rig.actuator.current
 
     def channels() -> Iterator[np.ndarray]:
         for block in blocks.blocks([*stream.channel_names, current], read):
-            above.add(block[-1] * rig.actuator.current_scale, blocks.t0)
+            above.add(block[-1] * rig.actuator.current_scale)
             yield block[:-1]
 
     with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
@@ -311,30 +308,3 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         for text in above.notes(blocks.source):
             note(text)
     return rows
-
-
-class _AboveBand:
-    """The current's square above the scan's band, half a second at a time as it streams
-    (:func:`forcecal.transient.above_band_share`), its largest share kept."""
-
-    def __init__(self, fs: float, band: tuple[float, float]):
-        self.fs, self.band = fs, band
-        self.n = max(int(0.5 * fs), 256)
-        self.buffer = np.empty(0)
-        self.done = 0
-        self.worst = (0.0, 0.0)
-        self.t0 = 0.0
-
-    def add(self, current: np.ndarray, t0: float) -> None:
-        self.t0 = t0
-        self.buffer = np.concatenate([self.buffer, current])
-        while self.buffer.size >= self.n:
-            share = above_band_share(self.buffer[:self.n], self.fs, self.band)
-            self.worst = max(self.worst, (share, t0 + self.done / self.fs))
-            self.buffer, self.done = self.buffer[self.n:], self.done + self.n
-
-    def notes(self, source: str) -> tuple[str, ...]:
-        if not self.done and self.buffer.size:        # a record shorter than half a second
-            self.worst = (above_band_share(self.buffer, self.fs, self.band), self.t0)
-        return above_band_note(*self.worst, self.band, source)
-

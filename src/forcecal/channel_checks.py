@@ -1,0 +1,175 @@
+"""What the channels of a run under any drive say of themselves (METHOD.md section 7).
+
+- every channel's white-noise level, read from its spectrum above the scan's band, where the
+  drive does not reach (:func:`channel_noise`): the probes' weights and the smoothers' gains
+  of :mod:`forcecal.transient` rest on it;
+- a gauge or probe that changes while the run goes on, its noise above the band moving far
+  from its usual level in some half second (:func:`check_channel_noise`): died, saturated or
+  come loose; refused where it happens, in batch and in a stream;
+- the drive's force above the scan's band (:class:`AboveBand`): a biased magnet pulls at twice
+  its drive's frequencies, where the scan has no operating shape; noted.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+import scipy.signal
+
+from .errors import DataError, InputError
+
+__all__ = ["ABOVE_BAND", "NOISE_BLOCK", "NOISE_CHANGE", "AboveBand", "channel_noise",
+           "check_channel_noise"]
+
+
+def channel_noise(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
+    """Each channel's white-noise variance per sample, from its spectrum above the band.
+
+    Parameters
+    ----------
+    x : (n_channels, N) array
+    fs : float [Hz]
+    band : (low, high) [Hz]
+
+    Returns
+    -------
+    (n_channels,) array [unit^2]
+        The median one-sided density between 2 x the band's top (at most 0.6 of Nyquist) and
+        0.9 of Nyquist, times fs / 2 (Welch's averages are nearly Gaussian, so their median is
+        their mean), at least 1e-20 of the channel's mean square (a noise-free channel still
+        has a weight).
+
+    Raises
+    ------
+    InputError
+        When the sampling leaves no room above the band.
+    """
+    nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 10)))))
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg, axis=-1)
+    lo, hi = min(2 * band[1], 0.3 * fs), 0.45 * fs
+    sel = (f >= lo) & (f <= hi)
+    if np.count_nonzero(sel) < 4:
+        raise InputError(f"sampling at {fs:g} Hz leaves no lines above the band's top "
+                         f"{band[1]:g} Hz to measure the noise")
+    level = np.median(p[..., sel], axis=-1) * fs / 2
+    floor = 1e-20 * np.mean(x**2, axis=-1) + np.finfo(float).tiny
+    return np.maximum(level, floor)
+
+
+NOISE_BLOCK = 0.5
+"""[s] the stretch over which every channel's noise is checked."""
+NOISE_CHANGE = 10.0
+"""A channel whose noise variance above the band is this many times (3.2 times in standard
+deviation) above or below its usual level in some stretch has changed: died, saturated or come
+loose. The level of half a second is read to a few percent."""
+
+
+def check_channel_noise(gauges: np.ndarray, probes: np.ndarray, names: Sequence[str],
+                        fs: float, band: tuple[float, float], t0: float, source: str,
+                        reference: np.ndarray | None = None) -> None:
+    """Refuse a record in which some gauge or probe changes while it runs: every channel's
+    noise above the band (:func:`channel_noise`) over each :data:`NOISE_BLOCK`, against its
+    usual level, a change of :data:`NOISE_CHANGE` times either way. A channel whose level is
+    its floor (a noise-free record) is not checked.
+
+    Parameters
+    ----------
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+    names : sequence of str
+        The gauges' then the probes' channel names.
+    fs : float [Hz]
+    band : (low, high) [Hz]
+    t0 : float [s]
+        The time of the first sample.
+    source : str
+        The run, for the message.
+    reference : (n_gauges + n_probes,) array or None
+        The usual levels (a stream's, from its first seconds); None takes the median over the
+        record's stretches.
+
+    Raises
+    ------
+    DataError
+        Naming the channel, the stretch and the change.
+    """
+    x = np.vstack([gauges, probes])
+    n = int(round(NOISE_BLOCK * fs))
+    starts = range(0, x.shape[-1] - n + 1, n)
+    if not starts:
+        return
+    levels = np.column_stack([channel_noise(x[:, k:k + n], fs, band) for k in starts])
+    usual = np.median(levels, axis=1) if reference is None else reference
+    live = usual > 1e-18 * np.mean(x**2, axis=-1) + np.finfo(float).tiny
+    ratio = levels / usual[:, None]
+    bad = live[:, None] & ((ratio > NOISE_CHANGE) | (ratio < 1.0 / NOISE_CHANGE))
+    if np.any(bad):
+        block = int(np.flatnonzero(bad.any(axis=0))[0])
+        k = int(np.flatnonzero(bad[:, block])[0])
+        when = t0 + block * NOISE_BLOCK
+        raise DataError(f"run '{source}': channel '{names[k]}' from {when:.3g} s to "
+                        f"{when + NOISE_BLOCK:.3g} s: its noise above the band is "
+                        f"{np.sqrt(ratio[k, block]):.3g} times its usual level; a sensor that "
+                        "died, saturated or came loose cannot follow any drive")
+
+
+ABOVE_BAND = 1e-4
+"""A run whose drive's i^2 holds more than this share of its AC power above the scan's band,
+in some half second, is noted (1 % in amplitude): that content has no operating shape."""
+
+
+class AboveBand:
+    """A note when the coil current's square (the magnet's force at a fixed gap) holds more
+    than ``ABOVE_BAND`` of its AC power above the scan's band in any half second, its white
+    noise (:func:`channel_noise`) taken out: that content has no operating shape, so the
+    smoothers set it aside and its inertia is not compensated. A biased magnet pulls at twice
+    its drive's frequencies, which a scan over the drive's band alone misses.
+
+    The current is fed as it comes (:meth:`add`: the whole record in batch, block by block in
+    a stream); every complete half second is read once, and the largest share is kept.
+
+    Parameters
+    ----------
+    fs : float [Hz]
+    band : (low, high) [Hz]
+    t0 : float [s]
+        The time of the first sample.
+    """
+
+    def __init__(self, fs: float, band: tuple[float, float], t0: float = 0.0):
+        self.fs, self.band, self.t0 = fs, band, t0
+        self._n = max(int(0.5 * fs), 256)
+        self._buffer = np.empty(0)
+        self._done = 0
+        self._worst = (0.0, t0)
+
+    def add(self, current: np.ndarray) -> None:
+        """Feed the next samples of the current [A]."""
+        self._buffer = np.concatenate([self._buffer, current])
+        while self._buffer.size >= self._n:
+            share = self._share(self._buffer[:self._n])
+            if share > self._worst[0]:
+                self._worst = (share, self.t0 + self._done / self.fs)
+            self._buffer, self._done = self._buffer[self._n:], self._done + self._n
+
+    def notes(self, source: str) -> tuple[str, ...]:
+        """The note on the run ``source``, if its worst half second held more than
+        ``ABOVE_BAND`` (a record shorter than half a second read whole)."""
+        share, at = self._worst
+        if not self._done and self._buffer.size:
+            share, at = self._share(self._buffer), self.t0
+        if share <= ABOVE_BAND:
+            return ()
+        return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(share):.2g} % of "
+                f"its AC amplitude above the scan's band ({self.band[1]:g} Hz) in the half "
+                f"second from {at:.3g} s: no operating shape is known there, so that part of "
+                "the force is smoothed away and its inertia not compensated; scan over a band "
+                "that covers it (a biased magnet pulls at twice its drive's frequencies)",)
+
+    def _share(self, current: np.ndarray) -> float:
+        x = current**2
+        f, p = scipy.signal.welch(x, fs=self.fs, nperseg=min(x.size, 1024))
+        floor = 2.0 * float(channel_noise(x[None, :], self.fs, self.band)[0]) / self.fs
+        above = f > self.band[1]
+        return float(np.sum(np.maximum(p[above] - floor, 0.0)) / max(np.sum(p[1:]), 1e-300))
