@@ -289,9 +289,9 @@ def _rotor(model: SpatialModel, rig: Rig, n1: int) -> complex:
 class _ShapeRun:
     """What one run's shape errors act on (fixed inputs of :func:`_shape_change`): the
     estimate's inputs, the total's gain on the gauges, the probes' DC and its variances, the
-    quasi-static shape (its harmonic, rotor and values at the probes and the poles), and the
-    basis functions' couplings and values at the probes (:func:`forcecal.uncertainty.
-    shape_operators`)."""
+    quasi-static shape (the harmonic whose shape stands in for it, None when the model has its
+    own, its rotor and values at the probes and the poles), and the basis functions' couplings
+    and values at the probes (:func:`forcecal.uncertainty.shape_operators`)."""
 
     rig: Rig
     model: SpatialModel
@@ -299,7 +299,7 @@ class _ShapeRun:
     a_total: np.ndarray
     dc: np.ndarray
     dc_var: np.ndarray
-    n1: int
+    n1: int | None
     rotor: complex
     dc_probes: np.ndarray
     dc_poles: np.ndarray
@@ -435,11 +435,12 @@ def run_noise(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
     inputs = solve_inputs(rig, model, run, estimate, tare)
     dc, var_run, var_tare = _probe_dc(rig, inputs, tare)
     _, dc_gain, dc_shape = _dc_amplitude(rig, model, dc, var_run + var_tare)
-    n1 = 1 if 1 in model.harmonics else int(np.min(model.harmonics))
     base = quasi_static_shape(model, rig)
-    rotor = _rotor(model, rig, n1)
-    if model.static_shape is not None:       # a DC shape of its own: no harmonic's errors move it
-        n1, rotor = -1, 1.0
+    n1: int | None = None                    # a DC shape of its own: no harmonic's errors move it
+    rotor = 1.0 + 0.0j
+    if model.static_shape is None:           # the fundamental's shape stands in for it
+        n1 = 1 if 1 in model.harmonics else int(np.min(model.harmonics))
+        rotor = _rotor(model, rig, n1)
     shapes = _ShapeRun(rig=rig, model=model, inputs=inputs, a_total=_total_gain(rig), dc=dc,
                        dc_var=var_run + var_tare, n1=n1, rotor=rotor,
                        dc_probes=base(rig.sensor_points), dc_poles=base(rig.force_points),
