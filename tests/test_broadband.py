@@ -478,3 +478,37 @@ def test_the_dc_deflection_takes_the_scans_quasi_static_shape(beam, bb_model):
         assert error(steady_model(bb_model, rig, f0, 2)) < 0.01
     fundamental = dataclasses.replace(steady_model(bb_model, rig, 100.0, 2), static_shape=None)
     assert error(fundamental) > 0.02
+
+
+def test_a_scans_quasi_static_shape_is_not_moved_by_the_fundamentals_errors(beam, bb_model):
+    """The campaign's scan-shape errors move a run's DC deflection through the fundamental's
+    shape when that shape stands in for the quasi-static one; a broadband model's own
+    quasi-static shape is not the fundamental's, so none of them moves the DC."""
+    from forcecal.campaign.noise import run_noise
+    from forcecal.forces import reconstruct
+
+    preset, model, phi, rig, modal = beam
+    n = int(2.0 * FS)
+    u = 6.0 + 1.5 * np.sin(2 * np.pi * 36.0 * np.arange(n) / FS)       # N at each pole
+    f = np.fft.rfftfreq(n, 1 / FS)
+    q = modal(f, np.fft.rfft(u))
+    disp = phi @ np.fft.irfft(q, n, axis=0).T
+    vel = phi @ np.fft.irfft(2j * np.pi * f[:, None] * q, n, axis=0).T
+    gauges = _gauge_forces(model, preset, disp, vel)
+    probes = model.row(_points(preset, preset.sensors)) @ disp
+    rng = np.random.default_rng(3)
+    run = Run(channels={"R1": gauges[0] + 0.01 * rng.standard_normal(n),
+                        "R2": gauges[1] + 0.01 * rng.standard_normal(n),
+                        "s1": probes[0] + 0.2e-6 * rng.standard_normal(n),
+                        "s2": probes[1] + 0.2e-6 * rng.standard_normal(n),
+                        "i": 0.6 + 0.1 * np.sin(2 * np.pi * 36.0 * np.arange(n) / FS)},
+              fs=FS, t0=0.0, name="steady", source="steady.csv")
+    rig = dataclasses.replace(rig, frequency=36.0, drive="steady")
+    own = steady_model(bb_model, rig, 36.0, 4)
+    moved = {}
+    for label, sm in (("own", own), ("fundamental's", dataclasses.replace(own, static_shape=None))):
+        est = reconstruct(rig, sm, run)
+        shapes = [e for e in run_noise(rig, sm, run, est, None).shared if e.source == "scan shapes"]
+        assert shapes
+        moved[label] = max(float(np.max(np.abs(e.motion[:, 0]))) for e in shapes)
+    assert moved["own"] == 0.0 and moved["fundamental's"] > 0.0, moved
