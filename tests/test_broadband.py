@@ -72,9 +72,17 @@ def bb_model(beam, scan):
 
 
 def _run(beam, rng, hi, seconds=4.0):
-    preset, model, phi, _rig, modal = beam
     n = int(seconds * FS)
     u = 6.0 + 1.5 * _band_noise(rng, n, 5.0, hi)                      # N at each pole
+    run, gauges = _record(beam, rng, u, np.zeros(n), "random")
+    return run, u, gauges
+
+
+def _record(beam, rng, u, current, name):
+    """The FE beam's run under the force ``u`` (N at each pole): its gauges and probes with
+    white noise, and the coil current as given; and the noise-free gauges."""
+    preset, model, phi, _rig, modal = beam
+    n = u.size
     f = np.fft.rfftfreq(n, 1 / FS)
     q = modal(f, np.fft.rfft(u))
     disp = phi @ np.fft.irfft(q, n, axis=0).T
@@ -84,8 +92,8 @@ def _run(beam, rng, hi, seconds=4.0):
     ch = {"R1": gauges[0] + 0.01 * rng.standard_normal(n),
           "R2": gauges[1] + 0.01 * rng.standard_normal(n),
           "s1": probes[0] + 0.2e-6 * rng.standard_normal(n),
-          "s2": probes[1] + 0.2e-6 * rng.standard_normal(n), "i": np.zeros(n)}
-    return Run(channels=ch, fs=FS, t0=0.0, name="random", source="random.csv"), u, gauges
+          "s2": probes[1] + 0.2e-6 * rng.standard_normal(n), "i": current}
+    return Run(channels=ch, fs=FS, t0=0.0, name=name, source=f"{name}.csv"), gauges
 
 
 def test_smoother_acceleration_unbiased_and_stated(beam):
@@ -487,23 +495,10 @@ def test_a_scans_quasi_static_shape_is_not_moved_by_the_fundamentals_errors(beam
     from forcecal.campaign.noise import run_noise
     from forcecal.forces import reconstruct
 
-    preset, model, phi, rig, modal = beam
-    n = int(2.0 * FS)
-    u = 6.0 + 1.5 * np.sin(2 * np.pi * 36.0 * np.arange(n) / FS)       # N at each pole
-    f = np.fft.rfftfreq(n, 1 / FS)
-    q = modal(f, np.fft.rfft(u))
-    disp = phi @ np.fft.irfft(q, n, axis=0).T
-    vel = phi @ np.fft.irfft(2j * np.pi * f[:, None] * q, n, axis=0).T
-    gauges = _gauge_forces(model, preset, disp, vel)
-    probes = model.row(_points(preset, preset.sensors)) @ disp
-    rng = np.random.default_rng(3)
-    run = Run(channels={"R1": gauges[0] + 0.01 * rng.standard_normal(n),
-                        "R2": gauges[1] + 0.01 * rng.standard_normal(n),
-                        "s1": probes[0] + 0.2e-6 * rng.standard_normal(n),
-                        "s2": probes[1] + 0.2e-6 * rng.standard_normal(n),
-                        "i": 0.6 + 0.1 * np.sin(2 * np.pi * 36.0 * np.arange(n) / FS)},
-              fs=FS, t0=0.0, name="steady", source="steady.csv")
-    rig = dataclasses.replace(rig, frequency=36.0, drive="steady")
+    wave = np.sin(2 * np.pi * 36.0 * np.arange(int(2.0 * FS)) / FS)
+    run, _ = _record(beam, np.random.default_rng(3), 6.0 + 1.5 * wave, 0.6 + 0.1 * wave,
+                     "steady")                                     # 6 N + 1.5 N at 36 Hz a pole
+    rig = dataclasses.replace(beam[3], frequency=36.0, drive="steady")
     own = steady_model(bb_model, rig, 36.0, 4)
     moved = {}
     for label, sm in (("own", own), ("fundamental's", dataclasses.replace(own, static_shape=None))):
