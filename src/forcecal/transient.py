@@ -32,7 +32,7 @@ changes while the run goes on is refused, and force above the scan's band noted
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -42,7 +42,10 @@ from .broadband import BroadbandModel
 from .channel_checks import AboveBand, channel_noise, check_channel_noise
 from .errors import DataError
 from .forces import channels_si
+from .inertia import mass_coupling
+from .inertia_errors import shape_variance
 from .kalman import BandModel, band_model, smooth_states
+from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
@@ -50,7 +53,7 @@ from .spatial import check_rig_keys
 from .wiener import smoother_response, stft_frame, wiener_smooth
 
 __all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
-           "check_length", "reconstruct_any", "run_channels", "window_forces"]
+           "check_length", "reconstruct_any", "run_channels", "transfer_note", "window_forces"]
 
 
 @dataclass(frozen=True)
@@ -127,33 +130,27 @@ TOP_MARGIN = 100.0
 times."""
 
 
-def _prior(x: np.ndarray, fs: float, band: tuple[float, float],
-           noise_var: float) -> tuple[float, float]:
+RESIDUAL_MARGIN = 10.0
+"""What the reactions' transfer leaves of the coordinate counts as signal up to the highest
+line of the band whose density exceeds the noise's this many times (a noise-only line of a
+Welch estimate over a few seconds stays within 3 times); none: the band's bottom."""
+
+
+def _prior(x: np.ndarray, fs: float, band: tuple[float, float], noise_var: float,
+           margin: float = TOP_MARGIN, quiet: float | None = None) -> tuple[float, float]:
     """The band-limited prior of a signal: its cutoff [Hz], 1.2 x the highest line of the band
-    the signal rises ``TOP_MARGIN`` above its noise (at least the band's bottom, at most its
-    top), and its mean one-sided density below that line [unit^2 / Hz]."""
+    the signal rises ``margin`` above its noise (at least the band's bottom, at most its top;
+    ``quiet`` [Hz] where no line does, by default the band's top), and its mean one-sided
+    density below that line [unit^2 / Hz]."""
     nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 2)))))
     f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg)
     sel = (f <= band[1]) & (f > 0)
-    loud = np.flatnonzero(sel & (p > TOP_MARGIN * 2 * noise_var / fs))
-    top = float(f[loud[-1]]) if len(loud) else band[1]
+    loud = np.flatnonzero(sel & (p > margin * 2 * noise_var / fs))
+    top = float(f[loud[-1]]) if len(loud) else (band[1] if quiet is None else quiet)
     top = min(max(top, band[0], f[1]), band[1])
     under = sel & (f <= top)
     level = float(np.mean(p[under])) if np.any(under) else float(np.mean(p))
     return 1.2 * top, level
-
-
-def _corrected(inertia: np.ndarray, fs: float, correction) -> np.ndarray:
-    """Every gauge's inertia filtered by its correction (a function of the frequencies [Hz]
-    giving (n_gauges, n_freq) complex factors), through the discrete Fourier transform of the
-    record extended at both ends by its odd reflection (no jump where it wraps)."""
-    n = inertia.shape[-1]
-    pad = min(n - 1, max(n // 4, 1))
-    ext = np.concatenate([2 * inertia[:, :1] - inertia[:, pad:0:-1], inertia,
-                          2 * inertia[:, -1:] - inertia[:, -2:-pad - 2:-1]], axis=-1)
-    f = np.fft.rfftfreq(ext.shape[-1], 1.0 / fs)
-    out = np.fft.irfft(np.fft.rfft(ext, axis=-1) * correction(f), n=ext.shape[-1], axis=-1)
-    return out[:, pad:pad + n]
 
 
 @dataclass(frozen=True)
@@ -182,6 +179,19 @@ class AnyDriveSetup:
         m_{r,1}, every gauge's coupling with the first shape.
     pinv : (n_forces, n_gauges) array
         Psi^+.
+    transfer : ReactionTransfer or None
+        From the reactions-only force u = ``total_row`` @ gauges to q_1
+        (:mod:`forcecal.reaction_transfer`); None where it could not be fitted.
+    residual_model : BandModel
+        The band model of what the transfer leaves of q_1, q_1 - G u (of q_1 itself without
+        a transfer).
+    total_row : (n_gauges,) array
+        -1^T Psi^+: the reactions-only total force from the gauges.
+    basis_couplings : (n_gauges, n_funcs) array
+        The mass couplings of the shapes' basis functions (their coefficients' errors move the
+        inertia through them).
+    basis_probes : (n_probes, n_funcs) array
+        The basis functions at the probes.
     """
 
     band: tuple[float, float]
@@ -195,6 +205,11 @@ class AnyDriveSetup:
     var_g: np.ndarray
     couplings: np.ndarray
     pinv: np.ndarray
+    transfer: ReactionTransfer | None
+    residual_model: BandModel
+    total_row: np.ndarray
+    basis_couplings: np.ndarray
+    basis_probes: np.ndarray
 
 
 def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
@@ -202,7 +217,9 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
     """What the estimate under any drive needs before its first sample, from a record of the
     gauges and probes (the whole run in batch; the first seconds of a stream): every channel's
     noise from its spectrum above the band, the probes' weights and the first shape's
-    coordinate map, and the band models of the coordinate and of every reaction.
+    coordinate map, the band models of the coordinate and of every reaction, and the
+    structure's transfer from the reactions-only force to the coordinate with the band model
+    of what it leaves.
 
     Parameters
     ----------
@@ -232,19 +249,33 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
     band = model.band
     var_s = channel_noise(probes, fs, band)
     var_g = channel_noise(gauges, fs, band)
-    gam = model.values(rig.structure.coordinates(rig.sensor_points,
-                                                 source=f"rig '{rig.source}'")).real
+    at_probes = rig.structure.coordinates(rig.sensor_points, source=f"rig '{rig.source}'")
+    gam = model.values(at_probes).real
+    basis = model.shapes[0].basis
     w = 1.0 / var_s
     g1 = gam[:, 0]
     var_q = 1.0 / float(g1 @ (w * g1))
     q_map = var_q * (g1 * w)
-    bm_q = band_model(fs, *_prior(q_map @ probes, fs, band, var_q), var_q)
+    q = q_map @ probes
+    bm_q = band_model(fs, *_prior(q, fs, band, var_q), var_q)
     bm_r = tuple(band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r])
                  for r in range(len(gauges)))
+    pinv = np.linalg.pinv(force_matrix(rig))
+    total_row = -np.ones(len(pinv)) @ pinv
+    u = total_row @ gauges
+    transfer = fit_reaction_transfer(q, u, fs, band, var_q)
+    bm_res = bm_q
+    if transfer is not None:
+        rest = q - filtered(u[None, :], fs, transfer.response)[0]
+        bm_res = band_model(fs, *_prior(rest, fs, band, var_q, RESIDUAL_MARGIN, band[0]),
+                            var_q)
     return AnyDriveSetup(band=band, fs=fs, probe_shapes=gam, probe_weights=w,
                          coordinate_map=q_map, var_q=var_q, coordinate_model=bm_q,
                          reaction_models=bm_r, var_g=var_g, couplings=model.couplings[:, 0],
-                         pinv=np.linalg.pinv(force_matrix(rig)))
+                         pinv=pinv, transfer=transfer, residual_model=bm_res,
+                         total_row=total_row,
+                         basis_couplings=np.real(mass_coupling(rig, basis.evaluate)),
+                         basis_probes=np.real(basis.evaluate(at_probes)))
 
 
 @dataclass(frozen=True)
@@ -307,39 +338,89 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     """
     fs = setup.fs
     q = setup.coordinate_map @ probes                            # the first shape's coordinate
-    bm_q, bm_r = setup.coordinate_model, setup.reaction_models
-    acc = smooth_states(bm_q, q, states=(2,))[0]
+    bm_r, bm_res, transfer = setup.reaction_models, setup.residual_model, setup.transfer
     reactions = np.stack([smooth_states(bm_r[r], gauges[r], states=(0,))[0]
                           for r in range(len(gauges))])
+    u = (setup.total_row @ reactions)[None, :]                   # the reactions-only total
+    rest = q
+    if transfer is not None:                                     # the gauges' part of q_1''
+        rest = q - filtered(u, fs, transfer.response)[0]
+    acc = smooth_states(bm_res, rest, states=(2,))[0]
+    if transfer is not None:
+        acc = acc + filtered(u, fs, lambda f: (2j * np.pi * f) ** 2 * transfer.response(f))[0]
     m1 = setup.couplings
-    inertia = m1[:, None] * acc[None, :]
     gam, w = setup.probe_shapes, setup.probe_weights
 
     def correction(f: np.ndarray) -> np.ndarray:
         return (model.inertia_correction(f, gam, w) if model.n_shapes > 1
                 else np.ones((len(m1), len(f))))
 
-    if model.n_shapes > 1:
-        inertia = _corrected(inertia, fs, correction)
+    def inertia_of(x: np.ndarray) -> np.ndarray:             # (k, N) accelerations
+        lumped = m1[None, :, None] * x[:, None, :]
+        if model.n_shapes > 1:
+            lumped = np.stack([filtered(part, fs, correction) for part in lumped])
+        return lumped
+
+    inertia = inertia_of(acc[None, :])[0]
     pinv = setup.pinv
     force = pinv @ (inertia - reactions)
     if not np.all(np.isfinite(force)):
         raise DataError(f"run '{source}': the forces are not finite (a channel holds "
                         "non-finite samples?)")
     f = np.fft.rfftfreq(frame, 1.0 / fs)
-    t_a = smoother_response(bm_q, 2, frame)
+    to_force = pinv @ (m1[:, None] * correction(f))             # q_1'' -> forces, (k, bins)
+    via_u = (np.zeros_like(f) if transfer is None
+             else (2j * np.pi * f) ** 2 * transfer.response(f))
     noise = np.concatenate([
-        (np.sqrt(setup.var_q) * t_a * (pinv @ (m1[:, None] * correction(f))))[:, None, :],
-        np.stack([-pinv[:, r, None] * np.sqrt(setup.var_g[r])
-                  * smoother_response(bm_r[r], 0, frame) for r in range(len(gauges))],
-                 axis=1)], axis=1)
+        (np.sqrt(setup.var_q) * smoother_response(bm_res, 2, frame) * to_force)[:, None, :],
+        np.stack([(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
+                  * np.sqrt(setup.var_g[r]) * smoother_response(bm_r[r], 0, frame)
+                  for r in range(len(gauges))], axis=1)], axis=1)
     sw = wiener_smooth(force, noise, fs, frame)
     part = pinv @ inertia
-    edge = _edge_std(np.vstack([part, part.sum(axis=0)]), fs, bm_q)
-    return WindowEstimate(force=sw.values, force_std=np.hypot(sw.std, edge[:-1]),
-                          total=sw.total, total_std=np.hypot(sw.total_std, edge[-1]),
+    edge = _edge_std(np.vstack([part, part.sum(axis=0)]), fs, setup.coordinate_model)
+    var = (edge**2 + _transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
+           + shape_variance(model, acc, fs, frame, gam, w, m1, setup.basis_couplings,
+                            setup.basis_probes, np.vstack([pinv, pinv.sum(axis=0)])))
+    return WindowEstimate(force=sw.values, force_std=np.sqrt(sw.std**2 + var[:-1]),
+                          total=sw.total, total_std=np.sqrt(sw.total_std**2 + var[-1]),
                           static=-pinv @ gauges, inertia=inertia, reactions=reactions,
                           coordinate=q, passed=sw.passed)
+
+
+TRANSFER_MISFIT = 2.0
+"""A transfer whose residual's chi-square per degree of freedom exceeds this is noted: the
+reactions do not explain the probes' coordinate, and the probes carry what it misses."""
+
+
+def transfer_note(transfer: ReactionTransfer | None, source: str) -> str:
+    """What the run's reactions tell of its inertia, in a line."""
+    if transfer is None:
+        return (f"run '{source}': no transfer from the reactions to the motion could be fitted "
+                "over the band; the inertia is the probes' alone")
+    line = (f"the reactions carry the inertia: their transfer to the first shape's coordinate "
+            f"leaves chi-square {transfer.chi2:.3g} per degree of freedom")
+    if transfer.chi2 > TRANSFER_MISFIT:
+        line += (f"; run '{source}': the reactions do not explain the probes' motion (a load "
+                 "whose pattern changes, a second force, a structure that is not linear?), "
+                 "and the probes carry what they miss")
+    return line
+
+
+def _transfer_std(transfer: ReactionTransfer | None, u: np.ndarray, fs: float,
+                  inertia_of: Callable[[np.ndarray], np.ndarray], pinv: np.ndarray
+                  ) -> np.ndarray:
+    """(n_forces + 1, N) [N]: each force's and the total's standard uncertainty from the
+    transfer's parameters, sample by sample (their covariance through the inertia each one
+    moves)."""
+    if transfer is None:
+        return np.zeros((len(pinv) + 1, u.shape[-1]))
+    sens = transfer.sensitivities
+    moves = filtered(np.repeat(u, len(transfer.cov), axis=0), fs,
+                     lambda f: (2j * np.pi * f) ** 2 * sens(f))  # (n_params, N) in q_1''
+    part = np.einsum("fg,kgn->kfn", pinv, inertia_of(moves))    # (n_params, n_forces, N)
+    part = np.concatenate([part, part.sum(axis=1, keepdims=True)], axis=1)
+    return np.sqrt(np.maximum(np.einsum("kfn,kl,lfn->fn", part, transfer.cov, part), 0.0))
 
 
 EDGE_PERIODS = 2.0
@@ -438,6 +519,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
-             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most", *above)
+             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
+             transfer_note(setup.transfer, run.source), *above)
     return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
                                          notes)

@@ -24,8 +24,8 @@ import scipy.signal
 
 from .kalman import BandModel, smooth_states
 
-__all__ = ["FRAME_SECONDS", "ShortTimeWiener", "smoother_response", "stft_frame",
-           "wiener_smooth"]
+__all__ = ["FRAME_SECONDS", "ShortTimeWiener", "short_time_variance", "smoother_response",
+           "stft_frame", "wiener_smooth"]
 
 FRAME_SECONDS = 0.2
 """Frame length aimed at: a sweep of tens of hertz per second moves a few bins within it."""
@@ -132,3 +132,23 @@ def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int) -> Sh
     passed = np.mean(var, axis=-1) * frame / np.maximum(full, tiny)
     return ShortTimeWiener(values=values, std=std, total=values.sum(axis=0),
                            total_std=total_std, passed=passed)
+
+
+def short_time_variance(x: np.ndarray, weight: np.ndarray, fs: float, frame: int) -> np.ndarray:
+    """(k, N): sample by sample, the variance of an error that multiplies every frequency of
+    the signal ``x`` (N,) by a random factor of variance ``weight`` (k, frame // 2 + 1) at the
+    frame's bins (a systematic error of a frequency response, as the scan's operating shapes
+    give the inertia): its power summed over each frame's bins, as :func:`wiener_smooth` sums
+    the noise it lets through."""
+    n = x.shape[-1]
+    kw = {"fs": fs, "window": "hann", "nperseg": frame, "noverlap": 3 * frame // 4}
+    t, z = scipy.signal.stft(x, boundary="even", padded=True, **kw)[1:]   # (bins, frames)
+    win = scipy.signal.get_window("hann", frame)
+    per_bin = np.sum(win**2) / np.sum(win) ** 2
+    fold = np.full(z.shape[0], 2.0)
+    fold[0] = 1.0
+    if frame % 2 == 0:
+        fold[-1] = 1.0
+    var = np.einsum("b,kb,bt->kt", fold, weight, np.abs(z) ** 2 / per_bin) / frame
+    time = np.arange(n) / fs
+    return np.stack([np.interp(time, t, v) for v in var])

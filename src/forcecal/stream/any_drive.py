@@ -42,11 +42,13 @@ from ..io.table_writer import CSV_DIGITS, table_writer
 from ..rig import Rig
 from ..spatial import check_rig_keys
 from ..transient import (
+    TRANSFER_MISFIT,
     AnyDriveSetup,
     TransientEstimate,
     WindowEstimate,
     any_drive_setup,
     check_length,
+    transfer_note,
     window_forces,
 )
 from ..wiener import stft_frame
@@ -246,9 +248,11 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
                                    for k in range(0, data.shape[1], block))))
     note = (f"real time: every sample given {stream.latency:.3g} s after it, from a window of "
             f"the samples up to then; noise and band models from the first {WARMUP:g} s")
+    assert stream.setup is not None
     return TransientEstimate.from_window(rig, name, t0, fs,
                                          WindowEstimate.join([c.estimate for c in chunks]),
-                                         model.band, False, (note,))
+                                         model.band, False,
+                                         (note, transfer_note(stream.setup.transfer, name)))
 
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
@@ -305,6 +309,9 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
             out.write(c.time, stream_rows(est.force, est.static, c.std))
         rows = out.rows
     if note is not None:
+        transfer = stream.setup.transfer if stream.setup is not None else None
+        if transfer is None or transfer.chi2 > TRANSFER_MISFIT:
+            note(transfer_note(transfer, blocks.source))
         for text in above.notes(blocks.source):
             note(text)
     return rows

@@ -1,0 +1,110 @@
+"""What the scan's errors do to the inertia under any drive (METHOD.md section 7, "any drive").
+
+The inertia of a run under any drive is J_r = m_{r,1} c_r(nu) q''_1 (:mod:`forcecal.transient`):
+the first shape's coupling, corrected at every frequency to the operating shape of the
+broadband scan (:meth:`forcecal.broadband.BroadbandModel.inertia_correction`). Both come from
+the scan, and the scan's noise leaves them uncertain in two ways:
+
+- the fitted shapes' coefficients (their covariance, :class:`forcecal.basis.ShapeFit`), which
+  move the couplings and the shapes at the probes;
+- the smoothed ratios a_k / a_1 of the operating shape over frequency
+  (:meth:`forcecal.broadband.BroadbandModel.mixing_std`), which move the correction.
+
+Each is a systematic error of the inertia's frequency response: at every frequency a factor of
+known variance on the acceleration. Sample by sample, its variance is the acceleration's
+short-time power weighted by it (:func:`forcecal.wiener.short_time_variance`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .broadband import BroadbandModel
+from .wiener import short_time_variance
+
+__all__ = ["correction_sensitivities", "shape_error_weights", "shape_variance"]
+
+
+def correction_sensitivities(model: BroadbandModel, frequencies: np.ndarray,
+                             probe_shapes: np.ndarray, weights: np.ndarray) -> np.ndarray:
+    """(n_gauges, n_shapes, n_freq) complex [1]: d c_r / d a_k, the change of every gauge's
+    correction (:meth:`~forcecal.broadband.BroadbandModel.inertia_correction`) with each ratio
+    a_k / a_1 of the operating shape (zero for the first, which is 1 by definition).
+
+    With beta = sum_k b_k a_k, b_k = (g_1^T W G[:, k]) / (g_1^T W g_1), and c_r the correction,
+    d c_r / d a_k = (m_{r,k} - c_r m_{r,1} b_k) / (beta m_{r,1}).
+    """
+    mix = model.mixing(frequencies)
+    g1 = probe_shapes[:, 0]
+    b = (g1 * weights) @ probe_shapes / ((g1 * weights) @ g1)           # (n_shapes,)
+    beta = b @ mix                                                      # (n_freq,)
+    m = model.couplings                                                 # (n_gauges, n_k)
+    c = (m @ mix) / (beta * m[:, :1])                                   # (n_gauges, n_f)
+    out = ((m[:, :, None] - c[:, None, :] * m[:, :1, None] * b[None, :, None])
+           / (beta * m[:, :1])[:, None, :])
+    out[:, 0] = 0.0
+    return out
+
+
+def shape_error_weights(model: BroadbandModel, frequencies: np.ndarray,
+                        probe_shapes: np.ndarray, weights: np.ndarray,
+                        basis_couplings: np.ndarray, basis_probes: np.ndarray,
+                        rows: np.ndarray) -> np.ndarray:
+    """(n_rows, n_freq) [kg^2]: the variance, per unit |q''_1|^2, that the fitted shapes'
+    coefficients give each row of ``rows`` @ J.
+
+    At frequency nu, J_r = (m_r . a) (g_1^T W s'') / (g_1^T W G a): the couplings m_{r,k} and
+    the shapes at the probes G[:, k] are linear in shape k's coefficients p_k (through the
+    basis's couplings M and its values at the probes B), so a change dp_k moves J_r by
+    J_r a_k (M_r dp_k / (m_r . a) - g_1^T W B dp_k / (g_1^T W G a)) (the weights' direction
+    g_1 moves nothing while the probes see the operating shape).
+
+    Parameters
+    ----------
+    model : BroadbandModel
+    frequencies : (n_freq,) array [Hz]
+    probe_shapes : (n_probes, n_shapes) array [m]
+    weights : (n_probes,) array
+        The probes' inverse noise variances.
+    basis_couplings : (n_gauges, n_funcs) array
+        The shapes' basis's mass couplings.
+    basis_probes : (n_probes, n_funcs) array
+        The basis at the probes.
+    rows : (n_rows, n_gauges) array
+        The combinations of the gauges' inertia asked for (Psi^+'s rows, their sum).
+    """
+    mix = model.mixing(frequencies)                                     # (n_k, n_f)
+    g1 = probe_shapes[:, 0] * weights
+    seen = g1 @ (probe_shapes @ mix)                                    # (n_f,)
+    m_a = model.couplings @ mix                                         # (n_g, n_f)
+    j_per = m_a * (g1 @ probe_shapes[:, 0]) / seen                      # J_r / q''_1
+    h = g1 @ basis_probes                                               # (n_funcs,)
+    out = np.zeros((len(rows), mix.shape[1]))
+    for k, shape in enumerate(model.shapes):
+        cov = shape.coefficient_covariance
+        n = min(len(cov), basis_couplings.shape[1])
+        d = mix[k][None, :, None] * ((j_per / m_a)[:, :, None] * basis_couplings[:, None, :n]
+                                     - (j_per / seen)[:, :, None] * h[None, None, :n])
+        e = np.einsum("cg,gfj->cfj", rows, d)                           # (n_rows, n_f, n)
+        out += np.real(np.einsum("cfj,jl,cfl->cf", e.conj(), cov[:n, :n], e))
+    return out
+
+
+def shape_variance(model: BroadbandModel, acc: np.ndarray, fs: float, frame: int,
+                   probe_shapes: np.ndarray, weights: np.ndarray, couplings: np.ndarray,
+                   basis_couplings: np.ndarray, basis_probes: np.ndarray,
+                   rows: np.ndarray) -> np.ndarray:
+    """(n_rows, N) [N^2]: the variance of each row of ``rows`` @ J from the scan's shapes,
+    sample by sample: the fitted shapes' coefficients (:func:`shape_error_weights`) and the
+    standard uncertainty of every ratio a_k / a_1, of its real and of its imaginary part,
+    through the correction (:func:`correction_sensitivities`), ``acc`` (N,) being q''_1 and
+    ``couplings`` (n_gauges,) m_{r,1}."""
+    f = np.fft.rfftfreq(frame, 1.0 / fs)
+    weight = shape_error_weights(model, f, probe_shapes, weights, basis_couplings,
+                                 basis_probes, rows)
+    if model.n_shapes > 1:
+        sens = correction_sensitivities(model, f, probe_shapes, weights)
+        per = np.einsum("cg,g,gkb->ckb", rows, couplings, sens)         # (n_rows, n_k, bins)
+        weight = weight + 2.0 * np.einsum("ckb,kb->cb", np.abs(per) ** 2,
+                                          model.mixing_std(f) ** 2)
+    return short_time_variance(acc, weight, fs, frame)
