@@ -183,31 +183,31 @@ def test_steady_model_from_broadband(beam, bb_model):
 
 def test_any_drive_forces_against_truth(beam, bb_model):
     """A band-limited random force (5-40 Hz) on the FE beam, sample by sample: the total within
-    0.8 % of its AC RMS (achieved 0.26 %), each force within 0.6 % (achieved 0.19-0.20 %), where
-    the reactions alone are 24 % off; the inertia term's gain within 0.12 % of the truth's
-    (achieved 1.0002-1.0004; without the operating shapes' correction, the first shape alone
-    gives 0.965: at low frequencies the deflection is quasi-static, not the first mode). The
-    stated uncertainty holds the error inside the record: RMS error / stated 0.93 and 96.5 % of
-    the samples within 2 u (test 0.7-1.1 and >= 90 %; 1.13 and 92.6 % with the noise alone, the
-    signal the Wiener gains take left out); and in its first and last 50 ms, where the
-    smoother loses the inertia: 0.59 and 0.52 (test <= 1.2; 4.6 and 4.8 without the ends'
-    term)."""
+    0.7 % of its AC RMS (achieved 0.24 %), each force within 0.55 % (achieved 0.18-0.20 %),
+    where the reactions alone are 24 % off; the inertia term's gain within 0.12 % of the
+    truth's (achieved 1.0006-1.0007; without the operating shapes' correction, the first shape
+    alone gives 0.965: at low frequencies the deflection is quasi-static, not the first mode).
+    The stated uncertainty holds the error inside the record: RMS error / stated 0.74 and
+    99.5 % of the samples within 2 u (test 0.6-0.95, which a doubled variance (0.52) or a
+    halved one (1.04) leaves; the scan's shapes' errors are one draw of a systematic error,
+    stated whole: 0.97 with the noise alone); and in its first and last 50 ms: 0.40 and 0.41
+    (test <= 1.2; 4.6 and 4.8 without the ends' term)."""
     rng = np.random.default_rng(5)
     run, u, gauges = _run(beam, rng, 40.0)
     est = reconstruct_any(beam[3], bb_model, run)
     truth = 2 * u
     ac = np.std(truth)
     err = est.total - truth
-    assert np.sqrt(np.mean(err**2)) / ac < 0.008
+    assert np.sqrt(np.mean(err**2)) / ac < 0.007
     inner = slice(int(0.5 * FS), -int(0.5 * FS))
     z = err[inner] / est.total_std[inner]
-    assert 0.7 < np.sqrt(np.mean(z**2)) < 1.1, np.sqrt(np.mean(z**2))
+    assert 0.6 < np.sqrt(np.mean(z**2)) < 0.95, np.sqrt(np.mean(z**2))
     assert np.mean(np.abs(z) <= 2) >= 0.90
     for end in (slice(0, int(0.05 * FS)), slice(-int(0.05 * FS), None)):
         z_end = err[end] / est.total_std[end]
         assert np.sqrt(np.mean(z_end**2)) <= 1.2, np.sqrt(np.mean(z_end**2))
     for k in range(2):
-        assert np.sqrt(np.mean((est.force[k] - u) ** 2)) / ac < 0.006
+        assert np.sqrt(np.mean((est.force[k] - u) ** 2)) / ac < 0.0055
     static = est.static.sum(axis=0) - truth
     assert np.std(static) / ac > 0.15
     j_true = force_matrix(beam[3]) @ np.vstack([u, u]) + gauges
@@ -246,8 +246,8 @@ def test_cli_scan_and_reconstruct_any_drive(beam, scan, tmp_path):
     series = pd.read_csv(out / "random.forces.csv")
     assert list(series.columns[:4]) == ["time", "F1", "F2", "total"]
     assert {"total_static", "total_std"} <= set(series.columns)
-    err = series["total"].to_numpy() - 2 * u
-    assert np.sqrt(np.mean(err**2)) / np.std(2 * u) < 0.03
+    err = series["total"].to_numpy() - 2 * u                    # achieved 0.55 %
+    assert np.sqrt(np.mean(err**2)) / np.std(2 * u) < 0.015
     summary = json.loads((out / "random.json").read_text())
     assert summary["drive"] == "any" and summary["band_hz"] == [5.0, 200.0]
 
@@ -346,11 +346,12 @@ def random_run(beam):
 
 def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     """With the batch's setup, every sample the stream gives (in blocks, from a window reaching
-    0.5 s before and after it) is the batch's to 0.004 of its median stated uncertainty inside
-    the record (achieved 0.0013; each force 0.0006-0.0011) and 0.015 at its ends (achieved
-    0.0049; the scan's smoothed ratios make the inertia's correction short in time, so a
-    window's edges matter little); from its own first two seconds, to 0.25 RMS (achieved
-    0.090) and within 0.8 % of the true total's AC RMS (achieved 0.26 %, the batch 0.26 %)."""
+    0.5 s before and after it) is the batch's to 0.01 of its median stated uncertainty inside
+    the record (achieved 0.0035; each force 0.0013-0.0025) and 0.02 at its ends (achieved
+    0.0087; the transfer from the reactions and the scan's smoothed ratios are short in time,
+    so a window's edges matter little); from its own first two seconds (its own transfer), to
+    0.3 RMS (achieved 0.11) and within 0.7 % of the true total's AC RMS (achieved 0.24 %, the
+    batch 0.24 %)."""
     from forcecal.stream.any_drive import stream_arrays
     from forcecal.transient import any_drive_setup, run_channels
 
@@ -364,23 +365,23 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     u_b = float(np.median(batch.total_std))
     d = np.abs(streamed.total - batch.total) / u_b
     inner = slice(int(0.5 * FS), -int(0.5 * FS))
-    assert np.max(d[inner]) < 0.004, np.max(d[inner])
-    assert np.max(d) < 0.015, np.max(d)
+    assert np.max(d[inner]) < 0.01, np.max(d[inner])
+    assert np.max(d) < 0.02, np.max(d)
     for k in range(2):
-        assert np.max(np.abs(streamed.force[k] - batch.force[k])[inner]) < 0.004 * u_b
-    # the inertia inside the record: 7.4e-6 of its RMS (the windows' own Fourier transforms)
+        assert np.max(np.abs(streamed.force[k] - batch.force[k])[inner]) < 0.006 * u_b
+    # the inertia inside the record: 1.3e-5 of its RMS (the windows' own Fourier transforms)
     j_rms = np.sqrt(np.mean(batch.inertia[:, inner] ** 2))
     assert np.max(np.abs(streamed.inertia - batch.inertia)[:, inner]) < 3e-5 * j_rms
     own = reconstruct_any(rig, bb_model, run, smooth=False)
     assert not own.smoothed and own.total.shape == batch.total.shape
-    assert np.sqrt(np.mean((own.total - batch.total) ** 2)) < 0.25 * u_b
+    assert np.sqrt(np.mean((own.total - batch.total) ** 2)) < 0.3 * u_b
     truth = 2 * u
-    assert np.sqrt(np.mean((own.total - truth) ** 2)) / np.std(truth) < 0.008
+    assert np.sqrt(np.mean((own.total - truth) ** 2)) / np.std(truth) < 0.007
 
 
 def test_cli_streams_a_run_under_any_drive(beam, scan, random_run, tmp_path, capsys):
     """``stream`` with a broadband model writes the steady stream's columns, every sample, the
-    batch's series to 0.18 of its uncertainty (achieved 0.061); it says, once the run is
+    batch's series to 0.18 of its uncertainty (achieved 0.067); it says, once the run is
     through, what ``reconstruct`` says of a force above the scan's band; ``--memory`` and
     ``--steady``, which set a steady stream's memory, are refused in one line with exit
     status 2."""
@@ -507,3 +508,71 @@ def test_a_scans_quasi_static_shape_is_not_moved_by_the_fundamentals_errors(beam
         assert shapes
         moved[label] = max(float(np.max(np.abs(e.motion[:, 0]))) for e in shapes)
     assert moved["own"] == 0.0 and moved["fundamental's"] > 0.0, moved
+
+
+def _window_errors(total, truth, seconds=0.5):
+    n = int(seconds * FS)
+    return np.array([np.sqrt(np.mean((total[k:k + n] - truth[k:k + n]) ** 2))
+                     / np.std(truth[k:k + n]) for k in range(0, truth.size - n + 1, n)])
+
+
+def test_the_reactions_carry_the_inertia_where_the_probes_are_noisy(beam, bb_model,
+                                                                     monkeypatch):
+    """A random force over 5-150 Hz, through the beam's first bending mode: the probes' noise
+    times w^2 is the inertia's largest error at the top of the band, and the structure's
+    transfer from the reactions to the motion, fitted over the record, takes the inertia from
+    the far quieter gauges. Inside the record every 0.5 s window is within 0.8 % of its AC RMS
+    (achieved 0.24-0.37 %), each force within 0.85 % of it (achieved 0.28-0.31 %); from the
+    probes alone (no transfer) the windows err 1.2-1.7 % (test > 1 %). The transfer leaves
+    chi-square 1.02 per degree of freedom (test 0.8-1.25), and the note says so."""
+    import forcecal.transient as transient
+
+    rng = np.random.default_rng(21)
+    n = int(4.0 * FS)
+    u = 6.0 + 1.5 * _band_noise(rng, n, 5.0, 150.0)
+    run, _ = _record(beam, rng, u, np.zeros(n), "wide")
+    est = reconstruct_any(beam[3], bb_model, run)
+    inner = slice(int(0.5 * FS), -int(0.5 * FS))
+    windows = _window_errors(est.total[inner], 2 * u[inner])
+    assert np.all(windows < 0.008), windows
+    for k in range(2):
+        err = np.sqrt(np.mean((est.force[k] - u)[inner] ** 2)) / np.std(2 * u)
+        assert err < 0.0085, err
+    said = [s for s in est.notes if "the reactions carry the inertia" in s]
+    assert len(said) == 1, est.notes
+    chi2 = float(said[0].split("chi-square ")[1].split()[0])
+    assert 0.8 < chi2 < 1.25, said
+    monkeypatch.setattr(transient, "fit_reaction_transfer", lambda *a, **k: None)
+    alone = reconstruct_any(beam[3], bb_model, run)
+    assert np.all(_window_errors(alone.total[inner], 2 * u[inner]) > 0.01)
+    assert any("the inertia is the probes' alone" in s for s in alone.notes), alone.notes
+
+
+def test_what_the_transfer_misses_is_left_to_the_probes(beam, bb_model, monkeypatch):
+    """A transfer 2 % off (as a structure that has changed since its record would leave it):
+    what it misses of the coordinate rises far above the probes' noise, and the smoother of
+    that residual keeps it, so the random force over 5-150 Hz stays within 2.5 % of its AC RMS
+    in every 0.5 s window inside the record (achieved 1.07-1.64 %, the probes alone's 1.2-1.7 %);
+    without the residual (every line of it taken for noise) the windows err 10-22 % (test
+    > 5 %)."""
+    import forcecal.transient as transient
+    from forcecal.reaction_transfer import fit_reaction_transfer
+
+    rng = np.random.default_rng(22)
+    n = int(4.0 * FS)
+    u = 6.0 + 1.5 * _band_noise(rng, n, 5.0, 150.0)
+    run, _ = _record(beam, rng, u, np.zeros(n), "wide")
+    truth = 2 * u
+    inner = slice(int(0.5 * FS), -int(0.5 * FS))
+
+    def off(*args, **kwargs):
+        t = fit_reaction_transfer(*args, **kwargs)
+        return dataclasses.replace(t, num=t.num * 1.02)
+
+    monkeypatch.setattr(transient, "fit_reaction_transfer", off)
+    est = reconstruct_any(beam[3], bb_model, run)
+    windows = _window_errors(est.total[inner], truth[inner])
+    assert np.all(windows < 0.025), windows
+    monkeypatch.setattr(transient, "RESIDUAL_MARGIN", 1e30)
+    bare = reconstruct_any(beam[3], bb_model, run)
+    assert np.all(_window_errors(bare.total[inner], truth[inner]) > 0.05)

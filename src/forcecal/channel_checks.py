@@ -164,8 +164,9 @@ class AboveBand:
         return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(share):.2g} % of "
                 f"its AC amplitude above the scan's band ({self.band[1]:g} Hz) in the half "
                 f"second from {at:.3g} s: no operating shape is known there, so that part of "
-                "the force is smoothed away and its inertia not compensated; scan over a band "
-                "that covers it (a biased magnet pulls at twice its drive's frequencies)",)
+                "the force is only what the gauges' smoother lets through, its inertia "
+                "extrapolated from the band's top; scan over a band that covers it (a biased "
+                "magnet pulls at twice its drive's frequencies)",)
 
     def _share(self, current: np.ndarray) -> float:
         x = current**2

@@ -22,7 +22,11 @@ import numpy as np
 from .broadband import BroadbandModel
 from .wiener import short_time_variance
 
-__all__ = ["correction_sensitivities", "shape_error_weights", "shape_variance"]
+__all__ = ["above_band_weights", "correction_sensitivities", "shape_error_weights",
+           "shape_variance"]
+
+SLOPE_SPAN = 0.1
+"""The share of the band at its top over which the correction's slope is read."""
 
 
 def correction_sensitivities(model: BroadbandModel, frequencies: np.ndarray,
@@ -78,16 +82,36 @@ def shape_error_weights(model: BroadbandModel, frequencies: np.ndarray,
     seen = g1 @ (probe_shapes @ mix)                                    # (n_f,)
     m_a = model.couplings @ mix                                         # (n_g, n_f)
     j_per = m_a * (g1 @ probe_shapes[:, 0]) / seen                      # J_r / q''_1
-    h = g1 @ basis_probes                                               # (n_funcs,)
+    n = min(basis_couplings.shape[1], *(len(s.coefficient_covariance) for s in model.shapes))
+    h = g1 @ basis_probes[:, :n]                                        # (n,)
+    # the scan's lines are projected on the span: a change of the shapes within it is taken
+    # back by their coordinates, and only its part outside the span moves the operating shape
+    span = np.column_stack([s.coefficients[:n] for s in model.shapes])  # (n, n_k)
+    outside = np.eye(n) - span @ np.linalg.pinv(span)
+    d = ((j_per / m_a)[:, :, None] * basis_couplings[:, None, :n]
+         - (j_per / seen)[:, :, None] * h[None, None, :])               # (n_g, n_f, n)
+    per = np.einsum("cg,gfj->cfj", rows, d) @ outside                   # (n_rows, n_f, n)
     out = np.zeros((len(rows), mix.shape[1]))
     for k, shape in enumerate(model.shapes):
-        cov = shape.coefficient_covariance
-        n = min(len(cov), basis_couplings.shape[1])
-        d = mix[k][None, :, None] * ((j_per / m_a)[:, :, None] * basis_couplings[:, None, :n]
-                                     - (j_per / seen)[:, :, None] * h[None, None, :n])
-        e = np.einsum("cg,gfj->cfj", rows, d)                           # (n_rows, n_f, n)
-        out += np.real(np.einsum("cfj,jl,cfl->cf", e.conj(), cov[:n, :n], e))
+        e = mix[k][None, :, None] * per
+        cov = shape.coefficient_covariance[:n, :n]
+        out += np.real(np.einsum("cfj,jl,cfl->cf", e.conj(), cov, e))
     return out
+
+
+def above_band_weights(model: BroadbandModel, frequencies: np.ndarray,
+                       probe_shapes: np.ndarray, weights: np.ndarray, couplings: np.ndarray,
+                       rows: np.ndarray) -> np.ndarray:
+    """(n_rows, n_freq) [kg^2]: the variance, per unit |q''_1|^2, of each row of ``rows`` @ J
+    above the scan's band, where no operating shape was measured and the correction is held at
+    the band's top: the change its slope over the top ``SLOPE_SPAN`` of the band would make
+    there, |c'(f_top) (f - f_top)|^2 (zero within the band)."""
+    lo, top = model.band
+    edge = np.array([top - SLOPE_SPAN * (top - lo), top])
+    c = model.inertia_correction(edge, probe_shapes, weights)           # (n_g, 2)
+    slope = (c[:, 1] - c[:, 0]) / (edge[1] - edge[0])                   # (n_g,)
+    reach = np.clip(np.asarray(frequencies, float) - top, 0.0, None)    # (n_f,)
+    return np.abs(rows @ (couplings * slope))[:, None] ** 2 * reach[None, :] ** 2
 
 
 def shape_variance(model: BroadbandModel, acc: np.ndarray, fs: float, frame: int,
@@ -103,6 +127,7 @@ def shape_variance(model: BroadbandModel, acc: np.ndarray, fs: float, frame: int
     weight = shape_error_weights(model, f, probe_shapes, weights, basis_couplings,
                                  basis_probes, rows)
     if model.n_shapes > 1:
+        weight = weight + above_band_weights(model, f, probe_shapes, weights, couplings, rows)
         sens = correction_sensitivities(model, f, probe_shapes, weights)
         per = np.einsum("cg,g,gkb->ckb", rows, couplings, sens)         # (n_rows, n_k, bins)
         weight = weight + 2.0 * np.einsum("ckb,kb->cb", np.abs(per) ** 2,

@@ -111,7 +111,7 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
     the band holds fewer than ``MIN_BINS`` bins or the fit is not finite.
 
     The record's transform ties Q = (B U + C) / A: C(s), a polynomial of order
-    ``DEN_ORDER - 1 + NUM_ORDER``, is the record's ends' share (the transient term of a finite
+    ``DEN_ORDER + NUM_ORDER``, is the record's ends' share (the transient term of a finite
     record: what the structure held at its first sample and still holds at its last), fitted
     beside G and set aside (Pintelon and Schoukens, System Identification, ch. 2 and 6).
     """
@@ -125,7 +125,7 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
     qf = np.fft.rfft(q - q.mean())[sel]
     uf = np.fft.rfft(u - u.mean())[sel]
     sigma = np.sqrt(var_q * n / 2.0)                  # noise of Re or Im of a bin
-    nb, na, nc = NUM_ORDER + 1, DEN_ORDER, DEN_ORDER + NUM_ORDER
+    nb, na, nc = NUM_ORDER + 1, DEN_ORDER, DEN_ORDER + NUM_ORDER + 1
     den = np.ones(s.size, dtype=complex)
     p = np.zeros(nb + na + nc)
     for _ in range(ITERATIONS):

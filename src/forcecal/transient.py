@@ -6,22 +6,27 @@ instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`)
 1. the first shape's coordinate at every sample from the probes,
    q_1(t) = (g_1^T W s(t)) / (g_1^T W g_1), g_1 = phi_1 at the probes, W their inverse noise
    variances (eq. 15-16);
-2. its acceleration, and every gauge's reaction, from a Kalman smoother of a band-limited
-   signal (:mod:`forcecal.kalman`), with its steady covariance;
+2. every gauge's reaction from a Kalman smoother of a band-limited signal
+   (:mod:`forcecal.kalman`), and q_1'' from the reactions: the structure's transfer from the
+   reactions-only force to q_1, fitted over the record (:mod:`forcecal.reaction_transfer`),
+   plus the smoothed second derivative of what it leaves of q_1 (the probes' evidence of what
+   the transfer misses; their noise alone where it holds);
 3. J_r = m_{r,1} q_1'' corrected frequency by frequency to the operating shape of every
    frequency (:meth:`forcecal.broadband.BroadbandModel.inertia_correction`), and
    f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the reactions-only estimate -Psi^+ R(t);
 4. short-time Wiener gains on every force (:mod:`forcecal.wiener`), which keep the few hertz
    a moving drive holds at any instant and set the rest of the band's noise aside, each
-   sample's uncertainty being the noise they let through.
+   sample's uncertainty being the noise they let through, plus the errors of the scan's
+   shapes (:mod:`forcecal.inertia_errors`) and of the transfer's parameters.
 
 In real time (``stream``, :mod:`forcecal.stream.any_drive`) the same estimate is computed
 over a window that slides with the stream: every sample is given once the samples a fixed
 latency after it have arrived (a smoother needs the future a causal filter lacks: the best
 causal estimate of an acceleration from displacements lags it).
 
-Force content above the scan's band (a drive's harmonics beyond it) has no operating shape
-and is smoothed away.
+Force content above the scan's band (a drive's harmonics beyond it) has no measured operating
+shape: the gauges carry it as far as their smoother lets through, its inertia through the
+transfer with the band top's correction, whose slope there is counted in the uncertainty.
 
 The noise of every channel is read from its spectrum above the band (white beyond the drive's
 reach), so that a probe's noise sets its weight and the smoother's gain; a channel whose noise
