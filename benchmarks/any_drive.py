@@ -15,8 +15,11 @@ compares:
   tau (targets: 0.2 % and 0.2 degrees), at seed 0 and then under the noise of seeds 1-3;
 - an oracle: the best gains any short-time filter of the same estimate could apply, taken
   from the truth's own power and the estimate's own error, bin by bin (the Wiener gain
-  S / (S + N) over 0.2 s frames); what it leaves is the error of the probes' noise that no
-  gain rule removes, the floor the targets are measured against;
+  S / (S + N) over 0.2 s frames); what it leaves is no noise's but the estimate's own;
+- the truth "as claimed": through the gauges' own smoother, the band the estimate gives
+  (content above the scan's band reaches it as far as the gauges' smoother lets through); the
+  stated uncertainty is compared with the error against it; the worst windows again at seeds
+  1 and 2;
 - ``forcecal stream`` on the same runs (real time, :mod:`forcecal.stream.any_drive`): its
   windows beside the batch's, how far it is from the batch in units of the batch's stated
   uncertainty, and its wall time.
