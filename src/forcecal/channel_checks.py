@@ -119,6 +119,11 @@ ABOVE_BAND = 1e-4
 in some half second, is noted (1 % in amplitude): that content has no operating shape."""
 
 
+SIGNIFICANT = 5.0
+"""A power above the white noise's counts when it exceeds this many times the scatter of the
+noise's own Welch estimate summed over the same lines."""
+
+
 class AboveBand:
     """A note when the coil current's square (the magnet's force at a fixed gap) holds more
     than ``ABOVE_BAND`` of its AC power above the scan's band in any half second, its white
@@ -169,8 +174,20 @@ class AboveBand:
                 "magnet pulls at twice its drive's frequencies)",)
 
     def _share(self, current: np.ndarray) -> float:
+        """The share of the AC power of i^2 above the band, both less the white noise's, or 0
+        where either is within ``SIGNIFICANT`` times the noise's own scatter (a current of
+        noise alone holds no drive to note)."""
         x = current**2
-        f, p = scipy.signal.welch(x, fs=self.fs, nperseg=min(x.size, 1024))
+        nperseg = min(x.size, 1024)
+        f, p = scipy.signal.welch(x, fs=self.fs, nperseg=nperseg)
         floor = 2.0 * float(channel_noise(x[None, :], self.fs, self.band)[0]) / self.fs
-        above = f > self.band[1]
-        return float(np.sum(np.maximum(p[above] - floor, 0.0)) / max(np.sum(p[1:]), 1e-300))
+        averages = max(2 * x.size // nperseg - 1, 1)          # Welch's half-overlapped segments
+        above, ac = f > self.band[1], f > 0
+
+        def excess(sel: np.ndarray) -> float:
+            power = float(np.sum(p[sel] - floor))
+            scatter = floor * np.sqrt(np.count_nonzero(sel) / averages)
+            return power if power > SIGNIFICANT * scatter else 0.0
+
+        total = excess(ac)
+        return excess(above) / total if total > 0 else 0.0

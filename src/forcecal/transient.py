@@ -403,8 +403,10 @@ def transfer_note(transfer: ReactionTransfer | None, source: str) -> str:
     if transfer is None:
         return (f"run '{source}': no transfer from the reactions to the motion could be fitted "
                 "over the band; the inertia is the probes' alone")
+    gain = 100 * float(np.sqrt(transfer.cov[0, 0]) / abs(transfer.num[0]))
     line = (f"the reactions carry the inertia: their transfer to the first shape's coordinate "
-            f"leaves chi-square {transfer.chi2:.3g} per degree of freedom")
+            f"(its static gain known to {gain:.2g} %) leaves chi-square {transfer.chi2:.3g} per "
+            "degree of freedom")
     if transfer.chi2 > TRANSFER_MISFIT:
         line += (f"; run '{source}': the reactions do not explain the probes' motion (a load "
                  "whose pattern changes, a second force, a structure that is not linear?), "
