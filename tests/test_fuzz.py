@@ -11,7 +11,7 @@ an internal error (exit 1, an exception) and never a silent wrong result. The lo
 from __future__ import annotations
 
 import pytest
-from fuzz_inputs import INTERNAL, KINDS, SILENT, UNCLEAN, Lab, build_lab, fuzz_one
+from fuzz_inputs import INTERNAL, KINDS, REFUSED, SILENT, UNCLEAN, Lab, build_lab, fuzz_one
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -37,3 +37,14 @@ def test_a_mutated_input_is_refused_cleanly_or_gives_sound_outputs(lab, work, ki
     outcome = fuzz_one(lab, work, kind, seed)
     assert outcome.outcome not in (INTERNAL, SILENT, UNCLEAN), (
         f"{outcome.outcome}: {kind} seed {seed} ({outcome.what}): {outcome.detail}")
+
+
+@pytest.mark.parametrize(("kind", "seed"), [("model", 118), ("rig", 172)])
+def test_the_long_campaigns_finds_are_refused_in_one_line(lab, work, kind, seed):
+    """Cases the long campaign (``benchmarks/fuzz.py``) found: a model whose shape coefficient
+    has a variance of 1e6 (a standard deviation 1.7e8 times the shape's coefficients) had given
+    forces with a stated uncertainty of 5e7 N at exit status 0; a rig whose drive lies above
+    the run's Nyquist frequency was refused without naming the run or the rig's key."""
+    outcome = fuzz_one(lab, work, kind, seed)
+    assert outcome.outcome == REFUSED, (outcome.outcome, outcome.what, outcome.detail)
+    assert "acquisition.frequency" in outcome.detail or "coefficient_covariance" in outcome.detail

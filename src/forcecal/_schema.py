@@ -42,6 +42,10 @@ MAX_NUMBER = 1e30
 MAX_FREQUENCY_HZ = 1e6
 MAX_COUPLING = 1e6
 """kg m: a mass coupling beyond is not a laboratory structure's."""
+MAX_RELATIVE_STD = 100.0
+"""A shape coefficient's standard deviation may reach this many times the norm of the shape's
+coefficients (or its residual's standard deviation, if larger): a broadband span's weakest
+shape is known to about 4 times its size, a steady scan's weakest harmonic to its size."""
 MAX_DOCUMENT_BYTES = 200_000_000
 """Largest model or calibration file read."""
 
@@ -280,12 +284,21 @@ def _check_scalar_shape(d: _Doc, s: dict, key: str) -> None:
     else:
         n = available
     d.matrix(d.get(s, "basis", key, list), f"{key}.basis", n, n)
-    d.vector(d.get(s, "coefficients_re", key, list), f"{key}.coefficients_re", n, -1e3, 1e3)
-    d.vector(d.get(s, "coefficients_im", key, list), f"{key}.coefficients_im", n, -1e3, 1e3)
+    re = d.vector(d.get(s, "coefficients_re", key, list), f"{key}.coefficients_re", n, -1e3, 1e3)
+    im = d.vector(d.get(s, "coefficients_im", key, list), f"{key}.coefficients_im", n, -1e3, 1e3)
     cov = d.matrix(d.get(s, "coefficient_covariance", key, list),
                    f"{key}.coefficient_covariance", n, n, -1e6, 1e6)
     _covariance(d, cov, f"{key}.coefficient_covariance")
-    d.number(d.get(s, "residual_std", key, (int, float)), f"{key}.residual_std", 0.0, 1e3)
+    sigma = d.number(d.get(s, "residual_std", key, (int, float)), f"{key}.residual_std", 0.0,
+                     1e3)
+    scale = max(math.sqrt(sum(v * v for v in (*re, *im))), sigma)
+    for j, row in enumerate(cov):
+        if math.sqrt(row[j]) > MAX_RELATIVE_STD * scale:
+            raise d.fail(f"{key}.coefficient_covariance[{j}][{j}]",
+                         f"= {row[j]!r}: a standard deviation "
+                         f"{math.sqrt(row[j]) / max(scale, 1e-300):.3g} times the shape's own "
+                         f"coefficients (at most {MAX_RELATIVE_STD:g}); a shape this uncertain "
+                         "gives no force (is the file corrupt?)")
     orders = d.get(s, "orders", key, list)
     score = d.get(s, "score", key, list)
     for j, o in enumerate(orders):

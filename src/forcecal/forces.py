@@ -225,6 +225,11 @@ def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
     """Step 1: the run's refined fundamental, its uncertainty, and a note when it differs from
     the scan model's."""
     check_record_length(run, rig.drive_frequency)
+    if rig.drive_frequency >= 0.5 * run.fs:
+        raise DataError(f"run '{run.source}': sampled at {run.fs:g} Hz, it cannot hold the "
+                        f"drive of rig '{rig.source}' (key 'acquisition.frequency' = "
+                        f"{rig.drive_frequency:g} Hz), which lies above its Nyquist frequency "
+                        f"{0.5 * run.fs:g} Hz")
     records = _driven(rec)
     try:
         f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
