@@ -361,6 +361,11 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
                           ratios=ratios, ratio_std=ratio_std)
 
 
+SETTLED = 1e-9
+"""A smoothing spline whose values move by less than this share of the data's spread over a
+tenfold penalty has reached its straight-line limit."""
+
+
 def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The ratios a_k / a_1 smoothed over the lines, and their standard uncertainty.
@@ -416,21 +421,33 @@ def _discrepancy_penalty(x: np.ndarray, y: np.ndarray, w: np.ndarray, scale: flo
                          ) -> float | None:
     """The largest penalty of the smoothing spline of complex ``y`` at ``x`` (weights ``w``,
     the inverse variances over ``scale``) whose residuals' chi-square per value is <= 1; None
-    when even the smallest tried exceeds it."""
-    def chi2(lam: float) -> float:
-        values = _spline(x, y.real, w, lam) + 1j * _spline(x, y.imag, w, lam)
+    when even the smallest tried exceeds it.
+
+    The penalty grows no further once the spline has become its limit, the weighted straight
+    line (its values move by less than ``SETTLED`` of the data's spread from one decade to
+    the next): far beyond, the spline's solve loses its digits (at 10^8 times that penalty
+    its values fall towards zero, and its linear map with them)."""
+    def fit(lam: float) -> np.ndarray:
+        return _spline(x, y.real, w, lam) + 1j * _spline(x, y.imag, w, lam)
+
+    def chi2(values: np.ndarray) -> float:
         return float(np.sum(w * np.abs(values - y) ** 2) * scale / (2 * y.size))
 
-    best = None
+    spread = float(np.max(np.abs(y - np.mean(y)))) + np.finfo(float).tiny
+    best, last = None, None
     lam = 1e-12 * float(np.ptp(x)) ** 3
     for _ in range(40):                        # decades: the last that stays within the noise
-        if chi2(lam) > 1.0:
+        values = fit(lam)
+        if chi2(values) > 1.0:
             break
-        best, lam = lam, lam * 10.0
+        best = lam
+        if last is not None and np.max(np.abs(values - last)) <= SETTLED * spread:
+            return best                        # the straight line: no larger penalty
+        last, lam = values, lam * 10.0
     if best is None:
         return None
     for factor in (8.0, 4.0, 2.0):             # then the largest of 8, 4, 2 times it that does
-        if factor * best < lam and chi2(factor * best) <= 1.0:
+        if factor * best < lam and chi2(fit(factor * best)) <= 1.0:
             return factor * best
     return best
 
