@@ -185,13 +185,12 @@ def test_any_drive_forces_against_truth(beam, bb_model):
     """A band-limited random force (5-40 Hz) on the FE beam, sample by sample: the total within
     0.7 % of its AC RMS (achieved 0.24 %), each force within 0.55 % (achieved 0.18-0.20 %),
     where the reactions alone are 24 % off; the inertia term's gain within 0.12 % of the
-    truth's (achieved 1.0006-1.0007; without the operating shapes' correction, the first shape
+    truth's (achieved 1.0007-1.0008; without the operating shapes' correction, the first shape
     alone gives 0.965: at low frequencies the deflection is quasi-static, not the first mode).
-    The stated uncertainty holds the error inside the record: RMS error / stated 0.74 and
-    99.5 % of the samples within 2 u (test 0.6-0.95, which a doubled variance (0.52) or a
-    halved one (1.04) leaves; the scan's shapes' errors are one draw of a systematic error,
-    stated whole: 0.97 with the noise alone); and in its first and last 50 ms: 0.40 and 0.41
-    (test <= 1.2; 4.6 and 4.8 without the ends' term)."""
+    The stated uncertainty holds the error inside the record: RMS error / stated 0.98 and
+    96.1 % of the samples within 2 u (test 0.8-1.2, which a doubled variance (0.69) or a
+    halved one (1.38) leaves); and in its first and last 50 ms: 0.38 and 0.49 (test <= 1.2;
+    4.6 and 4.8 without the ends' term)."""
     rng = np.random.default_rng(5)
     run, u, gauges = _run(beam, rng, 40.0)
     est = reconstruct_any(beam[3], bb_model, run)
@@ -201,7 +200,7 @@ def test_any_drive_forces_against_truth(beam, bb_model):
     assert np.sqrt(np.mean(err**2)) / ac < 0.007
     inner = slice(int(0.5 * FS), -int(0.5 * FS))
     z = err[inner] / est.total_std[inner]
-    assert 0.6 < np.sqrt(np.mean(z**2)) < 0.95, np.sqrt(np.mean(z**2))
+    assert 0.8 < np.sqrt(np.mean(z**2)) < 1.2, np.sqrt(np.mean(z**2))
     assert np.mean(np.abs(z) <= 2) >= 0.90
     for end in (slice(0, int(0.05 * FS)), slice(-int(0.05 * FS), None)):
         z_end = err[end] / est.total_std[end]
@@ -346,12 +345,12 @@ def random_run(beam):
 
 def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     """With the batch's setup, every sample the stream gives (in blocks, from a window reaching
-    0.5 s before and after it) is the batch's to 0.01 of its median stated uncertainty inside
-    the record (achieved 0.0035; each force 0.0013-0.0025) and 0.02 at its ends (achieved
-    0.0087; the transfer from the reactions and the scan's smoothed ratios are short in time,
-    so a window's edges matter little); from its own first two seconds (its own transfer), to
-    0.3 RMS (achieved 0.11) and within 0.7 % of the true total's AC RMS (achieved 0.24 %, the
-    batch 0.24 %)."""
+    0.5 s before and after it) is the batch's to 0.006 of its median stated uncertainty inside
+    the record (achieved 0.0021; each force 0.0011) and 0.009 at its ends (achieved 0.0030;
+    the transfer from the reactions and the scan's smoothed ratios are short in time, so a
+    window's edges matter little); from its own first two seconds (its own transfer), to 0.3
+    RMS (achieved 0.13) and within 0.7 % of the true total's AC RMS (achieved 0.24 %, the batch
+    0.24 %)."""
     from forcecal.stream.any_drive import stream_arrays
     from forcecal.transient import any_drive_setup, run_channels
 
@@ -365,13 +364,13 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     u_b = float(np.median(batch.total_std))
     d = np.abs(streamed.total - batch.total) / u_b
     inner = slice(int(0.5 * FS), -int(0.5 * FS))
-    assert np.max(d[inner]) < 0.01, np.max(d[inner])
-    assert np.max(d) < 0.02, np.max(d)
+    assert np.max(d[inner]) < 0.006, np.max(d[inner])
+    assert np.max(d) < 0.009, np.max(d)
     for k in range(2):
-        assert np.max(np.abs(streamed.force[k] - batch.force[k])[inner]) < 0.006 * u_b
-    # the inertia inside the record: 1.3e-5 of its RMS (the windows' own Fourier transforms)
+        assert np.max(np.abs(streamed.force[k] - batch.force[k])[inner]) < 0.003 * u_b
+    # the inertia inside the record: 6.0e-6 of its RMS (the windows' own Fourier transforms)
     j_rms = np.sqrt(np.mean(batch.inertia[:, inner] ** 2))
-    assert np.max(np.abs(streamed.inertia - batch.inertia)[:, inner]) < 3e-5 * j_rms
+    assert np.max(np.abs(streamed.inertia - batch.inertia)[:, inner]) < 1.8e-5 * j_rms
     own = reconstruct_any(rig, bb_model, run, smooth=False)
     assert not own.smoothed and own.total.shape == batch.total.shape
     assert np.sqrt(np.mean((own.total - batch.total) ** 2)) < 0.3 * u_b
@@ -451,7 +450,7 @@ def test_a_force_above_the_scans_band_is_noted(beam, bb_model, random_run):
 
 def test_operating_shapes_are_smooth_over_frequency(beam, bb_model):
     """The operating shape from a probe to the poles against the FE beam's, at the midpoints
-    of the scan's lines over the band: within 1 % with the smoothed ratios (achieved 0.38 %,
+    of the scan's lines over the band: within 1 % with the smoothed ratios (achieved 0.47 %,
     at 6 Hz below the first line); each line's own ratio errs 2.0 % at 6-46 Hz, where the
     scan's velocity lines are weakest."""
     _preset, model, phi, _rig, modal = beam
@@ -472,7 +471,7 @@ def test_operating_shapes_are_smooth_over_frequency(beam, bb_model):
 def test_the_dc_deflection_takes_the_scans_quasi_static_shape(beam, bb_model):
     """A steady run's DC deflection is fitted to the probes with one quasi-static shape: from a
     broadband model, the operating shape of the band's lowest line. Its ratio of pole to probe
-    against the FE beam's static deflection: within 1 % (achieved 0.39 %) at 10, 36 and 100 Hz;
+    against the FE beam's static deflection: within 1 % (achieved 0.46 %) at 10, 36 and 100 Hz;
     the fundamental's own shape, which stands in for it after a steady scan, errs 3.7 % at
     100 Hz, above the first mode."""
     from forcecal.gaps import quasi_static_shape
@@ -579,3 +578,71 @@ def test_what_the_transfer_misses_is_left_to_the_probes(beam, bb_model, monkeypa
     monkeypatch.setattr(transient, "RESIDUAL_MARGIN", 1e30)
     bare = reconstruct_any(beam[3], bb_model, run)
     assert np.all(_window_errors(bare.total[inner], truth[inner]) > 0.05)
+
+
+def test_the_ratios_stated_uncertainty_covers_their_error(beam, bb_model):
+    """The operating shape's ratios a_k / a_1 against the FE beam's own (its operating shape
+    projected on the span), over the scan's lines: error over stated standard uncertainty,
+    Re and Im of every ratio, RMS 0.75-1.3 (achieved 1.00, 97 % within 2; with each line's
+    covariance from its points' noise alone 1.48 and 89 %: near the mode a line is strong
+    enough for the span's own misfit to exceed its noise, and it takes its Birge ratio)."""
+    _preset, model, phi, _rig, modal = beam
+    f = np.arange(8.0, 197.0, 4.0)
+    x = np.linspace(0.0, 0.6, 121)
+    ods = model.row(x) @ phi @ modal(f, np.ones(f.size)).T            # (n_x, n_f)
+    coords = np.linalg.lstsq(bb_model.values(x), ods, rcond=None)[0]
+    err = (bb_model.mixing(f) - coords / coords[:1])[1:]
+    std = bb_model.mixing_std(f)[1:]
+    z = np.concatenate([err.real / std, err.imag / std])
+    rms = float(np.sqrt(np.mean(z**2)))
+    assert 0.75 < rms < 1.3, rms
+
+
+def test_the_shapes_errors_reach_the_inertia_as_stated(beam, bb_model):
+    """:func:`forcecal.inertia_errors.shape_error_weights` (400 draws) against 4000 draws of
+    the shapes' coefficients from their covariance, the scan's operating shape projected back
+    on every drawn span: every row's variance within 25 % at 20, 70 and 150 Hz (achieved
+    0.89-1.02; a first-order propagation states 1.8-6 times it at 20 and 70 Hz, the span's
+    weakest shapes being known to a few times their size); and
+    :func:`~forcecal.inertia_errors.correction_sensitivities` against finite differences of
+    the correction (within 1e-5 of its scale)."""
+    from forcecal.inertia import mass_coupling
+    from forcecal.inertia_errors import correction_sensitivities, shape_error_weights
+
+    rig = beam[3]
+    probes = rig.structure.coordinates(rig.sensor_points, source="test")
+    basis = bb_model.shapes[0].basis
+    m_basis = np.real(mass_coupling(rig, basis.evaluate))               # (n_g, n_funcs)
+    b_probes = np.real(basis.evaluate(probes))                          # (n_p, n_funcs)
+    gam = bb_model.values(probes).real
+    w = np.array([1.0, 2.0])
+    pinv = np.linalg.pinv(force_matrix(rig))
+    rows = np.vstack([pinv, pinv.sum(axis=0)])
+    f = np.array([20.0, 70.0, 150.0])
+    stated = shape_error_weights(bb_model, f, gam, w, m_basis, b_probes, rows)
+    n = m_basis.shape[1]
+    p = np.column_stack([s.coefficients[:n].real for s in bb_model.shapes])   # (n, n_k)
+    g1 = gam[:, 0] * w
+
+    def inertia(coeffs: np.ndarray) -> np.ndarray:               # J / q1'', (n_rows, n_f)
+        return rows @ ((m_basis @ coeffs) * (g1 @ gam[:, 0]) / (g1 @ (b_probes @ coeffs)))
+
+    op = p @ bb_model.mixing(f)                                         # (n, n_f)
+    base = inertia(op)
+    rng = np.random.default_rng(3)
+    draws = []
+    for _ in range(4000):
+        drawn = p + np.column_stack([rng.multivariate_normal(np.zeros(n),
+                                                             s.coefficient_covariance[:n, :n])
+                                     for s in bb_model.shapes])
+        back = drawn @ np.linalg.lstsq(drawn, op, rcond=None)[0]        # projected on it
+        draws.append(inertia(back) - base)
+    ratio = stated / np.mean(np.abs(np.array(draws)) ** 2, axis=0)
+    assert np.all(np.abs(ratio - 1) < 0.25), ratio
+    sens = correction_sensitivities(bb_model, f, gam, w)
+    step = 1e-6
+    for k in range(1, bb_model.n_shapes):
+        moved = dataclasses.replace(bb_model, ratios=bb_model.mixing(bb_model.frequencies)
+                                    + step * (np.arange(bb_model.n_shapes) == k)[:, None])
+        diff = (moved.inertia_correction(f, gam, w) - bb_model.inertia_correction(f, gam, w))
+        np.testing.assert_allclose(diff / step, sens[:, k], atol=1e-5 * np.max(np.abs(sens)))

@@ -350,6 +350,14 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     solve = np.linalg.solve(basis.T @ (basis * weights[:, None]), (basis * weights[:, None]).T)
     coords = solve @ resp.values
     cov = np.einsum("kp,pl,jp->lkj", solve, resp.std**2, solve)
+    # a line the span leaves more than its noise (a shape the span lacks near a mode, where
+    # the line is strongest) holds its coordinates less well than its noise says: their
+    # covariance takes the line's reduced chi-square off the span (its Birge ratio) above 1
+    resid = h - basis @ coords[:, good]
+    dof = 2 * max(len(points) - basis.shape[1], 1)
+    birge = np.ones(len(resp.frequencies))
+    birge[good] = np.maximum(np.sum(np.abs(resid) ** 2 / std**2, axis=0) / dof, 1.0)
+    cov = cov * birge[:, None, None]
     ratios, ratio_std = smooth_ratios(resp.frequencies, coords, cov)
     line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
                 / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
@@ -361,9 +369,9 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
                           ratios=ratios, ratio_std=ratio_std)
 
 
-SETTLED = 1e-9
-"""A smoothing spline whose values move by less than this share of the data's spread over a
-tenfold penalty has reached its straight-line limit."""
+SETTLED = 1e-4
+"""A smoothing spline within this share of the data's spread of the weighted straight line has
+reached its limit: the line serves from there."""
 
 
 def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
@@ -390,7 +398,7 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     make_smoothing_spline`) weighted by the inverse variance of the line's ratio, to first
     order (var(a_k) + |r|^2 var(a_1) - 2 Re(r) cov(a_k, a_1)) / |a_1|^2, with the largest
     roughness penalty (over decades, then 2, 4 or 8 times the last) that leaves the weighted
-    residuals at most one per value.
+    residuals at most one per value (the weighted straight line where even it does).
     """
     tiny = np.finfo(float).tiny
     first = np.where(np.abs(coords[0]) > tiny, coords[0], tiny)
@@ -406,8 +414,9 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
         if lam is None:                       # no smoothing within the noise
             out[k], std[k] = r, np.sqrt(var)
             continue
-        smoother = np.column_stack([_spline(frequencies, e, w / top, lam)
-                                    for e in np.eye(r.size)])
+        smoother = (_line(frequencies, w / top) if np.isinf(lam) else
+                    np.column_stack([_spline(frequencies, e, w / top, lam)
+                                     for e in np.eye(r.size)]))
         out[k] = smoother @ r
         std[k] = np.sqrt(smoother**2 @ var)
     return out, std
@@ -417,38 +426,44 @@ def _spline(x: np.ndarray, y: np.ndarray, w: np.ndarray, lam: float) -> np.ndarr
     return scipy.interpolate.make_smoothing_spline(x, y, w=w, lam=lam)(x)
 
 
+def _line(x: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(n, n): the weighted least-squares straight line's linear map from values at ``x`` to
+    its values there, the smoothing spline's limit at an infinite penalty."""
+    design = np.column_stack([np.ones_like(x), x - np.mean(x)])
+    return design @ np.linalg.solve(design.T @ (design * w[:, None]), (design * w[:, None]).T)
+
+
 def _discrepancy_penalty(x: np.ndarray, y: np.ndarray, w: np.ndarray, scale: float
                          ) -> float | None:
     """The largest penalty of the smoothing spline of complex ``y`` at ``x`` (weights ``w``,
     the inverse variances over ``scale``) whose residuals' chi-square per value is <= 1; None
-    when even the smallest tried exceeds it.
+    when even the smallest tried exceeds it; infinity when the spline's limit, the weighted
+    straight line, stays within the noise.
 
-    The penalty grows no further once the spline has become its limit, the weighted straight
-    line (its values move by less than ``SETTLED`` of the data's spread from one decade to
-    the next): far beyond, the spline's solve loses its digits (at 10^8 times that penalty
-    its values fall towards zero, and its linear map with them)."""
-    def fit(lam: float) -> np.ndarray:
-        return _spline(x, y.real, w, lam) + 1j * _spline(x, y.imag, w, lam)
-
+    The penalty grows no further once the spline is within ``SETTLED`` of the data's spread
+    of that line: far beyond, its solve loses its digits (its values, and its linear map,
+    fall towards zero), so the line itself serves."""
     def chi2(values: np.ndarray) -> float:
         return float(np.sum(w * np.abs(values - y) ** 2) * scale / (2 * y.size))
 
+    line = _line(x, w) @ y
     spread = float(np.max(np.abs(y - np.mean(y)))) + np.finfo(float).tiny
-    best, last = None, None
+    best = None
     lam = 1e-12 * float(np.ptp(x)) ** 3
     for _ in range(40):                        # decades: the last that stays within the noise
-        values = fit(lam)
+        values = _spline(x, y.real, w, lam) + 1j * _spline(x, y.imag, w, lam)
         if chi2(values) > 1.0:
             break
-        best = lam
-        if last is not None and np.max(np.abs(values - last)) <= SETTLED * spread:
-            return best                        # the straight line: no larger penalty
-        last, lam = values, lam * 10.0
+        if np.max(np.abs(values - line)) <= SETTLED * spread:
+            return np.inf
+        best, lam = lam, lam * 10.0
     if best is None:
         return None
     for factor in (8.0, 4.0, 2.0):             # then the largest of 8, 4, 2 times it that does
-        if factor * best < lam and chi2(fit(factor * best)) <= 1.0:
-            return factor * best
+        trial = factor * best
+        if trial < lam and chi2(_spline(x, y.real, w, trial)
+                                + 1j * _spline(x, y.imag, w, trial)) <= 1.0:
+            return trial
     return best
 
 
