@@ -584,7 +584,7 @@ def test_the_ratios_stated_uncertainty_covers_their_error(beam, bb_model):
     """The operating shape's ratios a_k / a_1 against the FE beam's own (its operating shape
     projected on the span), over the scan's lines: error over stated standard uncertainty,
     Re and Im of every ratio, RMS 0.75-1.3 (achieved 1.00, 97 % within 2; with each line's
-    covariance from its points' noise alone 1.48 and 89 %: near the mode a line is strong
+    covariance from its points' noise alone 2.0: near the mode a line is strong
     enough for the span's own misfit to exceed its noise, and it takes its Birge ratio)."""
     _preset, model, phi, _rig, modal = beam
     f = np.arange(8.0, 197.0, 4.0)
