@@ -21,10 +21,9 @@ from __future__ import annotations
 import numpy as np
 
 from .broadband import BroadbandModel
-from .wiener import short_time_variance
 
-__all__ = ["above_band_weights", "correction_sensitivities", "shape_error_weights",
-           "shape_variance"]
+__all__ = ["above_band_weights", "correction_sensitivities", "inertia_error_weights",
+           "shape_error_weights"]
 
 SHAPE_DRAWS = 400
 """Draws of the shapes' coefficients (:func:`shape_error_weights`): the variance to about 7 %."""
@@ -122,22 +121,24 @@ def above_band_weights(model: BroadbandModel, frequencies: np.ndarray,
     return np.abs(rows @ (couplings * slope))[:, None] ** 2 * reach[None, :] ** 2
 
 
-def shape_variance(model: BroadbandModel, acc: np.ndarray, fs: float, frame: int,
-                   probe_shapes: np.ndarray, weights: np.ndarray, couplings: np.ndarray,
-                   basis_couplings: np.ndarray, basis_probes: np.ndarray,
-                   rows: np.ndarray) -> np.ndarray:
-    """(n_rows, N) [N^2]: the variance of each row of ``rows`` @ J from the scan's shapes,
-    sample by sample: the fitted shapes' coefficients (:func:`shape_error_weights`) and the
-    standard uncertainty of every ratio a_k / a_1, of its real and of its imaginary part,
-    through the correction (:func:`correction_sensitivities`), ``acc`` (N,) being q''_1 and
-    ``couplings`` (n_gauges,) m_{r,1}."""
-    f = np.fft.rfftfreq(frame, 1.0 / fs)
-    weight = shape_error_weights(model, f, probe_shapes, weights, basis_couplings,
+def inertia_error_weights(model: BroadbandModel, frequencies: np.ndarray,
+                          probe_shapes: np.ndarray, weights: np.ndarray, couplings: np.ndarray,
+                          basis_couplings: np.ndarray, basis_probes: np.ndarray,
+                          rows: np.ndarray) -> np.ndarray:
+    """(n_rows, n_freq) [kg^2]: the variance, per unit |q''_1|^2, of each row of ``rows`` @ J
+    from the scan: the fitted shapes' coefficients (:func:`shape_error_weights`), the standard
+    uncertainty of every ratio a_k / a_1, of its real and of its imaginary part, through the
+    correction (:func:`correction_sensitivities`), and above the band the correction's slope
+    (:func:`above_band_weights`); ``couplings`` (n_gauges,) is m_{r,1}. Sample by sample, the
+    variance is q''_1's short-time power weighted by it
+    (:func:`forcecal.wiener.short_time_variance`)."""
+    weight = shape_error_weights(model, frequencies, probe_shapes, weights, basis_couplings,
                                  basis_probes, rows)
     if model.n_shapes > 1:
-        weight = weight + above_band_weights(model, f, probe_shapes, weights, couplings, rows)
-        sens = correction_sensitivities(model, f, probe_shapes, weights)
+        weight = weight + above_band_weights(model, frequencies, probe_shapes, weights,
+                                             couplings, rows)
+        sens = correction_sensitivities(model, frequencies, probe_shapes, weights)
         per = np.einsum("cg,g,gkb->ckb", rows, couplings, sens)         # (n_rows, n_k, bins)
         weight = weight + 2.0 * np.einsum("ckb,kb->cb", np.abs(per) ** 2,
-                                          model.mixing_std(f) ** 2)
-    return short_time_variance(acc, weight, fs, frame)
+                                          model.mixing_std(frequencies) ** 2)
+    return weight

@@ -48,14 +48,14 @@ from .channel_checks import AboveBand, channel_noise, check_channel_noise
 from .errors import DataError
 from .forces import channels_si
 from .inertia import mass_coupling
-from .inertia_errors import shape_variance
+from .inertia_errors import inertia_error_weights
 from .kalman import BandModel, band_model, smooth_states
 from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
 from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
 from .spatial import check_rig_keys
-from .wiener import smoother_response, stft_frame, wiener_smooth
+from .wiener import short_time_variance, smoother_response, stft_frame, wiener_smooth
 
 __all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
            "check_length", "reconstruct_any", "run_channels", "transfer_note", "window_forces"]
@@ -215,6 +215,21 @@ class AnyDriveSetup:
     total_row: np.ndarray
     basis_couplings: np.ndarray
     basis_probes: np.ndarray
+    _weights: dict[int, np.ndarray] = dataclasses.field(default_factory=dict, compare=False,
+                                                        repr=False)
+
+    def error_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
+        """(n_forces + 1, frame // 2 + 1) [kg^2]: the variance the scan's errors give each
+        force and the total per unit |q''_1|^2 at the frame's bins
+        (:func:`forcecal.inertia_errors.inertia_error_weights`), computed once per frame
+        length (a stream's windows share it)."""
+        if frame not in self._weights:
+            f = np.fft.rfftfreq(frame, 1.0 / self.fs)
+            self._weights[frame] = inertia_error_weights(
+                model, f, self.probe_shapes, self.probe_weights, self.couplings,
+                self.basis_couplings, self.basis_probes,
+                np.vstack([self.pinv, self.pinv.sum(axis=0)]))
+        return self._weights[frame]
 
 
 def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
@@ -385,8 +400,7 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     part = pinv @ inertia
     edge = _edge_std(np.vstack([part, part.sum(axis=0)]), fs, setup.coordinate_model)
     var = (edge**2 + _transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
-           + shape_variance(model, acc, fs, frame, gam, w, m1, setup.basis_couplings,
-                            setup.basis_probes, np.vstack([pinv, pinv.sum(axis=0)])))
+           + short_time_variance(acc, setup.error_weights(model, frame), fs, frame))
     return WindowEstimate(force=sw.values, force_std=np.sqrt(sw.std**2 + var[:-1]),
                           total=sw.total, total_std=np.sqrt(sw.total_std**2 + var[-1]),
                           static=-pinv @ gauges, inertia=inertia, reactions=reactions,
