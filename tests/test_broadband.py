@@ -602,7 +602,7 @@ def test_the_shapes_errors_reach_the_inertia_as_stated(beam, bb_model):
     """:func:`forcecal.inertia_errors.shape_error_weights` (400 draws) against 4000 draws of
     the shapes' coefficients from their covariance, the scan's operating shape projected back
     on every drawn span: every row's variance within 25 % at 20, 70 and 150 Hz (achieved
-    0.89-1.02; a first-order propagation states 1.8-6 times it at 20 and 70 Hz, the span's
+    0.97-1.05; a first-order propagation states 1.8-6 times it at 20 and 70 Hz, the span's
     weakest shapes being known to a few times their size); and
     :func:`~forcecal.inertia_errors.correction_sensitivities` against finite differences of
     the correction (within 1e-5 of its scale)."""
