@@ -71,3 +71,20 @@ def test_a_band_with_too_few_lines_has_no_transfer():
     assert fit_reaction_transfer(q, u, FS, BAND, VAR_Q) is None
     q, u = _record(1)
     assert fit_reaction_transfer(q, u, FS, BAND, 0.0) is None
+
+
+def test_a_transfer_with_a_pole_at_a_real_frequency_is_refused():
+    """A fit whose denominator vanishes at some frequency (an undamped pole at 160 Hz: its
+    response there infinite) gives no transfer, and the probes alone carry the inertia."""
+    undamped = ReactionTransfer(num=np.array([2.0e-5]), den=np.array([1.0, 0.0, 1.5625]),
+                                scale=TRUE.scale, cov=np.zeros((3, 3)), chi2=1.0)
+    rng = np.random.default_rng(4)
+    n = int(2.0 * FS)
+    f = np.fft.rfftfreq(n, 1 / FS)
+    spec = np.where((f >= 5.0) & (f <= 150.0), np.exp(2j * np.pi * rng.random(f.size)), 0)
+    u = np.fft.irfft(spec, n)
+    u *= 1.5 / u.std()
+    q = np.fft.irfft(undamped.response(f) * np.fft.rfft(u), n)
+    q += np.sqrt(VAR_Q) * rng.standard_normal(n)
+    assert abs(undamped.response(np.array([160.0]))[0]) > 1e10
+    assert fit_reaction_transfer(q, u, FS, BAND, VAR_Q) is None

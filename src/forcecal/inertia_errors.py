@@ -30,6 +30,8 @@ SHAPE_DRAWS = 400
 """Draws of the shapes' coefficients (:func:`shape_error_weights`): the variance to about 7 %."""
 SHAPE_SEED = 1
 """Their generator's seed."""
+DRAW_BLOCK = 50
+"""Draws taken at once (a 51.2 kHz record's frames hold 4097 bins)."""
 SLOPE_SPAN = 0.1
 """The share of the band at its top over which the correction's slope is read."""
 
@@ -99,12 +101,18 @@ def shape_error_weights(model: BroadbandModel, frequencies: np.ndarray,
     operating = span @ model.mixing(frequencies)                        # (n, n_f)
     base = inertia(operating)
     rng = np.random.default_rng(SHAPE_SEED)
-    roots = [np.linalg.cholesky(s.coefficient_covariance[:n, :n] + 1e-300 * np.eye(n))
-             for s in model.shapes]
-    drawn = span + np.stack([r @ rng.standard_normal((n, SHAPE_DRAWS)) for r in roots],
-                            axis=1).transpose(2, 0, 1)                  # (draws, n, n_k)
-    back = drawn @ (np.linalg.pinv(drawn) @ operating)                  # on the drawn span
-    return np.mean(np.abs(inertia(back) - base) ** 2, axis=0)
+    roots = []                        # C = R R^T from its eigenvalues (a singular C serves too)
+    for shape in model.shapes:
+        values, vectors = np.linalg.eigh(shape.coefficient_covariance[:n, :n])
+        roots.append(vectors * np.sqrt(np.clip(values, 0.0, None)))
+    total = np.zeros(base.shape)
+    for start in range(0, SHAPE_DRAWS, DRAW_BLOCK):    # a block at a time: memory stays small
+        k = min(DRAW_BLOCK, SHAPE_DRAWS - start)
+        drawn = span + np.stack([r @ rng.standard_normal((n, k)) for r in roots],
+                                axis=1).transpose(2, 0, 1)              # (k, n, n_k)
+        back = drawn @ (np.linalg.pinv(drawn) @ operating)              # on the drawn span
+        total += np.sum(np.abs(inertia(back) - base) ** 2, axis=0)
+    return total / SHAPE_DRAWS
 
 
 def above_band_weights(model: BroadbandModel, frequencies: np.ndarray,

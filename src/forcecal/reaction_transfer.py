@@ -42,6 +42,9 @@ DEN_ORDER = 2
 """Order of G's denominator in s: one flexible mode (the reactions' zero for a force)."""
 ITERATIONS = 30
 """Sanathanan-Koerner iterations at most (they settle within about ten)."""
+POLE_MARGIN = 1e-5
+"""A pole whose real part is less than this share of its magnitude lies on the axis of real
+frequencies (a damping ratio below 1e-5): no transfer, its response being unbounded there."""
 MIN_BINS = 32
 """Fewest band bins a fit takes (fewer: no transfer)."""
 
@@ -108,7 +111,8 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
                           var_q: float) -> ReactionTransfer | None:
     """The transfer from the reactions-only force ``u`` (N,) [N] to the coordinate ``q`` (N,)
     over the ``band`` [Hz], ``var_q`` the coordinate's noise variance per sample; None when
-    the band holds fewer than ``MIN_BINS`` bins or the fit is not finite.
+    the band holds fewer than ``MIN_BINS`` bins, the fit is not finite or it puts a pole on the
+    axis of real frequencies (the inertia is then the probes' alone, and the note says so).
 
     The record's transform ties Q = (B U + C) / A: C(s), a polynomial of order
     ``DEN_ORDER + NUM_ORDER``, is the record's ends' share (the transient term of a finite
@@ -143,6 +147,10 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
         den = np.polyval(np.r_[1.0, p[nb:nb + na]][::-1], s)
         if settled:
             break
+    # a pole on the axis of real frequencies would make the response infinite there
+    poles = np.roots(np.r_[1.0, p[nb:nb + na]][::-1])
+    if np.any(np.abs(poles.real) < POLE_MARGIN * np.abs(poles)):
+        return None
     fit = ReactionTransfer(num=p[:nb], den=np.r_[1.0, p[nb:nb + na]], scale=scale,
                            cov=np.zeros((nb + na, nb + na)), chi2=1.0)
     ends = np.polyval(p[nb + na:][::-1], s) / den
