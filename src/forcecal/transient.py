@@ -31,7 +31,10 @@ transfer with the band top's correction, whose slope there is counted in the unc
 The noise of every channel is read from its spectrum above the band (white beyond the drive's
 reach), so that a probe's noise sets its weight and the smoother's gain; a channel whose noise
 changes while the run goes on is refused, and force above the scan's band noted
-(:mod:`forcecal.channel_checks`).
+(:mod:`forcecal.channel_checks`). Probes that leave the scan's operating shapes (forces that
+do not keep the scan's load pattern, a probe's sign or scale wrong) are noted, and the
+inertia of the motion the scan did not see bounds every force's uncertainty
+(:mod:`forcecal.unseen_motion`).
 """
 
 from __future__ import annotations
@@ -55,6 +58,7 @@ from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
 from .spatial import check_rig_keys
+from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
 from .wiener import short_time_variance, smoother_response, stft_frame, wiener_smooth
 
 __all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
@@ -197,6 +201,8 @@ class AnyDriveSetup:
         inertia through them).
     basis_probes : (n_probes, n_funcs) array
         The basis functions at the probes.
+    unseen : UnseenMotion or None
+        The probes' misfit to the scan's operating shapes (:mod:`forcecal.unseen_motion`).
     """
 
     band: tuple[float, float]
@@ -215,20 +221,24 @@ class AnyDriveSetup:
     total_row: np.ndarray
     basis_couplings: np.ndarray
     basis_probes: np.ndarray
+    unseen: UnseenMotion | None = None
     _weights: dict[int, np.ndarray] = dataclasses.field(default_factory=dict, compare=False,
                                                         repr=False)
 
     def error_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
         """(n_forces + 1, frame // 2 + 1) [kg^2]: the variance the scan's errors give each
         force and the total per unit |q''_1|^2 at the frame's bins
-        (:func:`forcecal.inertia_errors.inertia_error_weights`), computed once per frame
-        length (a stream's windows share it)."""
+        (:func:`forcecal.inertia_errors.inertia_error_weights`), with the bound on a motion
+        the scan did not see where the probes found one
+        (:func:`forcecal.unseen_motion.unseen_weights`); computed once per frame length (a
+        stream's windows share it)."""
         if frame not in self._weights:
             f = np.fft.rfftfreq(frame, 1.0 / self.fs)
+            rows = np.vstack([self.pinv, self.pinv.sum(axis=0)])
             self._weights[frame] = inertia_error_weights(
                 model, f, self.probe_shapes, self.probe_weights, self.couplings,
-                self.basis_couplings, self.basis_probes,
-                np.vstack([self.pinv, self.pinv.sum(axis=0)]))
+                self.basis_couplings, self.basis_probes, rows) + unseen_weights(
+                self.unseen, f, self.couplings, self.probe_shapes, rows)
         return self._weights[frame]
 
 
@@ -295,7 +305,9 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
                          pinv=pinv, transfer=transfer, residual_model=bm_res,
                          total_row=total_row,
                          basis_couplings=np.real(mass_coupling(rig, basis.evaluate)),
-                         basis_probes=np.real(basis.evaluate(at_probes)))
+                         basis_probes=np.real(basis.evaluate(at_probes)),
+                         unseen=probe_misfit(model, probes, fs, gam, model.stds(at_probes).real,
+                                             w, q_map))
 
 
 @dataclass(frozen=True)
@@ -541,6 +553,8 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
-             transfer_note(setup.transfer, run.source), *above)
+             transfer_note(setup.transfer, run.source),
+             *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),
+             *above)
     return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
                                          notes)

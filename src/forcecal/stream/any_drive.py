@@ -51,6 +51,7 @@ from ..transient import (
     transfer_note,
     window_forces,
 )
+from ..unseen_motion import unseen_notes
 from ..wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
 
@@ -252,7 +253,9 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     return TransientEstimate.from_window(rig, name, t0, fs,
                                          WindowEstimate.join([c.estimate for c in chunks]),
                                          model.band, False,
-                                         (note, transfer_note(stream.setup.transfer, name)))
+                                         (note, transfer_note(stream.setup.transfer, name),
+                                          *unseen_notes(stream.setup.unseen,
+                                                        tuple(rig.sensor_names), name)))
 
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
@@ -281,7 +284,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         Called once the table is written with the note of the half second in which the
         drive's force held the most above the scan's band, when it held more than
         :data:`forcecal.channel_checks.ABOVE_BAND` (:class:`forcecal.channel_checks.AboveBand`: a
-        stream cannot see ahead, but it can say so at the end).
+        stream cannot see ahead, but it can say so at the end), and with the warnings of its
+        setup (a transfer that misfits, probes that contradict the operating shapes).
 
     Returns
     -------
@@ -312,6 +316,10 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         transfer = stream.setup.transfer if stream.setup is not None else None
         if transfer is None or transfer.chi2 > TRANSFER_MISFIT:
             note(transfer_note(transfer, blocks.source))
+        if stream.setup is not None:
+            for text in unseen_notes(stream.setup.unseen, tuple(rig.sensor_names),
+                                     blocks.source):
+                note(text)
         for text in above.notes(blocks.source):
             note(text)
     return rows
