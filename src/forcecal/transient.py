@@ -17,7 +17,8 @@ instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`)
 4. short-time Wiener gains on every force (:mod:`forcecal.wiener`), which keep the few hertz
    a moving drive holds at any instant and set the rest of the band's noise aside, each
    sample's uncertainty being the noise they let through, plus the errors of the scan's
-   shapes (:mod:`forcecal.inertia_errors`) and of the transfer's parameters.
+   shapes (:mod:`forcecal.inertia_errors`), of the transfer's parameters and of the rig's
+   declared sensitivities, positions and masses (:mod:`forcecal.transient_budget`).
 
 In real time (``stream``, :mod:`forcecal.stream.any_drive`) the same estimate is computed
 over a window that slides with the stream: every sample is given once the samples a fixed
@@ -58,6 +59,7 @@ from .records import Run
 from .relaxation import force_matrix
 from .rig import Rig
 from .spatial import check_rig_keys
+from .transient_budget import TypeBMoves, type_b_moves, type_b_notes, type_b_variance
 from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
 from .wiener import short_time_variance, smoother_response, stft_frame, wiener_smooth
 
@@ -203,6 +205,9 @@ class AnyDriveSetup:
         The basis functions at the probes.
     unseen : UnseenMotion or None
         The probes' misfit to the scan's operating shapes (:mod:`forcecal.unseen_motion`).
+    type_b : TypeBMoves or None
+        How the rig's declared type-B uncertainties move the estimate
+        (:mod:`forcecal.transient_budget`).
     """
 
     band: tuple[float, float]
@@ -222,6 +227,7 @@ class AnyDriveSetup:
     basis_couplings: np.ndarray
     basis_probes: np.ndarray
     unseen: UnseenMotion | None = None
+    type_b: TypeBMoves | None = None
     _weights: dict[int, np.ndarray] = dataclasses.field(default_factory=dict, compare=False,
                                                         repr=False)
 
@@ -307,7 +313,8 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
                          basis_couplings=np.real(mass_coupling(rig, basis.evaluate)),
                          basis_probes=np.real(basis.evaluate(at_probes)),
                          unseen=probe_misfit(model, probes, fs, gam, model.stds(at_probes).real,
-                                             w, q_map))
+                                             w, q_map),
+                         type_b=type_b_moves(rig, model))
 
 
 @dataclass(frozen=True)
@@ -412,7 +419,9 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     part = pinv @ inertia
     edge = _edge_std(np.vstack([part, part.sum(axis=0)]), fs, setup.coordinate_model)
     var = (edge**2 + _transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
-           + short_time_variance(acc, setup.error_weights(model, frame), fs, frame))
+           + short_time_variance(acc, setup.error_weights(model, frame), fs, frame)
+           + type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv, acc,
+                             inertia, reactions, fs))
     return WindowEstimate(force=sw.values, force_std=np.sqrt(sw.std**2 + var[:-1]),
                           total=sw.total, total_std=np.sqrt(sw.total_std**2 + var[-1]),
                           static=-pinv @ gauges, inertia=inertia, reactions=reactions,
@@ -555,6 +564,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
              transfer_note(setup.transfer, run.source),
              *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),
+             *type_b_notes(rig, run.source),
              *above)
     return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
                                          notes)

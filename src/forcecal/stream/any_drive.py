@@ -51,6 +51,7 @@ from ..transient import (
     transfer_note,
     window_forces,
 )
+from ..transient_budget import type_b_notes
 from ..unseen_motion import unseen_notes
 from ..wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
@@ -255,7 +256,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
                                          model.band, False,
                                          (note, transfer_note(stream.setup.transfer, name),
                                           *unseen_notes(stream.setup.unseen,
-                                                        tuple(rig.sensor_names), name)))
+                                                        tuple(rig.sensor_names), name),
+                                          *type_b_notes(rig, name)))
 
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
