@@ -343,8 +343,38 @@ def test_sweep_and_random_presets():
     assert sweep.scan == rand.scan and sweep.band == rand.band == (5.0, 200.0)
     noise = rand.runs[0].drives[0].waveform
     assert isinstance(noise, BandLimitedRandom) and noise.band == (5.0, 150.0)
-    with pytest.raises(InputError, match="broadband"):
-        get_preset("sweep", "lab")
+    with pytest.raises(InputError, match="unknown"):
+        get_preset("sweep", "bench")
+
+
+def test_a_lab_sweep_rig(tmp_path, monkeypatch):
+    """The ``lab`` realism under broadband drives: the rig declares its type-B uncertainties
+    and its mains, every gauge reads its preload and offset (the tare's mean), every channel
+    its hum (50 Hz on the tare's gauges: 3 times their white noise's sigma, 0.03 N), and each
+    chirp record's reference current follows its drive's walking level (its mean over whole
+    periods times the level and the current sensor's sensitivity, to 2e-4)."""
+    small = _small_sweep()
+    monkeypatch.setitem(presets.PRESETS, "sweep", lambda: dataclasses.replace(
+        small, runs=(small.runs[0], small.runs[-1])))
+    out = write_simulation(tmp_path / "lab", "sweep", seed=0, realism="lab")
+    rig = tomllib.loads((out / "rig.toml").read_text())
+    assert rig["acquisition"]["mains"] == 50.0 and rig["uncertainty"]["gauge_scale"] == 0.005
+    tare = np.loadtxt(out / "runs" / "tare.csv", delimiter=",", skiprows=1)
+    header = (out / "runs" / "tare.csv").read_text().splitlines()[0].split(",")
+    r1 = tare[:, header.index("R1")]
+    assert abs(r1.mean()) > 1.0                                   # the beam's weight
+    t = np.arange(r1.size) / 10_000.0
+    hum = 2 * abs(np.mean((r1 - r1.mean()) * np.exp(-2j * np.pi * 50.0 * t)))
+    assert 0.02 < hum < 0.04, hum
+    facts = json.loads((out / "truth" / "simulator.json").read_text())
+    level = np.array(facts["realism"]["scans"][0]["drive_level"])
+    assert level.shape == (5,) and 0 < np.max(np.abs(level - 1)) < 0.01
+    scan = read_scan_uff(out / "scan.uff")
+    gain = facts["realism"]["sensitivity"]["i"]
+    chirp = small.scan.drives[0]                     # whole periods: any start's mean
+    mean = chirp.dc + np.mean(chirp.waveform.value(np.arange(2500) / 10_000.0))
+    np.testing.assert_allclose(scan.reference.mean(axis=1), mean * gain * level, rtol=2e-4)
+    assert not np.allclose(scan.reference.mean(axis=1), mean * gain, rtol=2e-4)
 
 
 def _small_sweep():

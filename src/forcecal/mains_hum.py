@@ -23,7 +23,7 @@ from .errors import ForcecalError
 from .harmonics import fit_harmonics
 from .line_noise import GUARD
 
-__all__ = ["MAINS_HARMONICS", "hum_variance", "on_mains"]
+__all__ = ["MAINS_HARMONICS", "hum_tones", "hum_variance", "near_mains", "on_mains"]
 
 MAINS_HARMONICS = 10
 """The mains harmonics a drive harmonic is checked against."""
@@ -64,6 +64,21 @@ def on_mains(mains: float, f0: float, harmonics: np.ndarray | range,
     return out
 
 
+def near_mains(frequencies: np.ndarray, mains: float | None, width: float) -> np.ndarray:
+    """True at the frequencies [Hz] within ``width`` [Hz] of a harmonic of the mains (all of
+    them up to the highest frequency asked); all False without ``mains``.
+
+    Under any drive the hum is a tone in a band the drive fills: its lines are left out where
+    a line's size is read as motion (a band's reach, the reactions' transfer, the probes'
+    misfit to the shapes), so that the hum does not pass for the structure's response.
+    """
+    f = np.asarray(frequencies, float)
+    if mains is None:
+        return np.zeros(f.shape, bool)
+    m = np.maximum(np.round(f / mains), 1.0)
+    return np.abs(f - m * mains) <= width
+
+
 def hum_variance(tare: np.ndarray, tare_fs: float, mains: float,
                  pairs: dict[int, tuple[int, float]], n_harmonics: int, n_samples: int,
                  fs: float) -> tuple[np.ndarray, frozenset[int]]:
@@ -100,10 +115,44 @@ def hum_variance(tare: np.ndarray, tare_fs: float, mains: float,
         except ForcecalError:
             continue
         read.add(n)
-        noise = 2 * fit.phasor_std[:, 1] ** 2                 # E|a|^2 of noise alone
-        heard = np.abs(fit.phasors[:, 1]) ** 2 >= HEARD * noise
-        power = np.where(heard, np.abs(fit.phasors[:, 1]) ** 2 - noise, 0.0)
+        power = _heard(fit.phasors[:, 1], fit.phasor_std[:, 1])
         x = np.pi * gap / fs
         leak = 1.0 if gap == 0.0 else abs(np.sin(n_samples * x) / (n_samples * np.sin(x)))
         var[:, n] = leak**2 * power / 2
     return var, frozenset(read)
+
+
+def _heard(phasor: np.ndarray, std: np.ndarray) -> np.ndarray:
+    """A tare's tone power |a|^2 less its noise's share (E|a|^2 of noise alone, 2 std^2) where
+    it is heard (:data:`HEARD`), zero elsewhere."""
+    noise = 2 * std**2
+    return np.where(np.abs(phasor) ** 2 >= HEARD * noise, np.abs(phasor) ** 2 - noise, 0.0)
+
+
+def hum_tones(tare: np.ndarray, fs: float, mains: float, top: float
+              ) -> tuple[np.ndarray, np.ndarray]:
+    """Every channel's hum up to ``top`` [Hz] under any drive, from a zero-current record.
+
+    Parameters
+    ----------
+    tare : (n_channels, n_tare) array [SI]
+    fs : float [Hz]
+    mains : float [Hz]
+    top : float [Hz]
+
+    Returns
+    -------
+    frequencies : (n_m,) array [Hz]
+        The mains' harmonics up to ``top`` (none when the record cannot resolve them).
+    power : (n_channels, n_m) array [SI^2]
+        Each channel's tone |a_m|^2 (its squared amplitude), zero where not heard.
+    """
+    h = int(min(top, 0.45 * fs) // mains)
+    none = (np.zeros(0), np.zeros((tare.shape[0], 0)))
+    if h < 1:
+        return none
+    try:
+        fit = fit_harmonics(tare, fs, mains, h)
+    except ForcecalError:
+        return none
+    return mains * np.arange(1, h + 1), _heard(fit.phasors[:, 1:], fit.phasor_std[:, 1:])

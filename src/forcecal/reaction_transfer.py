@@ -34,6 +34,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .mains_hum import near_mains
+
 __all__ = ["DEN_ORDER", "NUM_ORDER", "ReactionTransfer", "filtered", "fit_reaction_transfer"]
 
 NUM_ORDER = 0
@@ -47,6 +49,9 @@ POLE_MARGIN = 1e-5
 frequencies (a damping ratio below 1e-5): no transfer, its response being unbounded there."""
 MIN_BINS = 32
 """Fewest band bins a fit takes (fewer: no transfer)."""
+MAINS_WIDTH = 1.0
+"""[Hz] the lines left out of the fit on either side of a mains harmonic: a hum tone leaks into
+the record's neighbouring lines (on a 4 s record 4 lines a side)."""
 
 
 def filtered(x: np.ndarray, fs: float, response: Callable[[np.ndarray], np.ndarray]
@@ -108,11 +113,13 @@ class ReactionTransfer:
 
 
 def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[float, float],
-                          var_q: float) -> ReactionTransfer | None:
+                          var_q: float, mains: float | None = None) -> ReactionTransfer | None:
     """The transfer from the reactions-only force ``u`` (N,) [N] to the coordinate ``q`` (N,)
-    over the ``band`` [Hz], ``var_q`` the coordinate's noise variance per sample; None when
-    the band holds fewer than ``MIN_BINS`` bins, the fit is not finite or it puts a pole on the
-    axis of real frequencies (the inertia is then the probes' alone, and the note says so).
+    over the ``band`` [Hz], ``var_q`` the coordinate's noise variance per sample, the lines
+    within ``MAINS_WIDTH`` of a harmonic of the ``mains`` [Hz] left out (their hum is no
+    motion); None when the band holds fewer than ``MIN_BINS`` bins, the fit is not finite or
+    it puts a pole on the axis of real frequencies (the inertia is then the probes' alone, and
+    the note says so).
 
     The record's transform ties Q = (B U + C) / A: C(s), a polynomial of order
     ``DEN_ORDER + NUM_ORDER``, is the record's ends' share (the transient term of a finite
@@ -121,7 +128,7 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
     """
     n = q.size
     f = np.fft.rfftfreq(n, 1.0 / fs)
-    sel = (f >= band[0]) & (f <= band[1])
+    sel = (f >= band[0]) & (f <= band[1]) & ~near_mains(f, mains, MAINS_WIDTH)
     if sel.sum() < MIN_BINS or not var_q > 0:
         return None
     scale = 2 * np.pi * band[1]

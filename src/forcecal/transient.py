@@ -20,6 +20,10 @@ instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`)
    shapes (:mod:`forcecal.inertia_errors`), of the transfer's parameters and of the rig's
    declared sensitivities, positions and masses (:mod:`forcecal.transient_budget`).
 
+What the estimate fixes before its first sample (the channels' noise, the band priors, the
+transfer, the checks of the probes, the type-B moves, the hum) is its setup
+(:mod:`forcecal.transient_setup`), from the whole run in batch.
+
 In real time (``stream``, :mod:`forcecal.stream.any_drive`) the same estimate is computed
 over a window that slides with the stream: every sample is given once the samples a fixed
 latency after it have arrived (a smoother needs the future a causal filter lacks: the best
@@ -45,26 +49,30 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
 
 import numpy as np
-import scipy.signal
 
 from .broadband import BroadbandModel
-from .channel_checks import AboveBand, channel_noise, check_channel_noise
+from .channel_checks import AboveBand, check_channel_noise
 from .errors import DataError
 from .forces import channels_si
-from .inertia import mass_coupling
-from .inertia_errors import inertia_error_weights
-from .kalman import BandModel, band_model, smooth_states
-from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
+from .kalman import BandModel, smooth_states
+from .reaction_transfer import ReactionTransfer, filtered
 from .records import Run
-from .relaxation import force_matrix
 from .rig import Rig
 from .spatial import check_rig_keys
-from .transient_budget import TypeBMoves, type_b_moves, type_b_notes, type_b_variance
-from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
-from .wiener import short_time_variance, smoother_response, stft_frame, wiener_smooth
+from .transient_budget import type_b_notes, type_b_variance
+from .transient_setup import AnyDriveSetup, any_drive_setup, hum_notes
+from .unseen_motion import unseen_notes
+from .wiener import (
+    short_time_variance,
+    smoother_response,
+    stft_frame,
+    tone_density,
+    wiener_smooth,
+)
 
 __all__ = ["AnyDriveSetup", "TransientEstimate", "WindowEstimate", "any_drive_setup",
-           "check_length", "reconstruct_any", "run_channels", "transfer_note", "window_forces"]
+           "check_length", "hum_notes", "reconstruct_any", "run_channels", "transfer_note",
+           "window_forces"]
 
 
 @dataclass(frozen=True)
@@ -136,187 +144,6 @@ class TransientEstimate:
         return float(np.sqrt(np.mean(part**2))) / rms if rms > 0 else 0.0
 
 
-TOP_MARGIN = 100.0
-"""The drive's reach: the highest line of the band whose density exceeds the noise's this many
-times."""
-
-
-RESIDUAL_MARGIN = 10.0
-"""What the reactions' transfer leaves of the coordinate counts as signal up to the highest
-line of the band whose density exceeds the noise's this many times (a noise-only line of a
-Welch estimate over a few seconds stays within 3 times); none: the band's bottom."""
-
-
-def _prior(x: np.ndarray, fs: float, band: tuple[float, float], noise_var: float,
-           margin: float = TOP_MARGIN, quiet: float | None = None) -> tuple[float, float]:
-    """The band-limited prior of a signal: its cutoff [Hz], 1.2 x the highest line of the band
-    the signal rises ``margin`` above its noise (at least the band's bottom, at most its top;
-    ``quiet`` [Hz] where no line does, by default the band's top), and its mean one-sided
-    density below that line [unit^2 / Hz]."""
-    nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 2)))))
-    f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg)
-    sel = (f <= band[1]) & (f > 0)
-    loud = np.flatnonzero(sel & (p > margin * 2 * noise_var / fs))
-    top = float(f[loud[-1]]) if len(loud) else (band[1] if quiet is None else quiet)
-    top = min(max(top, band[0], f[1]), band[1])
-    under = sel & (f <= top)
-    level = float(np.mean(p[under])) if np.any(under) else float(np.mean(p))
-    return 1.2 * top, level
-
-
-@dataclass(frozen=True)
-class AnyDriveSetup:
-    """What the estimate under any drive fixes before its first sample.
-
-    Attributes
-    ----------
-    band : (low, high) [Hz]
-    fs : float [Hz]
-    probe_shapes : (n_probes, n_shapes) array [m]
-        The span's shapes at the probes.
-    probe_weights : (n_probes,) array [1/m^2]
-        Their inverse noise variances.
-    coordinate_map : (n_probes,) array [1/m]
-        q_1 = coordinate_map @ probes (eq. 15-16 on the first shape).
-    var_q : float [1]
-        The noise variance of one sample of q_1.
-    coordinate_model : BandModel
-        The band model of q_1.
-    reaction_models : tuple of BandModel
-        Every gauge's reaction's.
-    var_g : (n_gauges,) array [N^2]
-        Every gauge's noise variance per sample.
-    couplings : (n_gauges,) array [kg]
-        m_{r,1}, every gauge's coupling with the first shape.
-    pinv : (n_forces, n_gauges) array
-        Psi^+.
-    transfer : ReactionTransfer or None
-        From the reactions-only force u = ``total_row`` @ gauges to q_1
-        (:mod:`forcecal.reaction_transfer`); None where it could not be fitted.
-    residual_model : BandModel
-        The band model of what the transfer leaves of q_1, q_1 - G u (of q_1 itself without
-        a transfer).
-    total_row : (n_gauges,) array
-        -1^T Psi^+: the reactions-only total force from the gauges.
-    basis_couplings : (n_gauges, n_funcs) array
-        The mass couplings of the shapes' basis functions (their coefficients' errors move the
-        inertia through them).
-    basis_probes : (n_probes, n_funcs) array
-        The basis functions at the probes.
-    unseen : UnseenMotion or None
-        The probes' misfit to the scan's operating shapes (:mod:`forcecal.unseen_motion`).
-    type_b : TypeBMoves or None
-        How the rig's declared type-B uncertainties move the estimate
-        (:mod:`forcecal.transient_budget`).
-    """
-
-    band: tuple[float, float]
-    fs: float
-    probe_shapes: np.ndarray
-    probe_weights: np.ndarray
-    coordinate_map: np.ndarray
-    var_q: float
-    coordinate_model: BandModel
-    reaction_models: tuple[BandModel, ...]
-    var_g: np.ndarray
-    couplings: np.ndarray
-    pinv: np.ndarray
-    transfer: ReactionTransfer | None
-    residual_model: BandModel
-    total_row: np.ndarray
-    basis_couplings: np.ndarray
-    basis_probes: np.ndarray
-    unseen: UnseenMotion | None = None
-    type_b: TypeBMoves | None = None
-    _weights: dict[int, np.ndarray] = dataclasses.field(default_factory=dict, compare=False,
-                                                        repr=False)
-
-    def error_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
-        """(n_forces + 1, frame // 2 + 1) [kg^2]: the variance the scan's errors give each
-        force and the total per unit |q''_1|^2 at the frame's bins
-        (:func:`forcecal.inertia_errors.inertia_error_weights`), with the bound on a motion
-        the scan did not see where the probes found one
-        (:func:`forcecal.unseen_motion.unseen_weights`); computed once per frame length (a
-        stream's windows share it)."""
-        if frame not in self._weights:
-            f = np.fft.rfftfreq(frame, 1.0 / self.fs)
-            rows = np.vstack([self.pinv, self.pinv.sum(axis=0)])
-            self._weights[frame] = inertia_error_weights(
-                model, f, self.probe_shapes, self.probe_weights, self.couplings,
-                self.basis_couplings, self.basis_probes, rows) + unseen_weights(
-                self.unseen, f, self.couplings, self.probe_shapes, rows)
-        return self._weights[frame]
-
-
-def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
-                    fs: float, source: str = "<run>") -> AnyDriveSetup:
-    """What the estimate under any drive needs before its first sample, from a record of the
-    gauges and probes (the whole run in batch; the first seconds of a stream): every channel's
-    noise from its spectrum above the band, the probes' weights and the first shape's
-    coordinate map, the band models of the coordinate and of every reaction, and the
-    structure's transfer from the reactions-only force to the coordinate with the band model
-    of what it leaves.
-
-    Parameters
-    ----------
-    rig : Rig
-    model : BroadbandModel
-    gauges : (n_gauges, N) array [N]
-    probes : (n_probes, N) array [m]
-    fs : float [Hz]
-    source : str
-        The run, named in messages.
-
-    Returns
-    -------
-    AnyDriveSetup
-
-    Raises
-    ------
-    DataError
-        A gauge or probe channel that is constant over the record: a dead sensor would take
-        the weight of a noiseless one.
-    """
-    for name, x in zip((*rig.gauge_names, *rig.sensor_names), (*gauges, *probes), strict=True):
-        if np.ptp(x) == 0:
-            raise DataError(f"run '{source}': channel '{name}' is constant over "
-                            f"{x.size / fs:.3g} s; a dead or disconnected sensor cannot follow "
-                            "any drive")
-    band = model.band
-    var_s = channel_noise(probes, fs, band)
-    var_g = channel_noise(gauges, fs, band)
-    at_probes = rig.structure.coordinates(rig.sensor_points, source=f"rig '{rig.source}'")
-    gam = model.values(at_probes).real
-    basis = model.shapes[0].basis
-    w = 1.0 / var_s
-    g1 = gam[:, 0]
-    var_q = 1.0 / float(g1 @ (w * g1))
-    q_map = var_q * (g1 * w)
-    q = q_map @ probes
-    bm_q = band_model(fs, *_prior(q, fs, band, var_q), var_q)
-    bm_r = tuple(band_model(fs, *_prior(gauges[r], fs, band, var_g[r]), var_g[r])
-                 for r in range(len(gauges)))
-    pinv = np.linalg.pinv(force_matrix(rig))
-    total_row = -np.ones(len(pinv)) @ pinv
-    u = total_row @ gauges
-    transfer = fit_reaction_transfer(q, u, fs, band, var_q)
-    bm_res = bm_q
-    if transfer is not None:
-        rest = q - filtered(u[None, :], fs, transfer.response)[0]
-        bm_res = band_model(fs, *_prior(rest, fs, band, var_q, RESIDUAL_MARGIN, band[0]),
-                            var_q)
-    return AnyDriveSetup(band=band, fs=fs, probe_shapes=gam, probe_weights=w,
-                         coordinate_map=q_map, var_q=var_q, coordinate_model=bm_q,
-                         reaction_models=bm_r, var_g=var_g, couplings=model.couplings[:, 0],
-                         pinv=pinv, transfer=transfer, residual_model=bm_res,
-                         total_row=total_row,
-                         basis_couplings=np.real(mass_coupling(rig, basis.evaluate)),
-                         basis_probes=np.real(basis.evaluate(at_probes)),
-                         unseen=probe_misfit(model, probes, fs, gam, model.stds(at_probes).real,
-                                             w, q_map),
-                         type_b=type_b_moves(rig, model))
-
-
 @dataclass(frozen=True)
 class WindowEstimate:
     """The forces over a stretch of samples (a whole run, or a stream's window).
@@ -378,8 +205,9 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     fs = setup.fs
     q = setup.coordinate_map @ probes                            # the first shape's coordinate
     bm_r, bm_res, transfer = setup.reaction_models, setup.residual_model, setup.transfer
-    reactions = np.stack([smooth_states(bm_r[r], gauges[r], states=(0,))[0]
-                          for r in range(len(gauges))])
+    level = gauges.mean(axis=1, keepdims=True)    # the DC passes whole (in the band the
+    reactions = level + np.stack([smooth_states(bm_r[r], gauges[r] - level[r], states=(0,))[0]
+                                  for r in range(len(gauges))])   # gain is 1 - 1 / SNR_CAP)
     u = (setup.total_row @ reactions)[None, :]                   # the reactions-only total
     rest = q
     if transfer is not None:                                     # the gauges' part of q_1''
@@ -410,19 +238,29 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     to_force = pinv @ (m1[:, None] * correction(f))             # q_1'' -> forces, (k, bins)
     via_u = (np.zeros_like(f) if transfer is None
              else (2j * np.pi * f) ** 2 * transfer.response(f))
+    per_gauge = [(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
+                 * smoother_response(bm_r[r], 0, frame) for r in range(len(gauges))]
+    hum = [per_gauge[r] * tone_density(frame, fs, tone, power)     # each gauge's hum tones
+           for r, tone, power in setup.hum if power > 0]
     noise = np.concatenate([
         (np.sqrt(setup.var_q) * smoother_response(bm_res, 2, frame) * to_force)[:, None, :],
-        np.stack([(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
-                  * np.sqrt(setup.var_g[r]) * smoother_response(bm_r[r], 0, frame)
-                  for r in range(len(gauges))], axis=1)], axis=1)
-    sw = wiener_smooth(force, noise, fs, frame)
+        np.stack([g * np.sqrt(v) for g, v in zip(per_gauge, setup.var_g, strict=True)]
+                 + hum, axis=1)], axis=1)
+    # smoothed as the total and its complement (an orthonormal basis whose first row is the
+    # sum's): the total keeps its own, smaller noise (a gauge's hum or noise splits between
+    # the forces far more than it moves their sum)
+    start = np.eye(len(pinv))
+    start[:, 0] = 1.0
+    basis = np.linalg.qr(start)[0].T
+    sw = wiener_smooth(basis @ force, np.einsum("jk,ksb->jsb", basis, noise), fs, frame,
+                       np.vstack([basis.T, basis.sum(axis=1)]))
     part = pinv @ inertia
     edge = _edge_std(np.vstack([part, part.sum(axis=0)]), fs, setup.coordinate_model)
     var = (edge**2 + _transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
            + short_time_variance(acc, setup.error_weights(model, frame), fs, frame)
            + type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv, acc,
                              inertia, reactions, fs))
-    return WindowEstimate(force=sw.values, force_std=np.sqrt(sw.std**2 + var[:-1]),
+    return WindowEstimate(force=sw.values[:-1], force_std=np.sqrt(sw.std[:-1] ** 2 + var[:-1]),
                           total=sw.total, total_std=np.sqrt(sw.total_std**2 + var[-1]),
                           static=-pinv @ gauges, inertia=inertia, reactions=reactions,
                           coordinate=q, passed=sw.passed)
@@ -524,7 +362,8 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     run : Run
         The recording.
     tare : Run, optional
-        A zero-current record: its mean gauge and probe values are the zero.
+        A zero-current record: its mean gauge and probe values are the zero, and with
+        ``acquisition.mains`` its gauges' hum tones enter the uncertainty.
     smooth : bool
         The batch estimate over the whole record (default), or the real-time one that
         ``stream`` gives (:class:`forcecal.stream.any_drive.AnyDriveStream`: every sample from
@@ -550,12 +389,15 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     reach = AboveBand(fs, model.band, run.t0)
     reach.add(current)
     above = reach.notes(run.source)
+    zero = None if tare is None else run_channels(rig, tare)[0]
     if not smooth:
         from .stream.any_drive import stream_arrays
 
-        live = stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name)
+        live = stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name,
+                             tare=zero, tare_fs=None if tare is None else tare.fs)
         return dataclasses.replace(live, notes=live.notes + above)
-    setup = any_drive_setup(rig, model, gauges, probes, fs, run.source)
+    setup = any_drive_setup(rig, model, gauges, probes, fs, run.source, zero,
+                            None if tare is None else tare.fs)
     check_channel_noise(gauges, probes, (*rig.gauge_names, *rig.sensor_names), fs, model.band,
                         run.t0, run.source)
     frame = stft_frame(fs, n)
@@ -564,7 +406,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
              transfer_note(setup.transfer, run.source),
              *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),
-             *type_b_notes(rig, run.source),
+             *type_b_notes(rig, run.source), *hum_notes(rig, tare, run.source),
              *above)
     return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
                                          notes)

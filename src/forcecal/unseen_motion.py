@@ -39,6 +39,7 @@ import scipy.ndimage
 import scipy.signal
 
 from .broadband import BroadbandModel
+from .mains_hum import near_mains
 
 __all__ = ["LIVE_SNR", "MISFIT_LIMIT", "UnseenMotion", "probe_misfit", "unseen_notes",
            "unseen_weights"]
@@ -83,8 +84,8 @@ class UnseenMotion:
 
 
 def probe_misfit(model: BroadbandModel, probes: np.ndarray, fs: float, probe_shapes: np.ndarray,
-                 probe_stds: np.ndarray, weights: np.ndarray, coordinate_map: np.ndarray
-                 ) -> UnseenMotion | None:
+                 probe_stds: np.ndarray, weights: np.ndarray, coordinate_map: np.ndarray,
+                 probe_scale: float = 0.0, mains: float | None = None) -> UnseenMotion | None:
     """The probes' misfit to the operating shapes of ``model`` over a record.
 
     Parameters
@@ -100,6 +101,11 @@ def probe_misfit(model: BroadbandModel, probes: np.ndarray, fs: float, probe_sha
         The probes' inverse noise variances per sample.
     coordinate_map : (n_probes,) array [1/m]
         q_1 = coordinate_map @ probes.
+    probe_scale : float
+        The probes' declared relative standard uncertainty of sensitivity (a probe off by it
+        is the type-B budget's, not an unseen motion).
+    mains : float, optional [Hz]
+        The mains: the lines of its harmonics hold hum, and are left out.
 
     Returns
     -------
@@ -114,7 +120,8 @@ def probe_misfit(model: BroadbandModel, probes: np.ndarray, fs: float, probe_sha
     frames = np.lib.stride_tricks.sliding_window_view(probes, seg, axis=-1)[:, ::seg // 2]
     spec = np.fft.rfft((frames - frames.mean(axis=-1, keepdims=True)) * win, axis=-1)
     f = np.fft.rfftfreq(seg, 1.0 / fs)                               # spec: (n_p, n_seg, n_f)
-    inside = (f >= model.band[0]) & (f <= model.band[1]) & (f > 0)
+    inside = ((f >= model.band[0]) & (f <= model.band[1]) & (f > 0)
+              & ~near_mains(f, mains, 2.0 * f[1]))
     f, spec = f[inside], spec[..., inside]
     mix = model.mixing(f)
     p = probe_shapes @ mix                                          # (n_p, n_f)
@@ -123,7 +130,8 @@ def probe_misfit(model: BroadbandModel, probes: np.ndarray, fs: float, probe_sha
     resid = spec - p[:, None, :] * c[None]
     power = np.sum(win**2)
     shape_var = (probe_shapes**2 @ (2 * model.mixing_std(f) ** 2)
-                 + probe_stds**2 @ np.abs(mix) ** 2)               # E|dp_j|^2, (n_p, n_f)
+                 + probe_stds**2 @ np.abs(mix) ** 2
+                 + probe_scale**2 * np.abs(p) ** 2)                 # E|dp_j|^2, (n_p, n_f)
     expected = power / weights[:, None] + shape_var * np.mean(np.abs(c) ** 2, axis=0)
     chi2 = np.sum(np.mean(np.abs(resid) ** 2, axis=1) / expected, axis=0) / (n_p - 1)
     snr = np.sum(weights[:, None] * np.mean(np.abs(spec) ** 2, axis=1), axis=0) / (n_p * power)

@@ -12,6 +12,10 @@ a standard uncertainty, summed bin by bin over its frames: the noise the gains l
 G^2 N, and the signal they take, (1 - G)^2 S with S = G |Z|^2 the power they keep (a bin near
 its noise loses part of its signal: on a swept tone the observed error is then 0.86 of the
 stated, 1.14 without that part; inside a random force's record 0.87-0.95, 1.01-1.13 without).
+The signals smoothed may be any orthonormal combination of the estimates (the forces' total
+and its complement): the estimates come back as combinations of them, each source's parts
+added with their phases. A steady tone of known power (mains hum) joins the noise as its
+window's transform at the frame's bins (:func:`tone_density`).
 """
 
 from __future__ import annotations
@@ -25,7 +29,7 @@ import scipy.signal
 from .kalman import BandModel, smooth_states
 
 __all__ = ["FRAME_SECONDS", "ShortTimeWiener", "short_time_variance", "smoother_response",
-           "stft_frame", "wiener_smooth"]
+           "stft_frame", "tone_density", "wiener_smooth"]
 
 FRAME_SECONDS = 0.2
 """Frame length aimed at: a sweep of tens of hertz per second moves a few bins within it."""
@@ -56,17 +60,31 @@ def smoother_response(model: BandModel, state: int, frame: int) -> np.ndarray:
     return np.fft.rfft(np.roll(h, -n // 2))[::4]
 
 
+def tone_density(frame: int, fs: float, frequency: float, power: float) -> np.ndarray:
+    """(frame // 2 + 1,): a steady tone of squared amplitude ``power`` at ``frequency`` [Hz]
+    as :func:`wiener_smooth` takes a noise source: at every bin of a Hann frame, the amplitude
+    whose power there is the tone's (A / 2)^2 |W(f_b - f)|^2 / sum(w^2), W the window's
+    transform, so that over the bins it adds up to the tone's variance A^2 / 2."""
+    win = scipy.signal.get_window("hann", frame)
+    over = 16
+    shape = np.abs(np.fft.rfft(win, over * frame))                # |W| every fs / (16 frame)
+    offset = np.abs(np.fft.rfftfreq(frame, 1.0 / fs) - frequency) * over * frame / fs
+    at = np.interp(offset, np.arange(shape.size), shape, right=0.0)
+    return 0.5 * np.sqrt(power) * at / np.sqrt(np.sum(win**2))
+
+
 @dataclass(frozen=True)
 class ShortTimeWiener:
     """Smoothed estimates and their standard uncertainty, sample by sample.
 
     Attributes
     ----------
-    values : (n_signals, N) array
-    std : (n_signals, N) array
-        Of each signal.
+    values : (n_outputs, N) array
+        The smoothed signals' combinations asked for (by default each signal).
+    std : (n_outputs, N) array
+        Of each.
     total : (N,) array
-        The signals' sum.
+        The last combination (by default the signals' sum).
     total_std : (N,) array
     passed : (n_signals,) array [1]
         Share of each signal's noise power the gains let through (over the record).
@@ -79,7 +97,8 @@ class ShortTimeWiener:
     passed: np.ndarray
 
 
-def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int) -> ShortTimeWiener:
+def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int,
+                  outputs: np.ndarray | None = None) -> ShortTimeWiener:
     """Short-time Wiener smoothing of signals whose noise comes from known sources.
 
     Parameters
@@ -93,12 +112,17 @@ def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int) -> Sh
     fs : float [Hz]
     frame : int
         Samples per frame (:func:`stft_frame`).
+    outputs : (n_outputs, n_signals) array, optional
+        The combinations of the smoothed signals returned, each with its uncertainty (a
+        source's parts in several signals add with their phases). By default each signal,
+        then their sum as ``total``; with a last row, that row is ``total``.
 
     Returns
     -------
     ShortTimeWiener
     """
-    n = x.shape[-1]
+    n, k = x.shape[-1], x.shape[0]
+    rows = np.vstack([np.eye(k), np.ones(k)]) if outputs is None else np.asarray(outputs)
     kw = {"fs": fs, "window": "hann", "nperseg": frame, "noverlap": 3 * frame // 4}
     t, z = scipy.signal.stft(x, boundary="even", padded=True, **kw)[1:]   # (k, bins, frames)
     win = scipy.signal.get_window("hann", frame)
@@ -108,30 +132,31 @@ def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int) -> Sh
                                          mode="nearest")
     tiny = np.finfo(float).tiny
     gain = np.clip(1.0 - OVER * n_pow[:, :, None] / np.maximum(power, tiny), 0.0, 1.0)
-    values = scipy.signal.istft(gain * z, boundary=True, **kw)[1][..., :n]
-    # the noise let through: per frame, sum over bins (both halves of the spectrum)
+    smoothed = scipy.signal.istft(gain * z, boundary=True, **kw)[1][..., :n]
+    # the noise let through: per frame, sum over bins (both halves of the spectrum), each
+    # source's parts in the signals combined with their phases
     fold = np.full(noise.shape[-1], 2.0)
     fold[0] = 1.0
     if frame % 2 == 0:
         fold[-1] = 1.0
-    var = np.einsum("kb,kbt->kt", np.sum(np.abs(noise) ** 2, axis=1) * fold, gain**2) / frame
-    tot = np.einsum("ksb,kbt->sbt", noise, gain)               # each source in the total
-    var_total = np.einsum("b,sbt->t", fold, np.abs(tot) ** 2) / frame
+    let = np.einsum("ok,ksb,kbt->osbt", rows, noise, gain)
+    var = np.einsum("b,osbt->ot", fold, np.abs(let) ** 2) / frame
     # what the gains take of the signal itself: (1 - G) of its amplitude, the signal's power
     # read as the power they keep, G |Z|^2 (in density units: the power above the
     # over-subtracted noise; a noise-only bin's excess over its mean is not signal), with the
-    # bin's phase, so that the forces' parts add up coherently in the total
+    # bin's phase, so that the signals' parts add up coherently in a combination
     signal = np.sqrt(gain * power / per_bin)
-    cut = (1.0 - gain) * signal * np.exp(1j * np.angle(z))
-    var = var + np.einsum("b,kbt->kt", fold, np.abs(cut) ** 2) / frame
-    var_total = var_total + np.einsum("b,bt->t", fold, np.abs(cut.sum(axis=0)) ** 2) / frame
+    cut = np.einsum("ok,kbt->obt", rows, (1.0 - gain) * signal * np.exp(1j * np.angle(z)))
+    var = var + np.einsum("b,obt->ot", fold, np.abs(cut) ** 2) / frame
     time = np.arange(n) / fs
     std = np.sqrt(np.stack([np.interp(time, t, v) for v in var]))
-    total_std = np.sqrt(np.interp(time, t, var_total))
+    values = rows @ smoothed
+    own = np.einsum("kb,kbt->kt", np.sum(np.abs(noise) ** 2, axis=1) * fold, gain**2) / frame
     full = np.sum(np.abs(noise) ** 2, axis=1) @ fold
-    passed = np.mean(var, axis=-1) * frame / np.maximum(full, tiny)
-    return ShortTimeWiener(values=values, std=std, total=values.sum(axis=0),
-                           total_std=total_std, passed=passed)
+    passed = np.mean(own, axis=-1) * frame / np.maximum(full, tiny)
+    return ShortTimeWiener(values=values[:-1] if outputs is None else values,
+                           std=std[:-1] if outputs is None else std, total=values[-1],
+                           total_std=std[-1], passed=passed)
 
 
 def short_time_variance(x: np.ndarray, weight: np.ndarray, fs: float, frame: int) -> np.ndarray:

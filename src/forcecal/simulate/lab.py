@@ -37,7 +37,9 @@ from .virtual_rig import (
     relaxation_modes,
     run_truth,
     scan_file,
+    scan_offsets,
     scan_points,
+    scan_response,
     simulate_response,
 )
 
@@ -460,6 +462,33 @@ def measure_lab_scan(preset: Preset, model: Model, r: Response, rng: np.random.G
     return _scan_noise(preset, which, response, r.current[spec.reference][idx], rng, errors)
 
 
+def _broadband_lab_scan(preset: Preset, rng: np.random.Generator, model: Model, which: int,
+                        errors: LabErrors) -> tuple[Scan, ScanWalk]:
+    """A ``lab`` scan under a broadband drive (a chirp, noise): every acquisition a window of
+    one steady-state response at a random start (as the ideal scan's), its response and its
+    reference scaled by the level's walk, ``1 + a_k`` (to first order in the walk's steps, which
+    move the magnet's bias by a few parts in 1e3 at most); the generator's frequency does not
+    walk (a broadband drive's is its clock's). Then the lab's noise, sensitivity and
+    quantization."""
+    lab = _realism(preset)
+    spec = _scan_spec(preset, which)
+    n_rec = int(round(spec.record * preset.fs))
+    per_point = _per_point(preset)
+    x = scan_points(preset, which)
+    n_acq = len(x) // per_point
+    a = np.cumsum(lab.scan_level_step * rng.standard_normal(n_acq))
+    starts = rng.integers(0, scan_offsets(preset, which), size=n_acq)
+    r = scan_response(preset, model, which)
+    idx = starts[:, None] + np.arange(n_rec)[None, :]
+    level = (1.0 + a)[:, None]
+    response = np.repeat(level, per_point, axis=0) * np.take_along_axis(
+        model.row(x) @ r.v, np.repeat(idx, per_point, axis=0), axis=1)
+    reference = level * r.current[spec.reference][idx]
+    return (_scan_noise(preset, which, response, reference, rng, errors),
+            ScanWalk(level=1.0 + a, frequency=np.full(n_acq, spec.drives[0].frequency),
+                     start=starts))
+
+
 def record_lab_scan(preset: Preset, rng: np.random.Generator, model: Model, which: int = 0,
                     errors: LabErrors | None = None) -> tuple[Scan, ScanWalk]:
     """A ``lab`` scan: the drive's level and frequency walk from point to point.
@@ -488,6 +517,8 @@ def record_lab_scan(preset: Preset, rng: np.random.Generator, model: Model, whic
     lab = _realism(preset)
     errors = errors or draw_errors(preset, model, rng)
     spec = _scan_spec(preset, which)
+    if spec.drives[0].waveform is not None:
+        return _broadband_lab_scan(preset, rng, model, which, errors)
     fs, f = preset.fs, spec.drives[0].frequency
     n_rec = int(round(spec.record * fs))
     per_period = int(np.ceil(fs / f))

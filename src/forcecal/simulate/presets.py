@@ -492,7 +492,7 @@ def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
     Raises
     ------
     InputError
-        An unknown name or realism, or a ``lab`` realism for a rig under broadband drives.
+        An unknown name or realism.
     """
     from ..errors import InputError
 
@@ -502,9 +502,6 @@ def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
     preset = PRESETS[name]()
     if chosen is None:
         return preset
-    if preset.band is not None:
-        raise InputError(f"preset '{name}' is driven by broadband drives: the lab realism "
-                         "drifts a steady sine (use the ideal rig)")
     return with_tare(dataclasses.replace(preset, realism=chosen))
 
 

@@ -48,6 +48,7 @@ from ..transient import (
     WindowEstimate,
     any_drive_setup,
     check_length,
+    hum_notes,
     transfer_note,
     window_forces,
 )
@@ -101,6 +102,9 @@ class AnyDriveStream:
         :data:`WARMUP`, :data:`STEP`).
     source : str
         The run, named in messages.
+    tare, tare_fs : (n_gauges, n) array [N] and float [Hz], optional
+        A zero-current record's gauges: with ``acquisition.mains``, their hum tones join the
+        noise (:func:`forcecal.transient_setup.any_drive_setup`).
 
     Raises
     ------
@@ -114,10 +118,12 @@ class AnyDriveStream:
     def __init__(self, rig: Rig, model: BroadbandModel, fs: float, t0: float = 0.0,
                  setup: AnyDriveSetup | None = None, latency: float = LATENCY,
                  history: float = HISTORY, warmup: float = WARMUP, step: float = STEP,
-                 source: str = "<stream>"):
+                 source: str = "<stream>", tare: np.ndarray | None = None,
+                 tare_fs: float | None = None):
         check_rig_keys(model.rig, model.source, rig)
         self.rig, self.model, self.fs, self.t0 = rig, model, float(fs), float(t0)
         self.source = source
+        self._tare, self._tare_fs = tare, tare_fs
         self._setup = setup
         frame = stft_frame(fs, 1 << 62)            # the Wiener frame of any record long enough
         self._hop = frame // 4
@@ -173,7 +179,8 @@ class AnyDriveStream:
                 return out
             first = self._buffer[:, :self._warmup]     # the first seconds, whatever the blocks
             g, p = first[:self._n_g], first[self._n_g:]
-            self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs, self.source)
+            self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs, self.source,
+                                          self._tare, self._tare_fs)
         self._check()
         end = self._received if final else self._received - self._latency
         if end - self._given < (1 if final else self._step):
@@ -216,7 +223,8 @@ def _chunks(stream: AnyDriveStream, blocks: Iterator[np.ndarray]) -> Iterator[St
 
 def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
                   fs: float, t0: float = 0.0, name: str = "<run>",
-                  setup: AnyDriveSetup | None = None, block: int = 1 << 14
+                  setup: AnyDriveSetup | None = None, block: int = 1 << 14,
+                  tare: np.ndarray | None = None, tare_fs: float | None = None
                   ) -> TransientEstimate:
     """A run held in memory through :class:`AnyDriveStream`, in blocks of ``block`` samples.
 
@@ -235,6 +243,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
         As :class:`AnyDriveStream`.
     block : int
         Samples per block.
+    tare, tare_fs : array and float, optional
+        As :class:`AnyDriveStream`.
 
     Returns
     -------
@@ -244,7 +254,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     unit = dataclasses.replace(
         rig, gauges=tuple(dataclasses.replace(g, scale=1.0) for g in rig.gauges),
         sensors=tuple(dataclasses.replace(s, scale=1.0) for s in rig.sensors))
-    stream = AnyDriveStream(unit, model, fs, t0, setup=setup, source=name)
+    stream = AnyDriveStream(unit, model, fs, t0, setup=setup, source=name, tare=tare,
+                            tare_fs=tare_fs)
     data = np.vstack([gauges, probes])
     chunks = list(_chunks(stream, (data[:, k:k + block]
                                    for k in range(0, data.shape[1], block))))
@@ -257,7 +268,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
                                          (note, transfer_note(stream.setup.transfer, name),
                                           *unseen_notes(stream.setup.unseen,
                                                         tuple(rig.sensor_names), name),
-                                          *type_b_notes(rig, name)))
+                                          *type_b_notes(rig, name),
+                                          *hum_notes(rig, tare, name)))
 
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
@@ -322,6 +334,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
             for text in unseen_notes(stream.setup.unseen, tuple(rig.sensor_names),
                                      blocks.source):
                 note(text)
+        for text in hum_notes(rig, None, blocks.source):
+            note(text)
         for text in above.notes(blocks.source):
             note(text)
     return rows

@@ -1,0 +1,254 @@
+"""What the estimate under any drive fixes before its first sample (METHOD.md section 7).
+
+From a record of the gauges and probes (the whole run in batch, a stream's first seconds):
+every channel's noise from its spectrum above the band, the probes' weights and the first
+shape's coordinate map (eq. 15-16), the band-limited priors of the coordinate and of every
+reaction (their reach: the highest line of the band well above the noise, the mains' lines
+aside), the structure's transfer from the reactions-only force to the coordinate
+(:mod:`forcecal.reaction_transfer`) with the prior of what it leaves, the probes' misfit to the
+scan's operating shapes (:mod:`forcecal.unseen_motion`), how the rig's type-B uncertainties
+move the estimate (:mod:`forcecal.transient_budget`) and, from a zero-current record, the
+gauges' mains hum (:mod:`forcecal.mains_hum`). :mod:`forcecal.transient` then estimates the
+forces over any stretch of samples with it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.signal
+
+from .broadband import BroadbandModel
+from .channel_checks import channel_noise
+from .errors import DataError
+from .inertia import mass_coupling
+from .inertia_errors import inertia_error_weights
+from .kalman import BandModel, band_model
+from .mains_hum import hum_tones, near_mains
+from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
+from .relaxation import force_matrix
+from .rig import Rig
+from .transient_budget import TypeBMoves, type_b_moves
+from .unseen_motion import UnseenMotion, probe_misfit, unseen_weights
+
+__all__ = ["RESIDUAL_MARGIN", "TOP_MARGIN", "AnyDriveSetup", "any_drive_setup", "hum_notes"]
+
+
+TOP_MARGIN = 100.0
+"""The drive's reach: the highest line of the band whose density exceeds the noise's this many
+times."""
+
+
+RESIDUAL_MARGIN = 10.0
+"""What the reactions' transfer leaves of the coordinate counts as signal up to the highest
+line of the band whose density exceeds the noise's this many times (a noise-only line of a
+Welch estimate over a few seconds stays within 3 times); none: the band's bottom."""
+
+
+def _prior(x: np.ndarray, fs: float, band: tuple[float, float], noise_var: float,
+           margin: float = TOP_MARGIN, quiet: float | None = None,
+           mains: float | None = None) -> tuple[float, float]:
+    """The band-limited prior of a signal: its cutoff [Hz], 1.2 x the highest line of the band
+    the signal rises ``margin`` above its noise (at least the band's bottom, at most its top;
+    ``quiet`` [Hz] where no line does, by default the band's top; the lines of the ``mains``'
+    harmonics [Hz] are hum, not signal), and its mean one-sided density below that line
+    [unit^2 / Hz]."""
+    nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 2)))))
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg)
+    sel = (f <= band[1]) & (f > 0) & ~near_mains(f, mains, 2.0 * f[1])
+    loud = np.flatnonzero(sel & (p > margin * 2 * noise_var / fs))
+    top = float(f[loud[-1]]) if len(loud) else (band[1] if quiet is None else quiet)
+    top = min(max(top, band[0], f[1]), band[1])
+    under = sel & (f <= top)
+    level = float(np.mean(p[under])) if np.any(under) else float(np.mean(p))
+    return 1.2 * top, level
+
+
+@dataclass(frozen=True)
+class AnyDriveSetup:
+    """What the estimate under any drive fixes before its first sample.
+
+    Attributes
+    ----------
+    band : (low, high) [Hz]
+    fs : float [Hz]
+    probe_shapes : (n_probes, n_shapes) array [m]
+        The span's shapes at the probes.
+    probe_weights : (n_probes,) array [1/m^2]
+        Their inverse noise variances.
+    coordinate_map : (n_probes,) array [1/m]
+        q_1 = coordinate_map @ probes (eq. 15-16 on the first shape).
+    var_q : float [1]
+        The noise variance of one sample of q_1.
+    coordinate_model : BandModel
+        The band model of q_1.
+    reaction_models : tuple of BandModel
+        Every gauge's reaction's.
+    var_g : (n_gauges,) array [N^2]
+        Every gauge's noise variance per sample.
+    couplings : (n_gauges,) array [kg]
+        m_{r,1}, every gauge's coupling with the first shape.
+    pinv : (n_forces, n_gauges) array
+        Psi^+.
+    transfer : ReactionTransfer or None
+        From the reactions-only force u = ``total_row`` @ gauges to q_1
+        (:mod:`forcecal.reaction_transfer`); None where it could not be fitted.
+    residual_model : BandModel
+        The band model of what the transfer leaves of q_1, q_1 - G u (of q_1 itself without
+        a transfer).
+    total_row : (n_gauges,) array
+        -1^T Psi^+: the reactions-only total force from the gauges.
+    basis_couplings : (n_gauges, n_funcs) array
+        The mass couplings of the shapes' basis functions (their coefficients' errors move the
+        inertia through them).
+    basis_probes : (n_probes, n_funcs) array
+        The basis functions at the probes.
+    unseen : UnseenMotion or None
+        The probes' misfit to the scan's operating shapes (:mod:`forcecal.unseen_motion`).
+    type_b : TypeBMoves or None
+        How the rig's declared type-B uncertainties move the estimate
+        (:mod:`forcecal.transient_budget`).
+    hum : tuple of (int, float, float)
+        (gauge, frequency [Hz], |a|^2 [N^2]): every gauge's mains hum tones, read from a
+        zero-current record (:func:`forcecal.mains_hum.hum_tones`); the Wiener gains take
+        them for noise.
+    """
+
+    band: tuple[float, float]
+    fs: float
+    probe_shapes: np.ndarray
+    probe_weights: np.ndarray
+    coordinate_map: np.ndarray
+    var_q: float
+    coordinate_model: BandModel
+    reaction_models: tuple[BandModel, ...]
+    var_g: np.ndarray
+    couplings: np.ndarray
+    pinv: np.ndarray
+    transfer: ReactionTransfer | None
+    residual_model: BandModel
+    total_row: np.ndarray
+    basis_couplings: np.ndarray
+    basis_probes: np.ndarray
+    unseen: UnseenMotion | None = None
+    type_b: TypeBMoves | None = None
+    hum: tuple[tuple[int, float, float], ...] = ()
+    _weights: dict[int, np.ndarray] = dataclasses.field(default_factory=dict, compare=False,
+                                                        repr=False)
+
+    def error_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
+        """(n_forces + 1, frame // 2 + 1) [kg^2]: the variance the scan's errors give each
+        force and the total per unit |q''_1|^2 at the frame's bins
+        (:func:`forcecal.inertia_errors.inertia_error_weights`), with the bound on a motion
+        the scan did not see where the probes found one
+        (:func:`forcecal.unseen_motion.unseen_weights`); computed once per frame length (a
+        stream's windows share it)."""
+        if frame not in self._weights:
+            f = np.fft.rfftfreq(frame, 1.0 / self.fs)
+            rows = np.vstack([self.pinv, self.pinv.sum(axis=0)])
+            self._weights[frame] = inertia_error_weights(
+                model, f, self.probe_shapes, self.probe_weights, self.couplings,
+                self.basis_couplings, self.basis_probes, rows) + unseen_weights(
+                self.unseen, f, self.couplings, self.probe_shapes, rows)
+        return self._weights[frame]
+
+
+def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
+                    fs: float, source: str = "<run>", tare: np.ndarray | None = None,
+                    tare_fs: float | None = None) -> AnyDriveSetup:
+    """What the estimate under any drive needs before its first sample, from a record of the
+    gauges and probes (the whole run in batch; the first seconds of a stream): every channel's
+    noise from its spectrum above the band, the probes' weights and the first shape's
+    coordinate map, the band models of the coordinate and of every reaction, the
+    structure's transfer from the reactions-only force to the coordinate with the band model
+    of what it leaves, the probes' misfit to the scan's operating shapes, the type-B moves
+    and the gauges' hum.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : BroadbandModel
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+    fs : float [Hz]
+    source : str
+        The run, named in messages.
+    tare : (n_gauges, n) array [N], optional
+        A zero-current record's gauges: with ``acquisition.mains``, each gauge's hum tones
+        (:func:`forcecal.mains_hum.hum_tones`).
+    tare_fs : float, optional [Hz]
+        Its sampling rate.
+
+    Returns
+    -------
+    AnyDriveSetup
+
+    Raises
+    ------
+    DataError
+        A gauge or probe channel that is constant over the record: a dead sensor would take
+        the weight of a noiseless one.
+    """
+    for name, x in zip((*rig.gauge_names, *rig.sensor_names), (*gauges, *probes), strict=True):
+        if np.ptp(x) == 0:
+            raise DataError(f"run '{source}': channel '{name}' is constant over "
+                            f"{x.size / fs:.3g} s; a dead or disconnected sensor cannot follow "
+                            "any drive")
+    band = model.band
+    var_s = channel_noise(probes, fs, band)
+    var_g = channel_noise(gauges, fs, band)
+    at_probes = rig.structure.coordinates(rig.sensor_points, source=f"rig '{rig.source}'")
+    gam = model.values(at_probes).real
+    basis = model.shapes[0].basis
+    w = 1.0 / var_s
+    g1 = gam[:, 0]
+    var_q = 1.0 / float(g1 @ (w * g1))
+    q_map = var_q * (g1 * w)
+    q = q_map @ probes
+    hum = rig.mains
+    bm_q = band_model(fs, *_prior(q, fs, band, var_q, mains=hum), var_q)
+    bm_r = tuple(band_model(fs, *_prior(gauges[r], fs, band, var_g[r], mains=hum), var_g[r])
+                 for r in range(len(gauges)))
+    pinv = np.linalg.pinv(force_matrix(rig))
+    total_row = -np.ones(len(pinv)) @ pinv
+    u = total_row @ gauges
+    transfer = fit_reaction_transfer(q, u, fs, band, var_q, hum)
+    bm_res = bm_q
+    if transfer is not None:
+        rest = q - filtered(u[None, :], fs, transfer.response)[0]
+        bm_res = band_model(fs, *_prior(rest, fs, band, var_q, RESIDUAL_MARGIN, band[0], hum),
+                            var_q)
+    return AnyDriveSetup(band=band, fs=fs, probe_shapes=gam, probe_weights=w,
+                         coordinate_map=q_map, var_q=var_q, coordinate_model=bm_q,
+                         reaction_models=bm_r, var_g=var_g, couplings=model.couplings[:, 0],
+                         pinv=pinv, transfer=transfer, residual_model=bm_res,
+                         total_row=total_row,
+                         basis_couplings=np.real(mass_coupling(rig, basis.evaluate)),
+                         basis_probes=np.real(basis.evaluate(at_probes)),
+                         unseen=probe_misfit(model, probes, fs, gam, model.stds(at_probes).real,
+                                             w, q_map, rig.type_b.probe_scale, hum),
+                         type_b=type_b_moves(rig, model),
+                         hum=_gauge_hum(rig, tare, tare_fs))
+
+
+def _gauge_hum(rig: Rig, tare: np.ndarray | None, tare_fs: float | None
+               ) -> tuple[tuple[int, float, float], ...]:
+    """Every gauge's hum tones, from the zero-current record's gauges (none without
+    ``acquisition.mains`` or a tare): the mains' harmonics up to 0.45 of its sampling rate, as
+    the smoothers let through a part of those beyond the band."""
+    if rig.mains is None or tare is None or tare_fs is None:
+        return ()
+    tones, power = hum_tones(tare, tare_fs, rig.mains, 0.45 * tare_fs)
+    return tuple((r, float(f), float(power[r, m])) for r in range(len(tare))
+                 for m, f in enumerate(tones))
+
+
+def hum_notes(rig: Rig, tare: object, source: str) -> tuple[str, ...]:
+    """The run's note when the rig names its mains but no zero-current record says its hum."""
+    if rig.mains is None or tare is not None:
+        return ()
+    return (f"run '{source}': acquisition.mains is {rig.mains:g} Hz, but without a tare record "
+            "the gauges' hum on its harmonics is not in the uncertainty (give a zero-current "
+            "record, --tare)",)
