@@ -711,7 +711,7 @@ def test_mains_hum_is_no_motion_and_its_split_is_stated(beam, bb_model):
     the transfer leaves chi-square 1.01 (test < 1.3; 114 with the lines in) and the probes
     1.06, so no motion is noted as unseen. The gauges' hum is in the forces (the total within
     1.02 % of its AC RMS inside the record, test 3 %; with the lines in, 12.6 %): read from a
-    zero-current record, every gauge's tones up to 0.45 fs enter the Wiener gains' noise, so
+    zero-current record, every gauge's tones up to 4 times the band's top enter the gains' noise, so
     that the gains set aside what stands alone (250 Hz, beyond the drive: its error 0.0165 N
     without its tone, 0.0008 with it) and the uncertainty states the rest: the total's error
     over its stated uncertainty 1.21 (test 0.7-1.5: two tones of independent phases dominate,

@@ -230,17 +230,22 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
                          unseen=probe_misfit(model, probes, fs, gam, model.stds(at_probes).real,
                                              w, q_map, rig.type_b.probe_scale, hum),
                          type_b=type_b_moves(rig, model),
-                         hum=_gauge_hum(rig, tare, tare_fs))
+                         hum=_gauge_hum(rig, band, tare, tare_fs))
 
 
-def _gauge_hum(rig: Rig, tare: np.ndarray | None, tare_fs: float | None
-               ) -> tuple[tuple[int, float, float], ...]:
+HUM_REACH = 4.0
+"""The gauges' hum tones are read up to this many times the band's top (at most 0.45 of the
+tare's sampling rate): the smoothers let through a part of those beyond the band, and nothing
+(their eighth-order fall, 4^-8) beyond."""
+
+
+def _gauge_hum(rig: Rig, band: tuple[float, float], tare: np.ndarray | None,
+               tare_fs: float | None) -> tuple[tuple[int, float, float], ...]:
     """Every gauge's hum tones, from the zero-current record's gauges (none without
-    ``acquisition.mains`` or a tare): the mains' harmonics up to 0.45 of its sampling rate, as
-    the smoothers let through a part of those beyond the band."""
+    ``acquisition.mains`` or a tare), up to ``HUM_REACH`` times the band's top."""
     if rig.mains is None or tare is None or tare_fs is None:
         return ()
-    tones, power = hum_tones(tare, tare_fs, rig.mains, 0.45 * tare_fs)
+    tones, power = hum_tones(tare, tare_fs, rig.mains, min(0.45 * tare_fs, HUM_REACH * band[1]))
     return tuple((r, float(f), float(power[r, m])) for r in range(len(tare))
                  for m, f in enumerate(tones))
 

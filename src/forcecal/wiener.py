@@ -139,8 +139,10 @@ def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int,
     fold[0] = 1.0
     if frame % 2 == 0:
         fold[-1] = 1.0
-    let = np.einsum("ok,ksb,kbt->osbt", rows, noise, gain)
-    var = np.einsum("b,osbt->ot", fold, np.abs(let) ** 2) / frame
+    var = np.zeros((len(rows), gain.shape[-1]))
+    for source in np.moveaxis(noise, 1, 0):                   # one at a time: memory
+        let = np.einsum("ok,kb,kbt->obt", rows, source, gain)
+        var += np.einsum("b,obt->ot", fold, np.abs(let) ** 2) / frame
     # what the gains take of the signal itself: (1 - G) of its amplitude, the signal's power
     # read as the power they keep, G |Z|^2 (in density units: the power above the
     # over-subtracted noise; a noise-only bin's excess over its mean is not signal), with the
