@@ -39,7 +39,8 @@ from .spatial import SpatialModel
 from .uncertainty import combinations
 
 __all__ = ["MONTE_CARLO_SOURCES", "SOURCES", "Parameter", "SolveInputs", "combination_phasors",
-           "draw_std", "drawn_rig", "monte_carlo", "parameters", "type_b_variance"]
+           "draw_std", "drawn_rig", "massed_rig", "monte_carlo", "moved_rig", "parameters",
+           "type_b_variance"]
 
 SOURCES = ("gauge sensitivity", "probe sensitivity", "positions", "masses")
 """The budget's type-B sources, in the order reported."""
@@ -174,18 +175,12 @@ def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
 
     def moved(group: str, i: int, axis: str) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
         def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
-            items = list(getattr(rig, group))
-            items[i] = dataclasses.replace(items[i], **{axis: getattr(items[i], axis) + d})
-            changes: dict[str, Any] = {group: tuple(items)}
-            return dataclasses.replace(rig, **changes), inputs, group == "gauges"
+            return moved_rig(rig, group, i, axis, d), inputs, group == "gauges"
         return apply
 
     def massed(k: int | None) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
         def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
-            st = rig.structure
-            lumped = [1.0 + (d if j == k else 0.0) for j in range(len(st.masses))]
-            moved_st = st.with_masses(1.0 + d if k is None else 1.0, lumped)
-            return dataclasses.replace(rig, structure=moved_st), inputs, True
+            return massed_rig(rig, k, d), inputs, True
         return apply
 
     if tb.gauge_scale > 0:
@@ -204,6 +199,24 @@ def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
         out += [Parameter(f"structure.masses[{k}].mass", "masses", tb.mass, massed(k))
                 for k in range(len(rig.structure.masses))]
     return out
+
+
+def moved_rig(rig: Rig, group: str, i: int, axis: str, d: float) -> Rig:
+    """The rig with point ``i`` of ``group`` ("gauges", "forces", "sensors") moved by ``d``
+    [m] along ``axis``: a position's type-B parameter."""
+    items = list(getattr(rig, group))
+    items[i] = dataclasses.replace(items[i], **{axis: getattr(items[i], axis) + d})
+    changes: dict[str, Any] = {group: tuple(items)}
+    return dataclasses.replace(rig, **changes)
+
+
+def massed_rig(rig: Rig, k: int | None, d: float) -> Rig:
+    """The rig with its distributed mass (``k`` None) or its lumped mass ``k`` scaled by
+    ``1 + d``: a mass's type-B parameter."""
+    st = rig.structure
+    lumped = [1.0 + (d if j == k else 0.0) for j in range(len(st.masses))]
+    return dataclasses.replace(rig, structure=st.with_masses(1.0 + d if k is None else 1.0,
+                                                              lumped))
 
 
 def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs

@@ -30,14 +30,14 @@ force's median stated uncertainty from 0.003 N to 0.09 N there, the total's from
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
+from functools import partial
 
 import numpy as np
 
 from .broadband import BroadbandModel
+from .budget import massed_rig, moved_rig
 from .inertia import mass_coupling
 from .reaction_transfer import filtered
 from .relaxation import force_matrix
@@ -88,22 +88,6 @@ def type_b_moves(rig: Rig, model: BroadbandModel) -> TypeBMoves | None:
         return (np.linalg.pinv(force_matrix(r)), np.real(mass_coupling(r, model.values)),
                 np.real(model.values(at)))
 
-    def moved(group: str, i: int, axis: str) -> Callable[[float], Rig]:
-        def apply(d: float) -> Rig:
-            items = list(getattr(rig, group))
-            items[i] = dataclasses.replace(items[i], **{axis: getattr(items[i], axis) + d})
-            changes: dict[str, Any] = {group: tuple(items)}
-            return dataclasses.replace(rig, **changes)
-        return apply
-
-    def massed(k: int | None) -> Callable[[float], Rig]:
-        def apply(d: float) -> Rig:
-            st = rig.structure
-            lumped = [1.0 + (d if j == k else 0.0) for j in range(len(st.masses))]
-            return dataclasses.replace(
-                rig, structure=st.with_masses(1.0 + d if k is None else 1.0, lumped))
-        return apply
-
     base = solved(rig)
     names: list[str] = []
     rows: list[tuple[np.ndarray, ...]] = []
@@ -125,13 +109,14 @@ def type_b_moves(rig: Rig, model: BroadbandModel) -> TypeBMoves | None:
         add(f"sensors[{j}].scale", (zero[0], zero[1], probes))
     variants: list[tuple[str, float, Callable[[float], Rig]]] = []
     if tb.position > 0:
-        variants += [(f"{group}[{i}].{axis}", tb.position, moved(group, i, axis))
+        variants += [(f"{group}[{i}].{axis}", tb.position,
+                      partial(moved_rig, rig, group, i, axis))
                      for group in ("gauges", "forces", "sensors")
                      for i in range(len(getattr(rig, group))) for axis in rig.structure.axes]
     if tb.mass > 0:
-        variants += [("structure (distributed mass)", tb.mass, massed(None))]
-        variants += [(f"structure.masses[{k}].mass", tb.mass, massed(k))
-                     for k in range(len(rig.structure.masses))]
+        variants += [(name, tb.mass, partial(massed_rig, rig, k)) for name, k in (
+            ("structure (distributed mass)", None),
+            *((f"structure.masses[{k}].mass", k) for k in range(len(rig.structure.masses))))]
     for name, u, apply in variants:
         plus, minus = solved(apply(u)), solved(apply(-u))
         add(name, tuple(0.5 * (a - b) for a, b in zip(plus, minus, strict=True)))

@@ -125,8 +125,10 @@ def probe_misfit(model: BroadbandModel, probes: np.ndarray, fs: float, probe_sha
     f, spec = f[inside], spec[..., inside]
     mix = model.mixing(f)
     p = probe_shapes @ mix                                          # (n_p, n_f)
-    c = (np.einsum("jf,j,jsf->sf", np.conj(p), weights, spec)
-         / np.sum(weights[:, None] * np.abs(p) ** 2, axis=0))      # (n_seg, n_f)
+    norm = np.sum(weights[:, None] * np.abs(p) ** 2, axis=0)
+    seen = norm > 0                            # a line whose shape the probes do not see: out
+    f, spec, mix, p, norm = f[seen], spec[..., seen], mix[:, seen], p[:, seen], norm[seen]
+    c = np.einsum("jf,j,jsf->sf", np.conj(p), weights, spec) / norm  # (n_seg, n_f)
     resid = spec - p[:, None, :] * c[None]
     power = np.sum(win**2)
     shape_var = (probe_shapes**2 @ (2 * model.mixing_std(f) ** 2)
