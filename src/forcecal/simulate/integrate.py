@@ -16,6 +16,9 @@ error is negligible (:func:`steady_oversample`).
 
 A magnet with eddy currents in its core (``eddy_time``) carries its magnetising current as a
 state, stepped by the same trapezoidal rule as the flux linkage.
+
+The time loop itself is compiled (:mod:`.newmark`); this module sets it up in modal
+coordinates, finds the steady state and samples the record.
 """
 
 from __future__ import annotations
@@ -27,10 +30,10 @@ import numpy as np
 
 from .beam import BeamModel
 from .magnet import MU0, Drive, Magnet, Pole
+from .newmark import CLOSED_GAP, NO_CONVERGENCE, march
 from .plate import PlateModel
-from .response import Record, Response, _finish_record, _keep, _new_record
+from .response import Record, Response, _finish_record, _new_record
 from .solid import SolidModel
-from .waveforms import scalar_drive
 
 __all__ = ["INERTIA_TOLERANCE", "LEAD_TIME_CONSTANTS", "MAX_LEAD", "Response", "SimulationError",
            "drive_oversample", "integrate", "lead_time", "pole_points", "steady_oversample"]
@@ -115,7 +118,6 @@ class _Stepper:
         self.pole_modal = self.pole_rows @ phi                              # (n_poles, n_modes)
         self.Hp = self.pole_modal @ self.G                                  # (n_poles, n_m)
         self.HS = self.S @ self.Hp                                          # (n_m, n_m)
-        self.hs = self.HS.tolist()
         self.turns2 = [mg.turns**2 for mg in magnets]
         self.mu_a = [MU0 * mg.pole_area for mg in magnets]
         self.iron = [mg.iron_gap for mg in magnets]
@@ -123,8 +125,13 @@ class _Stepper:
         self.voltage_driven = [d.voltage_driven for d in drives]
         self.fscale = [1.0 / (2 * mg.turns**2 * MU0 * mg.pole_area) for mg in magnets]
         self.n_m = n_m
-        self._drive_fns = [scalar_drive(d) for d in drives]
         self.eddy = [float(mg.eddy_time) for mg in magnets]
+        self.sp = np.ascontiguousarray(self.S @ self.pole_modal)            # (n_m, n_modes)
+        self.gsum0 = self.S @ self.static_gap
+        self.coils = (np.array(self.fscale), np.array(self.mu_a), np.array(self.iron),
+                      np.array(self.turns2), np.array(self.res),
+                      np.array(self.voltage_driven, dtype=bool))
+        self.eddy_a = np.array(self.eddy)
         for mg, d in zip(magnets, drives, strict=True):
             if mg.eddy_time > 0 and d.voltage_driven:
                 raise ValueError(f"magnet {mg.current_channel!r}: eddy_time > 0 needs a current "
@@ -133,94 +140,7 @@ class _Stepper:
 
     def drive(self, t: float) -> list[float]:
         """The drive of every magnet at time t [s], [A] or [V]."""
-        return [fn(t) for fn in self._drive_fns]
-
-    def solve_flux(self, lam: list[float], lam_old: list[float], d_old: list[float],
-                   d_new: list[float], i_old: list[float],
-                   gsum_lin: list[float]) -> tuple[list[float], list[float], list[float]]:
-        """Newton on the flux linkages of step n+1 (plain floats: one or two magnets).
-
-        ``gsum_lin[m]`` is the sum of magnet m's pole gaps if no magnetic force acted in the
-        step. Returns (lam, current, force).
-        """
-        if self.n_m == 1:
-            lam1, cur1, f1 = self._solve_flux_1(lam[0], lam_old[0], d_old[0], d_new[0],
-                                                i_old[0], gsum_lin[0])
-            return [lam1], [cur1], [f1]
-        n_m, hs, dt = self.n_m, self.hs, self.dt
-        for _ in range(40):
-            f = [lam[m] ** 2 * self.fscale[m] for m in range(n_m)]
-            r, jac, cur = [], [], []
-            for m in range(n_m):
-                gs = gsum_lin[m] - sum(hs[m][k] * f[k] for k in range(n_m))
-                if gs <= 0:
-                    raise SimulationError("a pole closed its air gap (pull-in): lower the drive")
-                rel = (gs + self.iron[m]) / self.mu_a[m]
-                drel = [-hs[m][k] * 2 * lam[k] * self.fscale[k] / self.mu_a[m]
-                        for k in range(n_m)]
-                if self.voltage_driven[m]:
-                    i_m = lam[m] * rel / self.turns2[m]
-                    g = dt / 2 * self.res[m]
-                    r.append(lam[m] - lam_old[m] - dt / 2 * (d_old[m] + d_new[m])
-                             + g * (i_old[m] + i_m))
-                    jac.append([(1.0 + g * rel / self.turns2[m] if k == m else 0.0)
-                                + g * lam[m] / self.turns2[m] * drel[k] for k in range(n_m)])
-                else:
-                    i_m = d_new[m]
-                    r.append(lam[m] - self.turns2[m] * i_m / rel)
-                    jac.append([(1.0 if k == m else 0.0)
-                                + self.turns2[m] * i_m / rel**2 * drel[k] for k in range(n_m)])
-                cur.append(i_m)
-            det = jac[0][0] * jac[1][1] - jac[0][1] * jac[1][0]
-            step = [(jac[1][1] * r[0] - jac[0][1] * r[1]) / det,
-                    (jac[0][0] * r[1] - jac[1][0] * r[0]) / det]
-            lam = [lam[m] - step[m] for m in range(n_m)]
-            if all(abs(step[m]) <= 1e-15 * abs(lam[m]) + 1e-30 for m in range(n_m)):
-                break
-        else:
-            raise SimulationError("the magnetic circuit did not converge within a time step")
-        f = [lam[m] ** 2 * self.fscale[m] for m in range(n_m)]
-        cur = []
-        for m in range(n_m):
-            if self.voltage_driven[m]:
-                gs = gsum_lin[m] - sum(hs[m][k] * f[k] for k in range(n_m))
-                cur.append(lam[m] * (gs + self.iron[m]) / self.mu_a[m] / self.turns2[m])
-            else:
-                cur.append(d_new[m])
-        return lam, cur, f
-
-    def _solve_flux_1(self, lam: float, lam_old: float, d_old: float, d_new: float,
-                      i_old: float, gsum_lin: float) -> tuple[float, float, float]:
-        """:meth:`solve_flux` for a single magnet on plain floats; returns (lam, i, f).
-
-        The same arithmetic, operation for operation, as the general path.
-        """
-        hs, fscale, mu_a = self.hs[0][0], self.fscale[0], self.mu_a[0]
-        iron, n2, dt = self.iron[0], self.turns2[0], self.dt
-        voltage = self.voltage_driven[0]
-        g = dt / 2 * self.res[0]
-        for _ in range(40):
-            gs = gsum_lin - hs * (lam**2 * fscale)
-            if gs <= 0:
-                raise SimulationError("a pole closed its air gap (pull-in): lower the drive")
-            rel = (gs + iron) / mu_a
-            drel = -hs * 2 * lam * fscale / mu_a
-            if voltage:
-                i_m = lam * rel / n2
-                r = lam - lam_old - dt / 2 * (d_old + d_new) + g * (i_old + i_m)
-                jac = (1.0 + g * rel / n2) + g * lam / n2 * drel
-            else:
-                r = lam - n2 * d_new / rel
-                jac = 1.0 + n2 * d_new / rel**2 * drel
-            step = r / jac
-            lam = lam - step
-            if abs(step) <= 1e-15 * abs(lam) + 1e-30:
-                break
-        else:
-            raise SimulationError("the magnetic circuit did not converge within a time step")
-        f = lam**2 * fscale
-        cur = lam * (gsum_lin - hs * f + iron) / mu_a / n2 if voltage else d_new
-        return lam, cur, f
+        return [float(d.value(t)) for d in self.drives]
 
     def run(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
             lam: list[float], cur: list[float], mag: list[float],
@@ -229,126 +149,35 @@ class _Stepper:
 
         Returns the final state, the magnet forces of every step (n_m, n_steps) and, when
         ``keep_every`` > 0, every keep_every-th sample of the state (time on the last axis).
+
+        Raises
+        ------
+        SimulationError
+            When a pole closes its gap or the magnetic circuit does not converge.
         """
-        if any(self.eddy):
-            return self._run_eddy(t0, n_steps, q, qd, qdd, lam, cur, mag, keep_every)
-        if self.n_m == 1:
-            return self._run_1(t0, n_steps, q, qd, qdd, lam, cur, mag, keep_every)
-        dt = self.dt
-        a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
-        c, keff, G = self.c, self.keff, self.G
-        gsum0 = self.S @ self.static_gap
-        sp = self.S @ self.pole_modal                                       # (n_m, n_modes)
         n_m = self.n_m
-        d_old = self.drive(t0)
+        times = t0 + self.dt * np.arange(n_steps + 1)
+        drive = np.array([np.broadcast_to(d.value(times), times.shape) for d in self.drives],
+                         dtype=float)
+        q, qd, qdd = (np.array(x, dtype=float) for x in (q, qd, qdd))
+        lam_a = np.array(lam, dtype=float)
+        cur_a, mag_a = np.array(cur, dtype=float), np.array(mag, dtype=float)
         n_keep = n_steps // keep_every if keep_every else 0
         out = _new_record(len(q), n_m, n_keep)
+        rec = out if out is not None else _new_record(len(q), n_m, 1)
+        assert rec is not None, "a record of one sample"
         forces = np.empty((n_m, n_steps))
-        lam_prev = list(lam)
-        for n in range(n_steps):
-            t = t0 + (n + 1) * dt
-            d_new = self.drive(t)
-            q_lin = (a0 * q + v4 * qd + qdd + c * (a1 * q + qd)) / keff
-            gsum_lin = (gsum0 - sp @ q_lin).tolist()
-            guess = [2 * lam[m] - lam_prev[m] for m in range(n_m)]
-            lam_prev = lam
-            lam, cur, f = self.solve_flux(guess, lam, d_old, d_new, cur, gsum_lin)
-            q_new = q_lin + G @ np.asarray(f)
-            dq = q_new - q
-            qd_new = a1 * dq - qd
-            qdd = a0 * dq - v4 * qd - qdd
-            q, qd = q_new, qd_new
-            d_old = d_new
-            forces[:, n] = f
-            if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
-                _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, lam, cur, f, d_new)
-        return (q, qd, qdd, lam, cur, mag), forces, _finish_record(out)
-
-    def _run_1(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-               lam0: list[float], cur0: list[float], mag: list[float],
-               keep_every: int) -> tuple[State, np.ndarray, Record | None]:
-        """:meth:`run` for a single magnet: scalar coil state, numpy modal update."""
-        dt = self.dt
-        a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
-        c, keff = self.c, self.keff
-        g0 = np.ascontiguousarray(self.G[:, 0])
-        sp = self.S @ self.pole_modal                                       # (1, n_modes)
-        gsum0 = float((self.S @ self.static_gap)[0])
-        drive = self._drive_fns[0]
-        solve = self._solve_flux_1
-        d_old = drive(t0)
-        lam, cur = float(lam0[0]), float(cur0[0])
-        lam_prev = lam
-        n_keep = n_steps // keep_every if keep_every else 0
-        out = _new_record(len(q), 1, n_keep)
-        forces = np.empty((1, n_steps))
-        fr = forces[0]
-        for n in range(n_steps):
-            d_new = drive(t0 + (n + 1) * dt)
-            q_lin = (a0 * q + v4 * qd + qdd + c * (a1 * q + qd)) / keff
-            gsum_lin = gsum0 - (sp @ q_lin).item()
-            guess = 2 * lam - lam_prev
-            lam_prev = lam
-            lam, cur, f = solve(guess, lam, d_old, d_new, cur, gsum_lin)
-            q_new = q_lin + g0 * f
-            dq = q_new - q
-            qd_new = a1 * dq - qd
-            qdd = a0 * dq - v4 * qd - qdd
-            q, qd = q_new, qd_new
-            d_old = d_new
-            fr[n] = f
-            if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
-                _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, (lam,), (cur,), (f,), (d_new,))
-        return (q, qd, qdd, [lam], [cur], mag), forces, _finish_record(out)
-
-    def _run_eddy(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray,
-                  qdd: np.ndarray, lam: list[float], cur: list[float], mag: list[float],
-                  keep_every: int) -> tuple[State, np.ndarray, Record | None]:
-        """:meth:`run` with eddy currents in a core: the magnetising current i_m of a magnet
-        with ``eddy_time`` tau follows its coil current by the trapezoidal rule on
-        ``tau di_m/dt + i_m = i`` and takes the coil current's place in its magnetic circuit
-        (which :meth:`solve_flux` solves as for a current drive of i_m)."""
-        dt, n_m = self.dt, self.n_m
-        a0, a1, v4 = 4 / dt**2, 2 / dt, 4 / dt
-        c, keff, G = self.c, self.keff, self.G
-        gsum0 = self.S @ self.static_gap
-        sp = self.S @ self.pole_modal                                       # (n_m, n_modes)
-        lagged = [tau > 0 for tau in self.eddy]
-        # i_m' = (i_m (tau/dt - 1/2) + (i + i') / 2) / (tau/dt + 1/2)
-        keep_old = [tau / dt - 0.5 for tau in self.eddy]
-        gain = [1.0 / (tau / dt + 0.5) for tau in self.eddy]
-        d_old = self.drive(t0)
-        mag = [float(x) for x in mag]
-        n_keep = n_steps // keep_every if keep_every else 0
-        out = _new_record(len(q), n_m, n_keep)
-        forces = np.empty((n_m, n_steps))
-        lam_prev = list(lam)
-        eff_old = [mag[m] if lagged[m] else d_old[m] for m in range(n_m)]
-        for n in range(n_steps):
-            d_new = self.drive(t0 + (n + 1) * dt)
-            eff_new = []
-            for m in range(n_m):
-                if lagged[m]:
-                    mag[m] = (mag[m] * keep_old[m] + 0.5 * (d_old[m] + d_new[m])) * gain[m]
-                    eff_new.append(mag[m])
-                else:
-                    eff_new.append(d_new[m])
-            q_lin = (a0 * q + v4 * qd + qdd + c * (a1 * q + qd)) / keff
-            gsum_lin = (gsum0 - sp @ q_lin).tolist()
-            guess = [2 * lam[m] - lam_prev[m] for m in range(n_m)]
-            lam_prev = lam
-            lam, solved, f = self.solve_flux(guess, lam, eff_old, eff_new, cur, gsum_lin)
-            cur = [d_new[m] if lagged[m] else solved[m] for m in range(n_m)]
-            q_new = q_lin + G @ np.asarray(f)
-            dq = q_new - q
-            qd_new = a1 * dq - qd
-            qdd = a0 * dq - v4 * qd - qdd
-            q, qd = q_new, qd_new
-            d_old, eff_old = d_new, eff_new
-            forces[:, n] = f
-            if out is not None and (n + 1) % keep_every == 0:         # n_keep > 0
-                _keep(out, (n + 1) // keep_every - 1, q, qd, qdd, lam, cur, f, d_new)
-        return (q, qd, qdd, lam, cur, list(mag)), forces, _finish_record(out)
+        status, _ = march(q, qd, qdd, lam_a, lam_a.copy(), cur_a, mag_a, drive, self.dt,
+                          self.c, self.keff, self.G, self.sp, self.gsum0, self.HS,
+                          *self.coils, self.eddy_a, keep_every if out is not None else 0,
+                          forces, rec["q"], rec["qd"], rec["qdd"], rec["lam"], rec["i"],
+                          rec["f"], rec["d"])
+        if status == CLOSED_GAP:
+            raise SimulationError("a pole closed its air gap (pull-in): lower the drive")
+        if status == NO_CONVERGENCE:
+            raise SimulationError("the magnetic circuit did not converge within a time step")
+        state: State = (q, qd, qdd, lam_a.tolist(), cur_a.tolist(), mag_a.tolist())
+        return state, forces, _finish_record(out)
 
     # ---------------------------------------------------------------- steady state
 
@@ -542,8 +371,7 @@ def _stepped_through(st: _Stepper, drives: Sequence[Drive], fs: float, duration:
             start = min(start, d.waveform.onset)
     n_lead = max(int(math.ceil((t_start - start) / dt - 1e-9)), 0)
     t = t_start - n_lead * dt
-    fns = st._drive_fns
-    values = [d.dc if d.waveform is not None else fns[m](t) for m, d in enumerate(drives)]
+    values = [d.dc if d.waveform is not None else float(d.value(t)) for d in drives]
     state = st.static_state(t, values)
     if n_lead > 0:
         state, _, _ = st.run(t, n_lead, *state)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,14 +57,6 @@ def _new_record(n_modes: int, n_m: int, n_keep: int) -> Record | None:
     out = {k: np.empty((n_keep, n_modes)) for k in ("q", "qd", "qdd")}
     out.update({k: np.empty((n_keep, n_m)) for k in ("lam", "i", "f", "d")})
     return out
-
-
-def _keep(out: Record, k: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-          lam: Sequence[float], cur: Sequence[float], f: Sequence[float],
-          d: Sequence[float]) -> None:
-    """Store the state of step k (time on the first axis until :func:`_finish_record`)."""
-    out["q"][k], out["qd"][k], out["qdd"][k] = q, qd, qdd
-    out["lam"][k], out["i"][k], out["f"][k], out["d"][k] = lam, cur, f, d
 
 
 def _finish_record(out: Record | None) -> Record | None:

@@ -1,8 +1,8 @@
 """Broadband coil drives: a swept sine, a periodic chirp, multi-tone and band-limited random.
 
 A :class:`.magnet.Drive` with a ``waveform`` reads ``dc + waveform(t)`` (its ``ac`` sine is
-replaced). Every waveform evaluates on arrays (:meth:`value`) and hands the stepper a plain
-scalar callable (:meth:`scalar`, the per-step hot path): the two agree to the last bit.
+replaced). Every waveform evaluates on arrays (:meth:`value`); the stepper takes a run's
+drive at all its steps at once.
 
 Each states when it starts and whether it repeats:
 
@@ -14,24 +14,16 @@ Each states when it starts and whether it repeats:
 ``band``
     (lo, hi) [Hz], the frequencies the waveform excites.
 
-:func:`scalar_drive` is a whole drive's scalar callable (DC, sine or waveform, harmonics,
-drift, chirp).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import numpy as np
 
-if TYPE_CHECKING:
-    from .magnet import Drive
-
-__all__ = ["BandLimitedRandom", "MultiTone", "PeriodicChirp", "SweptSine", "Waveform",
-           "scalar_drive"]
+__all__ = ["BandLimitedRandom", "MultiTone", "PeriodicChirp", "SweptSine", "Waveform"]
 
 _TWO_PI = 2 * math.pi
 TABLE_OVERSAMPLING = 256
@@ -107,32 +99,22 @@ class SweptSine:
 
     def value(self, t: np.ndarray | float) -> np.ndarray:
         """The waveform at times t [s] (shaped like t)."""
-        fn = self.scalar()
         tt = np.asarray(t, dtype=float)
-        return np.array([fn(x) for x in tt.ravel().tolist()]).reshape(tt.shape)
-
-    def scalar(self) -> Callable[[float], float]:
-        """The waveform as a scalar callable of t [s]."""
-        amp, f0, half_rate = float(self.amplitude), float(self.f_start), 0.5 * self.rate
-        dur, lead, hold = float(self.duration), float(self.lead_in), self.after == "hold"
-        w0, w1 = _TWO_PI * f0, _TWO_PI * float(self.f_stop)
-        phi_end = _TWO_PI * (f0 * dur + half_rate * dur * dur)
+        amp, f0, dur, lead = self.amplitude, self.f_start, self.duration, self.lead_in
         fade = 0.5 * lead
-        sin, cos, pi = math.sin, math.cos, math.pi
-
-        def value(t: float) -> float:
-            if t < 0.0:
-                if t < -lead:
-                    return 0.0
-                out = amp * sin(w0 * t)
-                if t < fade - lead:                       # fading in
-                    out *= 0.5 * (1.0 - cos(pi * (t + lead) / fade))
-                return out
-            if t <= dur:
-                return amp * sin(_TWO_PI * (f0 * t + half_rate * t * t))
-            return amp * sin(phi_end + w1 * (t - dur)) if hold else 0.0
-
-        return value
+        out = np.zeros_like(tt)
+        before = (tt < 0.0) & (tt >= -lead)
+        tb = tt[before]
+        ramp = np.where(tb < fade - lead, 0.5 * (1.0 - np.cos(np.pi * (tb + lead) / fade)), 1.0)
+        out[before] = amp * np.sin(_TWO_PI * f0 * tb) * ramp
+        during = (tt >= 0.0) & (tt <= dur)
+        ts = tt[during]
+        out[during] = amp * np.sin(_TWO_PI * (f0 * ts + 0.5 * self.rate * ts * ts))
+        if self.after == "hold":
+            after = tt > dur
+            phi_end = _TWO_PI * (f0 * dur + 0.5 * self.rate * dur * dur)
+            out[after] = amp * np.sin(phi_end + _TWO_PI * self.f_stop * (tt[after] - dur))
+        return out
 
     def scaled(self, level: float) -> SweptSine:
         """The same sweep with its amplitude times ``level``."""
@@ -190,22 +172,12 @@ class PeriodicChirp:
 
     def value(self, t: np.ndarray | float) -> np.ndarray:
         """The waveform at times t [s] (shaped like t)."""
-        fn = self.scalar()
         tt = np.asarray(t, dtype=float)
-        return np.array([fn(x) for x in tt.ravel().tolist()]).reshape(tt.shape)
-
-    def scalar(self) -> Callable[[float], float]:
-        """The waveform as a scalar callable of t [s]."""
-        amp, f0, period = float(self.amplitude), float(self.f_start), float(self.period)
+        period = self.period
         half_rate = 0.5 * (self.f_stop - self.f_start) / period
-        phi0, inv = self.start_phase, 1.0 / period
-        sin, floor = math.sin, math.floor
-
-        def value(t: float) -> float:
-            tau = t - period * floor(t * inv)
-            return amp * sin(_TWO_PI * (f0 * tau + half_rate * tau * tau) + phi0)
-
-        return value
+        tau = tt - period * np.floor(tt / period)
+        return self.amplitude * np.sin(_TWO_PI * (self.f_start * tau + half_rate * tau * tau)
+                                       + self.start_phase)
 
     def scaled(self, level: float) -> PeriodicChirp:
         """The same chirp with its amplitude times ``level``."""
@@ -265,22 +237,11 @@ class MultiTone:
 
     def value(self, t: np.ndarray | float) -> np.ndarray:
         """The waveform at times t [s] (shaped like t)."""
-        fn = self.scalar()
         tt = np.asarray(t, dtype=float)
-        return np.array([fn(x) for x in tt.ravel().tolist()]).reshape(tt.shape)
-
-    def scalar(self) -> Callable[[float], float]:
-        """The waveform as a scalar callable of t [s]."""
-        tones = self._tones()
-        sin = math.sin
-
-        def value(t: float) -> float:
-            out = 0.0
-            for w, amp, ph in tones:
-                out += amp * sin(w * t + ph)
-            return out
-
-        return value
+        out = np.zeros_like(tt)
+        for w, amp, ph in self._tones():
+            out += amp * np.sin(w * tt + ph)
+        return out
 
     def scaled(self, level: float) -> MultiTone:
         """The same tones with every amplitude times ``level``."""
@@ -361,22 +322,6 @@ class BandLimitedRandom:
         a = tab[i]
         return a + (x - k) * (tab[i + 1] - a)
 
-    def scalar(self) -> Callable[[float], float]:
-        """The waveform as a scalar callable of t [s]."""
-        tab = self._table.tolist()
-        n = len(tab) - 1
-        scale = n / self.period
-        floor = math.floor
-
-        def value(t: float) -> float:
-            x = t * scale
-            k = floor(x)
-            i = k % n
-            a = tab[i]
-            return a + (x - k) * (tab[i + 1] - a)
-
-        return value
-
     def scaled(self, level: float) -> BandLimitedRandom:
         """The same noise with its RMS times ``level``."""
         return BandLimitedRandom(self.rms * level, self.f_lo, self.f_hi, self.period, self.seed)
@@ -390,65 +335,3 @@ class BandLimitedRandom:
 
 Waveform = SweptSine | PeriodicChirp | MultiTone | BandLimitedRandom
 """Any of the broadband drives."""
-
-
-def scalar_drive(drive: Drive) -> Callable[[float], float]:
-    """``drive.value`` for one float time, on plain floats (the per-step hot path); a steady
-    drive (no ``drift``, no ``chirp``, no ``waveform``) keeps the arithmetic it always had.
-
-    Parameters
-    ----------
-    drive : Drive
-
-    Returns
-    -------
-    callable float -> float
-        The drive [A] or [V] at time t [s].
-    """
-    w = _TWO_PI * drive.frequency
-    dc, ac, phase = float(drive.dc), float(drive.ac), float(drive.phase)
-    extra = tuple((n * w, float(amp), float(ph)) for n, amp, ph in drive.harmonics)
-    sin = math.sin
-    if drive.waveform is not None:
-        return _waveform_drive(drive, drive.waveform.scalar(), w, extra)
-    if drive.drift or drive.chirp:
-        drift, half_chirp = float(drive.drift), 0.5 * float(drive.chirp)
-
-        def drifting(t: float) -> float:
-            tau = t + half_chirp * t * t                  # 2 pi f tau: the chirped phase
-            out = dc + ac * sin(w * tau + phase)
-            for nw, amp, ph in extra:
-                out = out + amp * sin(nw * tau + ph)
-            return out * (1.0 + drift * t)
-
-        return drifting
-
-    def value(t: float) -> float:
-        out = dc + ac * sin(w * t + phase)
-        for nw, amp, ph in extra:
-            out = out + amp * sin(nw * t + ph)
-        return out
-
-    return value
-
-
-def _waveform_drive(drive: Drive, wave: Callable[[float], float], w: float,
-                    extra: tuple[tuple[float, float, float], ...]) -> Callable[[float], float]:
-    """:func:`scalar_drive` of a drive with a waveform: ``dc + waveform(tau) + harmonics``,
-    ``tau = t + chirp t^2 / 2``, all times ``1 + drift t``."""
-    dc, sin = float(drive.dc), math.sin
-    if not (drive.drift or drive.chirp or extra):
-        def plain(t: float) -> float:
-            return dc + wave(t)
-
-        return plain
-    drift, half_chirp = float(drive.drift), 0.5 * float(drive.chirp)
-
-    def general(t: float) -> float:
-        tau = t + half_chirp * t * t
-        out = dc + wave(tau)
-        for nw, amp, ph in extra:
-            out = out + amp * sin(nw * tau + ph)
-        return out * (1.0 + drift * t)
-
-    return general
