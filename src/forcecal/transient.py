@@ -56,6 +56,7 @@ from .errors import DataError
 from .forces import channels_si
 from .kalman import BandModel, smooth_states
 from .reaction_transfer import ReactionTransfer, filtered
+from .record_ends import extend
 from .records import Run
 from .rig import Rig
 from .spatial import check_rig_keys
@@ -88,8 +89,8 @@ class TransientEstimate:
         Reactions and inertia.
     force_std : (n_forces, N) array [N]
         Standard uncertainty of every sample: the smoother's noise the short-time Wiener gains
-        let through and the signal they take, and at the record's ends the inertia the
-        smoother cannot see whole.
+        let through and the signal they take, and at the record's ends the inertia that the
+        prediction carrying the record past them misses (:mod:`forcecal.record_ends`).
     total : (N,) array [N]
     total_std : (N,) array [N]
     static : (n_forces, N) array [N]
@@ -179,7 +180,8 @@ class WindowEstimate:
 
 
 def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarray,
-                  probes: np.ndarray, frame: int, source: str = "<run>") -> WindowEstimate:
+                  probes: np.ndarray, frame: int, source: str = "<run>",
+                  ends: tuple[bool, bool] = (True, True)) -> WindowEstimate:
     """Steps 1-4 over a stretch of samples with a fixed setup and Wiener frame.
 
     Parameters
@@ -192,6 +194,9 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
         Samples per Wiener frame (:func:`forcecal.wiener.stft_frame`).
     source : str
         Named in messages.
+    ends : (bool, bool)
+        Whether the stretch starts, ends, the record: those ends are carried past by a
+        prediction of every channel (:mod:`forcecal.record_ends`).
 
     Returns
     -------
@@ -203,10 +208,14 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
         Forces that are not finite.
     """
     fs = setup.fs
-    q = setup.coordinate_map @ probes                            # the first shape's coordinate
     bm_r, bm_res, transfer = setup.reaction_models, setup.residual_model, setup.transfer
+    reach = _edge_length(fs, setup.coordinate_model, gauges.shape[-1])
+    ext = extend(np.vstack([gauges, probes]), fs, setup.band[1], reach,        # past the ends
+                 np.r_[setup.var_g, 1.0 / setup.probe_weights], ends, frame // 4)
     level = gauges.mean(axis=1, keepdims=True)    # the DC passes whole (in the band the
-    reactions = level + np.stack([smooth_states(bm_r[r], gauges[r] - level[r], states=(0,))[0]
+    gauges_x, probes_x = ext.values[:len(gauges)], ext.values[len(gauges):]
+    q = setup.coordinate_map @ probes_x                          # the first shape's coordinate
+    reactions = level + np.stack([smooth_states(bm_r[r], gauges_x[r] - level[r], states=(0,))[0]
                                   for r in range(len(gauges))])   # gain is 1 - 1 / SNR_CAP)
     u = (setup.total_row @ reactions)[None, :]                   # the reactions-only total
     rest = q
@@ -254,16 +263,19 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     basis = np.linalg.qr(start)[0].T
     sw = wiener_smooth(basis @ force, np.einsum("jk,ksb->jsb", basis, noise), fs, frame,
                        np.vstack([basis.T, basis.sum(axis=1)]))
-    part = pinv @ inertia
-    edge = _edge_std(np.vstack([part, part.sum(axis=0)]), fs, setup.coordinate_model)
-    var = (edge**2 + _transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
-           + short_time_variance(acc, setup.error_weights(model, frame), fs, frame)
-           + type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv, acc,
-                             inertia, reactions, fs))
-    return WindowEstimate(force=sw.values[:-1], force_std=np.sqrt(sw.std[:-1] ** 2 + var[:-1]),
-                          total=sw.total, total_std=np.sqrt(sw.total_std**2 + var[-1]),
-                          static=-pinv @ gauges, inertia=inertia, reactions=reactions,
-                          coordinate=q, passed=sw.passed)
+    part = ext.inner(pinv @ inertia)
+    edge = _edge_std(np.vstack([part, part.sum(axis=0)]), reach, ext.missed)
+    var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
+                    + short_time_variance(acc, setup.error_weights(model, frame), fs, frame)
+                    + type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv,
+                                      acc, inertia, reactions, fs)) + edge**2
+    inner = ext.inner
+    return WindowEstimate(force=inner(sw.values[:-1]),
+                          force_std=np.sqrt(inner(sw.std[:-1] ** 2) + var[:-1]),
+                          total=inner(sw.total), total_std=np.sqrt(inner(sw.total_std**2)
+                                                                   + var[-1]),
+                          static=-pinv @ gauges, inertia=inner(inertia),
+                          reactions=inner(reactions), coordinate=inner(q), passed=sw.passed)
 
 
 TRANSFER_MISFIT = 2.0
@@ -308,22 +320,28 @@ EDGE_PERIODS = 2.0
 the smoother cannot see whole (:func:`_edge_std`)."""
 
 
-def _edge_std(part: np.ndarray, fs: float, bm: BandModel) -> np.ndarray:
+def _edge_length(fs: float, bm: BandModel, n: int) -> int:
+    """Samples at either end of ``n`` within ``EDGE_PERIODS`` periods of the cutoff of ``bm``."""
+    return min(int(np.ceil(EDGE_PERIODS * fs / (bm.scale[1] / (2 * np.pi)))), n // 2)
+
+
+def _edge_std(part: np.ndarray, m: int, missed: tuple[float, float]) -> np.ndarray:
     """(n, N) [N]: the uncertainty of the inertia's part ``part`` (n, N) at the record's ends.
 
-    The smoother extends the record by its odd reflection, which sets the coordinate's second
-    derivative to zero at the ends: within about a period of the cutoff of them the inertia is
-    lost, by up to its whole size there (on the beam's random force the error in the first
-    50 ms is 4-13 times the noise's). Stated as the inertia part's RMS over the
-    ``EDGE_PERIODS`` periods next to each end, tapered as (1 - t / T_e)^2 from the end."""
+    Within about a period of the cutoff of an end the smoothers and the reactions' transfer
+    take samples beyond it, which the record carries by a prediction
+    (:mod:`forcecal.record_ends`): the inertia there is lost in the share the prediction
+    misses (``missed``, at the start and at the end; 1, its whole size, for a reflection).
+    Stated as the inertia part's RMS over the ``m`` samples next to each end times that share,
+    tapered as (1 - t / T_e)^2 from the end."""
     n = part.shape[-1]
-    m = min(int(np.ceil(EDGE_PERIODS * fs / (bm.scale[1] / (2 * np.pi)))), n // 2)
     out = np.zeros_like(part)
     if m < 1:
         return out
     taper = (1.0 - np.arange(m) / m) ** 2                        # from the end inwards
-    out[:, :m] = np.sqrt(np.mean(part[:, :m] ** 2, axis=1))[:, None] * taper
-    out[:, n - m:] = np.sqrt(np.mean(part[:, n - m:] ** 2, axis=1))[:, None] * taper[::-1]
+    out[:, :m] = (missed[0] * np.sqrt(np.mean(part[:, :m] ** 2, axis=1)))[:, None] * taper
+    out[:, n - m:] = ((missed[1] * np.sqrt(np.mean(part[:, n - m:] ** 2, axis=1)))[:, None]
+                      * taper[::-1])
     return out
 
 

@@ -189,7 +189,8 @@ class AnyDriveStream:
         start -= start % self._hop                       # on the batch's frames
         window = self._buffer[:, start - self._start:]
         est = window_forces(self._setup, self.model, window[:self._n_g], window[self._n_g:],
-                            stft_frame(self.fs, window.shape[1]))
+                            stft_frame(self.fs, window.shape[1]), self.source,
+                            (start == 0, final))
         out.append(StreamChunk(time=self.t0 + np.arange(self._given, end) / self.fs,
                                estimate=est.part(slice(self._given - start, end - start))))
         self._given = end
