@@ -11,8 +11,13 @@ record's last 0.5 s window 4 % off, against 0.5 % inside).
 Each channel is instead carried past both ends by an autoregressive model fitted to the
 samples next to that end (covariance method: least squares on the channel's own past, of an
 order spanning ``ORDER_PERIODS`` periods of the band's top), run forward from the end and,
-on the reversed channel, backward from the start. The estimate then runs over the extended
-stretch and keeps the record's samples.
+on the reversed channel, backward from the start, and faded to the fitted samples' mean over
+its length by a raised cosine (what lies beyond, which the smoothers reflect, stays quiet; on
+the ``sweep`` rig the fade took the last window from 0.55 % to 0.51 %). A channel whose
+prediction grows unstable is carried by its odd reflection instead. The estimate then runs
+over the extended stretch and keeps the record's samples; each pad is a whole number of the
+Wiener frames' hops, whose grid then stays the record's (a pad of another length moved every
+frame and the estimate inside the record by up to 0.2 of its uncertainty).
 
 What the prediction misses is measured on the channel itself: the same model, run from a few
 cuts before the end, against the samples that follow them (:attr:`Extension.missed`). The share it
