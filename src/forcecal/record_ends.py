@@ -66,14 +66,14 @@ class Extension:
         The channels with ``L0`` predicted samples before and ``L1`` after.
     pad : (int, int)
         (L0, L1).
-    missed : (float, float)
-        The share of the channels' signal the prediction misses past the start and past the
-        end (the largest over the channels; 1: all, as for an end left as it is).
+    missed : (2, n_channels) array
+        The share of every channel's signal the prediction misses past the start (first row)
+        and past the end (1: all, as for an end left as it is).
     """
 
     values: np.ndarray
     pad: tuple[int, int]
-    missed: tuple[float, float]
+    missed: np.ndarray
 
     def inner(self, x: np.ndarray) -> np.ndarray:
         """The stretch's own samples of ``x`` (..., L0 + N + L1)."""
@@ -135,7 +135,7 @@ def extend(x: np.ndarray, fs: float, top: float, reach: int,
     fitted to), its ``reach`` samples compared with those that follow the cut: the mean square
     of the difference less the channel's white noise (which no prediction can foresee, and which
     the smoothers take at the ends as everywhere), over the fitted samples' mean square about
-    their mean less that noise; the largest share over the channels.
+    their mean less that noise.
 
     Parameters
     ----------
@@ -164,23 +164,23 @@ def extend(x: np.ndarray, fs: float, top: float, reach: int,
     x = np.asarray(x, dtype=float)
     order, fit, count = _sizes(fs, top, x.shape[-1])
     reach = max(int(reach), 1)
+    shares = np.ones((2, len(x)))
     if not order or fit < order + reach + CUTS:
-        return Extension(x, (0, 0), (1.0, 1.0))
+        return Extension(x, (0, 0), shares)
     count = -(-count // align) * align
     noise = np.zeros(len(x)) if noise is None else np.asarray(noise, dtype=float)
-    pads, shares = [], []
-    for side, wanted in zip((x[:, ::-1], x), sides, strict=True):   # the start reversed
-        ahead, worst = [], 0.0
-        for ch, var in zip(side, noise, strict=True):
+    pads = []
+    for k, (side, wanted) in enumerate(zip((x[:, ::-1], x), sides, strict=True)):
+        ahead = []                                                  # the start reversed
+        for c, (ch, var) in enumerate(zip(side, noise, strict=True)):
             if not wanted:
                 break
             more, coef, mean = _carry(ch, order, fit, count)
             ahead.append(more)
-            worst = max(worst, _missed(ch[-fit:] - mean, coef, order, reach, var))
+            shares[k, c] = min(_missed(ch[-fit:] - mean, coef, order, reach, var), 1.0)
         pads.append(np.stack(ahead) if ahead else np.zeros((len(x), 0)))
-        shares.append(min(worst, 1.0) if wanted else 1.0)
     values = np.concatenate([pads[0][:, ::-1], x, pads[1]], axis=1)
-    return Extension(values, (pads[0].shape[1], pads[1].shape[1]), (shares[0], shares[1]))
+    return Extension(values, (pads[0].shape[1], pads[1].shape[1]), shares)
 
 
 def _missed(seg: np.ndarray, coef: np.ndarray, order: int, reach: int, noise: float) -> float:

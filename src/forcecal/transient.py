@@ -210,7 +210,8 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     fs = setup.fs
     bm_r, bm_res, transfer = setup.reaction_models, setup.residual_model, setup.transfer
     reach = _edge_length(fs, setup.coordinate_model, gauges.shape[-1])
-    ext = extend(np.vstack([gauges, probes]), fs, setup.band[1], reach,        # past the ends
+    ext = extend(np.vstack([gauges, probes]), fs, setup.band[1],               # past the ends
+                 reach,
                  np.r_[setup.var_g, 1.0 / setup.probe_weights], ends, frame // 4)
     level = gauges.mean(axis=1, keepdims=True)    # the DC passes whole (in the band the
     gauges_x, probes_x = ext.values[:len(gauges)], ext.values[len(gauges):]
@@ -221,7 +222,8 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     rest = q
     if transfer is not None:                                     # the gauges' part of q_1''
         rest = q - filtered(u, fs, transfer.response)[0]
-    acc = smooth_states(bm_res, rest, states=(2,))[0]
+    acc_probes = smooth_states(bm_res, rest, states=(2,))[0]
+    acc = acc_probes
     if transfer is not None:
         acc = acc + filtered(u, fs, lambda f: (2j * np.pi * f) ** 2 * transfer.response(f))[0]
     m1 = setup.couplings
@@ -263,8 +265,16 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     basis = np.linalg.qr(start)[0].T
     sw = wiener_smooth(basis @ force, np.einsum("jk,ksb->jsb", basis, noise), fs, frame,
                        np.vstack([basis.T, basis.sum(axis=1)]))
-    part = ext.inner(pinv @ inertia)
-    edge = _edge_std(np.vstack([part, part.sum(axis=0)]), reach, ext.missed)
+    # the ends: the gauges' part of the inertia lost in the share the gauges' prediction
+    # misses, the probes' in the probes'
+    n_g = len(gauges)
+    by_probes = ext.inner(pinv @ inertia_of(acc_probes[None, :])[0])
+    by_gauges = ext.inner(pinv @ inertia) - by_probes
+    edge = np.hypot(
+        _edge_std(np.vstack([by_gauges, by_gauges.sum(axis=0)]), reach,
+                  ext.missed[:, :n_g].max(axis=1)),
+        _edge_std(np.vstack([by_probes, by_probes.sum(axis=0)]), reach,
+                  ext.missed[:, n_g:].max(axis=1)))
     var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
                     + short_time_variance(acc, setup.error_weights(model, frame), fs, frame)
                     + type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv,
@@ -325,7 +335,7 @@ def _edge_length(fs: float, bm: BandModel, n: int) -> int:
     return min(int(np.ceil(EDGE_PERIODS * fs / (bm.scale[1] / (2 * np.pi)))), n // 2)
 
 
-def _edge_std(part: np.ndarray, m: int, missed: tuple[float, float]) -> np.ndarray:
+def _edge_std(part: np.ndarray, m: int, missed: np.ndarray) -> np.ndarray:
     """(n, N) [N]: the uncertainty of the inertia's part ``part`` (n, N) at the record's ends.
 
     Within about a period of the cutoff of an end the smoothers and the reactions' transfer
