@@ -405,6 +405,8 @@ def _cmd_predict(args) -> int:
 def _cmd_stream(args) -> int:
     """The run read, streamed and written block by block (memory flat in its length); a file
     output appears whole or not at all, ``-o -`` writes CSV to stdout as it goes."""
+    from dataclasses import replace
+
     from .broadband import BroadbandModel
     from .io.blocks import check_run_blocks, open_run_blocks
     from .io.staging import clean_stale
@@ -424,14 +426,18 @@ def _cmd_stream(args) -> int:
         raise _ArgumentError(f"{PROG} stream: argument {'--steady' if args.steady else '--memory'}"
                              f": the model '{args.scan}' is a broadband one (any drive); its "
                              "stream has a fixed latency and no memory to set")
+    tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
     blocks = check_run_blocks(rig, open_run_blocks(args.run, rig))
+    if tare is not None:             # as reconstruct: the gauges' zero (the probes' too under
+        zeroed = [*rig.gauge_names, *(rig.sensor_names if broadband else ())]    # any drive)
+        blocks = replace(blocks, offsets={c: float(np.mean(tare.channel(c))) for c in zeroed})
     check = bounded_forces(blocks.source, MAX_FORCE_N)
     with blocks:
         if not to_stdout:
             clean_stale(Path(args.output).parent)
         if broadband:
             stream_any_table(rig, model, blocks, args.output, check=check,
-                             note=lambda text: _say(f"note: {text}"))
+                             note=lambda text: _say(f"note: {text}"), tare=tare)
         else:
             stream_table(rig, model, blocks, args.output, block=args.block, check=check,
                          forgetting=_forgetting(args, model, blocks.fs))

@@ -129,6 +129,9 @@ def _stream_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p.add_argument("-o", "--output", required=True,
                    help="output: NAME.csv, NAME.h5 (HDF5), or - for CSV on stdout")
     p.add_argument("--block", type=int, default=256, help="samples per block (default 256)")
+    p.add_argument("--tare", help="zero-current record whose gauge DC is subtracted (under any "
+                                  "drive its probes' too, and with acquisition.mains its gauges' "
+                                  "hum is stated)")
     memory = p.add_mutually_exclusive_group()
     memory.add_argument("--memory", type=float, default=None, metavar="PERIODS",
                         help="memory of the estimator in drive periods (default 2: latency of "

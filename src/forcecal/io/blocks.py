@@ -25,7 +25,7 @@ from __future__ import annotations
 import csv
 import itertools
 import re
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -69,6 +69,8 @@ class RunBlocks:
         The channels, under the rig's names.
     run : Run or None
         The whole run when the file was read whole (None when it is read in blocks).
+    offsets : mapping name -> float
+        Raw values taken off those channels in every block (a zero-current record's means).
     """
 
     name: str
@@ -78,6 +80,7 @@ class RunBlocks:
     n_samples: int
     channel_names: tuple[str, ...]
     run: Run | None = None
+    offsets: Mapping[str, float] = field(default_factory=dict)
     _read: Callable[[list[str], int, int], np.ndarray] | None = field(default=None, repr=False)
     _close: Callable[[], None] = field(default=lambda: None, repr=False)
 
@@ -94,7 +97,7 @@ class RunBlocks:
         Yields
         ------
         (len(names), m) ndarray
-            Raw values, as a whole read would give them.
+            Raw values, as a whole read would give them, less the ``offsets``.
         """
         names = list(names)
         missing = [n for n in names if n not in self.channel_names]
@@ -103,14 +106,15 @@ class RunBlocks:
                 channels=dict.fromkeys(self.channel_names, np.zeros(1)), fs=self.fs,
                 source=self.source)
             run.channel(missing[0])                      # the reader's own message
+        zero = np.array([self.offsets.get(n, 0.0) for n in names])[:, None]
         if self.run is not None:
             data = [self.run.channel(n) for n in names]
             for start in range(0, self.n_samples, size):
-                yield np.stack([d[start:start + size] for d in data])
+                yield np.stack([d[start:start + size] for d in data]) - zero
             return
         assert self._read is not None
         for start in range(0, self.n_samples, size):
-            yield self._read(names, start, min(self.n_samples, start + size))
+            yield self._read(names, start, min(self.n_samples, start + size)) - zero
 
     def close(self) -> None:
         """Release the file."""

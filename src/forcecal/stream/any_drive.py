@@ -39,6 +39,7 @@ from ..channel_checks import NOISE_BLOCK, AboveBand, check_channel_noise
 from ..errors import InputError
 from ..io.blocks import RunBlocks
 from ..io.table_writer import CSV_DIGITS, table_writer
+from ..records import Run
 from ..rig import Rig
 from ..spatial import check_rig_keys
 from ..transient import (
@@ -49,6 +50,7 @@ from ..transient import (
     any_drive_setup,
     check_length,
     hum_notes,
+    run_channels,
     transfer_note,
     window_forces,
 )
@@ -276,7 +278,7 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
                      *, check: Check | None = None, digits: int = CSV_DIGITS,
                      stdout: IO[bytes] | None = None, read: int = 1 << 14,
-                     note: Callable[[str], None] | None = None) -> int:
+                     note: Callable[[str], None] | None = None, tare: Run | None = None) -> int:
     """Stream a run file under any drive into the table ``stream`` writes.
 
     Parameters
@@ -301,6 +303,9 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         :data:`forcecal.channel_checks.ABOVE_BAND` (:class:`forcecal.channel_checks.AboveBand`: a
         stream cannot see ahead, but it can say so at the end), and with the warnings of its
         setup (a transfer that misfits, probes that contradict the operating shapes).
+    tare : Run, optional
+        A zero-current record: with ``acquisition.mains`` its gauges' hum tones join the
+        noise (its means are the zero the ``blocks``' ``offsets`` take off).
 
     Returns
     -------
@@ -308,7 +313,9 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         Rows written.
     """
     check_length(model, blocks.n_samples, blocks.fs, blocks.source)
-    stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0, source=blocks.source)
+    stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0, source=blocks.source,
+                            tare=None if tare is None else run_channels(rig, tare)[0],
+                            tare_fs=None if tare is None else tare.fs)
     names = list(rig.force_names)
     above = AboveBand(blocks.fs, model.band, blocks.t0)
     current = rig.actuator.current
@@ -335,7 +342,7 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
             for text in unseen_notes(stream.setup.unseen, tuple(rig.sensor_names),
                                      blocks.source):
                 note(text)
-        for text in hum_notes(rig, None, blocks.source):
+        for text in hum_notes(rig, tare, blocks.source):
             note(text)
         for text in above.notes(blocks.source):
             note(text)
