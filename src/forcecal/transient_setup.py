@@ -33,7 +33,8 @@ from .rig import Rig
 from .transient_budget import TypeBMoves, type_b_moves
 from .unseen_motion import UnseenMotion, probe_misfit, unseen_weights
 
-__all__ = ["RESIDUAL_MARGIN", "TOP_MARGIN", "AnyDriveSetup", "any_drive_setup", "hum_notes"]
+__all__ = ["RESIDUAL_MARGIN", "TOP_MARGIN", "AnyDriveSetup", "any_drive_setup", "hum_notes",
+           "with_reaction_priors"]
 
 
 TOP_MARGIN = 100.0
@@ -248,6 +249,18 @@ def _gauge_hum(rig: Rig, band: tuple[float, float], tare: np.ndarray | None,
     tones, power = hum_tones(tare, tare_fs, rig.mains, min(0.45 * tare_fs, HUM_REACH * band[1]))
     return tuple((r, float(f), float(power[r, m])) for r in range(len(tare))
                  for m, f in enumerate(tones))
+
+
+def with_reaction_priors(setup: AnyDriveSetup, gauges: np.ndarray,
+                         mains: float | None = None) -> AnyDriveSetup:
+    """``setup`` with every gauge's band model set from ``gauges`` (n_gauges, N) [N], their
+    noise kept: a stream's smoothers follow its drive (a sweep's first seconds hold only its
+    bottom; smoothers set there, at 170 Hz where the whole run's were at 182 Hz, put the
+    stream 1.3 of the batch's uncertainty off at the sweep's top, 140-150 Hz)."""
+    fs, band = setup.fs, setup.band
+    models = tuple(band_model(fs, *_prior(g, fs, band, v, mains=mains), v)
+                   for g, v in zip(gauges, setup.var_g, strict=True))
+    return dataclasses.replace(setup, reaction_models=models)
 
 
 def hum_notes(rig: Rig, tare: object, source: str) -> tuple[str, ...]:

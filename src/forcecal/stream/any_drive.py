@@ -20,7 +20,9 @@ before the samples it gives:
 Memory and work per sample stay flat in the record's length. With the batch's setup the
 stream matches the batch estimate inside the record to a small part of its uncertainty (the
 windows' edges are ``history`` and ``latency`` away); with its own, from the first seconds,
-to what those seconds tell of the noise.
+to what those seconds tell of the noise, its gauges' smoothers set again in every window from
+the window's own gauges (:func:`forcecal.transient_setup.with_reaction_priors`: a sweep's first
+seconds hold only its bottom).
 """
 
 from __future__ import annotations
@@ -55,6 +57,7 @@ from ..transient import (
     window_forces,
 )
 from ..transient_budget import type_b_notes
+from ..transient_setup import with_reaction_priors
 from ..unseen_motion import unseen_notes
 from ..wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
@@ -127,6 +130,7 @@ class AnyDriveStream:
         self.source = source
         self._tare, self._tare_fs = tare, tare_fs
         self._setup = setup
+        self._own_setup = setup is None
         frame = stft_frame(fs, 1 << 62)            # the Wiener frame of any record long enough
         self._hop = frame // 4
         self._warmup = int(math.ceil(warmup * fs))
@@ -190,7 +194,10 @@ class AnyDriveStream:
         start = max(self._given - self._history, 0)
         start -= start % self._hop                       # on the batch's frames
         window = self._buffer[:, start - self._start:]
-        est = window_forces(self._setup, self.model, window[:self._n_g], window[self._n_g:],
+        setup = self._setup
+        if self._own_setup:            # its smoothers follow the drive, from the window's gauges
+            setup = with_reaction_priors(setup, window[:self._n_g], self.rig.mains)
+        est = window_forces(setup, self.model, window[:self._n_g], window[self._n_g:],
                             stft_frame(self.fs, window.shape[1]), self.source,
                             (start == 0, final))
         out.append(StreamChunk(time=self.t0 + np.arange(self._given, end) / self.fs,
