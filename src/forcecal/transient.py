@@ -22,7 +22,10 @@ instead. With the span of shapes of a broadband scan (:mod:`forcecal.broadband`)
 
 What the estimate fixes before its first sample (the channels' noise, the band priors, the
 transfer, the checks of the probes, the type-B moves, the hum) is its setup
-(:mod:`forcecal.transient_setup`), from the whole run in batch.
+(:mod:`forcecal.transient_setup`), from the whole run in batch. The smoothers and the
+reactions' transfer take samples on both sides of each one: the record is carried past its
+ends by a prediction of every channel (:mod:`forcecal.record_ends`), and what that prediction
+misses is in the ends' uncertainty.
 
 In real time (``stream``, :mod:`forcecal.stream.any_drive`) the same estimate is computed
 over a window that slides with the stream: every sample is given once the samples a fixed
@@ -210,9 +213,9 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     fs = setup.fs
     bm_r, bm_res, transfer = setup.reaction_models, setup.residual_model, setup.transfer
     reach = _edge_length(fs, setup.coordinate_model, gauges.shape[-1])
-    ext = extend(np.vstack([gauges, probes]), fs, setup.band[1],               # past the ends
-                 reach,
-                 np.r_[setup.var_g, 1.0 / setup.probe_weights], ends, frame // 4)
+    white = np.r_[setup.var_g, 1.0 / setup.probe_weights]          # each channel's noise
+    ext = extend(np.vstack([gauges, probes]), fs, setup.band[1], reach, white, ends,
+                 frame // 4)                                     # carried past the ends
     level = gauges.mean(axis=1, keepdims=True)    # the DC passes whole (in the band the
     gauges_x, probes_x = ext.values[:len(gauges)], ext.values[len(gauges):]
     q = setup.coordinate_map @ probes_x                          # the first shape's coordinate
