@@ -3,6 +3,7 @@ synthetic truths (a step in drive amplitude, a drifting drive frequency)."""
 
 from __future__ import annotations
 
+import dataclasses
 import sys
 import tracemalloc
 import types
@@ -593,3 +594,43 @@ def test_memory_and_steady_mode_options(paper, paper_dir, tmp_path):
     lam = _forgetting(Args, model, run.fs)
     est = StreamEstimator(rig, model, model.f0, run.fs, forgetting=lam)
     assert est.memory == pytest.approx(STEADY_MEMORY_PERIODS * run.fs / model.f0)
+
+
+@pytest.mark.parametrize("kind", ["csv", "tdms"])
+def test_stream_takes_a_tare(paper, paper_dir, tmp_path, kind):
+    """``stream --tare`` takes the zero-current record's gauge means off every block (of a run
+    read in blocks, CSV, or whole, TDMS), as
+    ``reconstruct --tare`` does: gauges read 0.3 N and -0.1 N high in both files leave the
+    streamed forces where they are without the offsets (to 1e-9 N RMS), where, without the
+    tare, the total moves by their sum (-0.2 N: -0.2000002 N once the recursive estimate has
+    settled, test within 1e-6 N)."""
+    import pandas as pd
+
+    from forcecal.cli import main
+    from forcecal.io.run_files import write_run_csv, write_run_tdms
+
+    rig, _, model, run = paper
+    path = tmp_path / "model.json"
+    model.save(path)
+    scale = {g.name: g.scale for g in rig.gauges}
+    high = {rig.gauge_names[0]: 0.3, rig.gauge_names[1]: -0.1}          # [N]
+    raw = {c: v + high[c] / scale[c] if c in high else v for c, v in run.channels.items()}
+    high_run = tmp_path / f"high.{kind}"
+    (write_run_csv if kind == "csv" else write_run_tdms)(
+        dataclasses.replace(run, channels=raw), high_run)
+    n = 2000
+    zero = {c: np.full(n, high[c] / scale[c]) if c in high else np.zeros(n)
+            for c in run.channels}
+    write_run_csv(dataclasses.replace(run, channels=zero, name="tare"), tmp_path / "tare.csv")
+    rig_file, source = str(paper_dir / "rig.toml"), paper_dir / "runs" / "paper.csv"
+    assert main(["stream", rig_file, str(path), str(source), "-o", str(tmp_path / "a.csv")]) == 0
+    assert main(["stream", rig_file, str(path), str(high_run), "-o",
+                 str(tmp_path / "b.csv"), "--tare", str(tmp_path / "tare.csv")]) == 0
+    assert main(["stream", rig_file, str(path), str(high_run), "-o",
+                 str(tmp_path / "c.csv")]) == 0
+    a, b, c = (pd.read_csv(tmp_path / f"{k}.csv") for k in "abc")
+    for col in ("F1", "F2", "total", "total_static"):
+        assert np.sqrt(np.mean((b[col] - a[col]) ** 2)) < 1e-9, col
+    late = slice(len(a) // 2, None)                 # once the recursive estimate has settled
+    shift = (c["total"] - a["total"]).to_numpy()[late]
+    np.testing.assert_allclose(np.mean(shift), -0.2, atol=1e-6)
