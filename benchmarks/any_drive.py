@@ -83,15 +83,21 @@ def _windows(est: pd.DataFrame, truth: pd.DataFrame, column: str, width: float,
 def _claimed(folder: Path, model: Path, run: str, truth: pd.DataFrame) -> np.ndarray:
     """The true total as the estimate claims it: through the reactions' smoother of the batch's
     setup (1 within the band, falling beyond its top as the gauges' own smoother does; content
-    above the band is the gauges' and the transfer's, not the scan's)."""
+    above the band is the gauges' and the transfer's, not the scan's), carried past the
+    record's ends and with its mean passed whole, as the estimate's reactions are."""
     from forcecal.kalman import smooth_states
+    from forcecal.record_ends import extend
     from forcecal.transient import any_drive_setup, run_channels
 
     rig = load_rig(folder / "rig.toml")
     record = read_run(folder / "runs" / f"{run}.csv", rig)
     gauges, probes, _ = run_channels(rig, record)
     setup = any_drive_setup(rig, load_any_model(model), gauges, probes, record.fs)
-    return smooth_states(setup.reaction_models[0], truth["total"].to_numpy(), states=(0,))[0]
+    total = truth["total"].to_numpy()
+    level = float(total.mean())
+    ext = extend((total - level)[None, :], record.fs, setup.band[1], 1)
+    return level + ext.inner(smooth_states(setup.reaction_models[0], ext.values[0],
+                                           states=(0,))[0])
 
 
 def _stated(est: pd.DataFrame, claimed: np.ndarray) -> dict:
