@@ -22,7 +22,7 @@ frame and the estimate inside the record by up to 0.2 of its uncertainty).
 What the prediction misses is measured on the channel itself: the same model, run from a few
 cuts before the end, against the samples that follow them (:attr:`Extension.missed`). The share it
 misses, over the reach of the record's ends, scales the inertia the ends could lose
-(:func:`forcecal.transient` states it sample by sample).
+(:mod:`forcecal.transient` states it sample by sample).
 """
 
 from __future__ import annotations
@@ -48,7 +48,7 @@ EXTEND_PERIODS = 6.0
 """Periods of the band's top the record is carried past each end (30 ms for 200 Hz): several
 times the reach of the reactions' transfer and of the smoothers at the ends."""
 CUTS = 4
-"""Cuts before an end at which :func:`missed_share` tries the prediction."""
+"""Cuts before an end at which :func:`extend` tries the prediction."""
 _RIDGE = 1e-10
 """The normal equations' ridge, relative to their mean diagonal (a noise-free channel)."""
 _GROWTH = 10.0
