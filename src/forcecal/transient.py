@@ -225,10 +225,10 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     rest = q
     if transfer is not None:                                     # the gauges' part of q_1''
         rest = q - filtered(u, fs, transfer.response)[0]
-    acc_probes = smooth_states(bm_res, rest, states=(2,))[0]
-    acc = acc_probes
-    if transfer is not None:
-        acc = acc + filtered(u, fs, lambda f: (2j * np.pi * f) ** 2 * transfer.response(f))[0]
+    acc_probes = smooth_states(bm_res, rest, states=(2,))[0]       # the probes' part of q_1''
+    acc_gauges = (np.zeros_like(acc_probes) if transfer is None else
+                  filtered(u, fs, lambda f: (2j * np.pi * f) ** 2 * transfer.response(f))[0])
+    acc = acc_probes + acc_gauges
     m1 = setup.couplings
     gam, w = setup.probe_shapes, setup.probe_weights
 
@@ -242,7 +242,8 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
             lumped = np.stack([filtered(part, fs, correction) for part in lumped])
         return lumped
 
-    inertia = inertia_of(acc[None, :])[0]
+    by_probes, by_gauges = inertia_of(np.vstack([acc_probes, acc_gauges]))   # (n_gauges, N)
+    inertia = by_probes + by_gauges
     pinv = setup.pinv
     force = pinv @ (inertia - reactions)
     if not np.all(np.isfinite(force)):
@@ -271,12 +272,11 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     # the ends: the gauges' part of the inertia lost in the share the gauges' prediction
     # misses, the probes' in the probes'
     n_g = len(gauges)
-    by_probes = ext.inner(pinv @ inertia_of(acc_probes[None, :])[0])
-    by_gauges = ext.inner(pinv @ inertia) - by_probes
+    part_g, part_p = (ext.inner(pinv @ x) for x in (by_gauges, by_probes))
     edge = np.hypot(
-        _edge_std(np.vstack([by_gauges, by_gauges.sum(axis=0)]), reach,
+        _edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach,
                   ext.missed[:, :n_g].max(axis=1)),
-        _edge_std(np.vstack([by_probes, by_probes.sum(axis=0)]), reach,
+        _edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach,
                   ext.missed[:, n_g:].max(axis=1)))
     var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
                     + short_time_variance(acc, setup.error_weights(model, frame), fs, frame)
