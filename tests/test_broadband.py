@@ -941,3 +941,34 @@ def test_the_streams_smoothers_follow_a_sweep(beam, bb_model, monkeypatch):
     monkeypatch.setattr(live, "with_reaction_priors", lambda setup, *a: setup)
     kept = apart()
     assert kept[0] > 5 * followed[0] and kept[1] > 1.6, kept
+
+
+def test_the_scans_noise_is_its_part_of_the_stated_variance_and_noted(beam, scan, bb_model,
+                                                                      random_run):
+    """The total's variance from the scan's noise (``scan_noise``) is what the stated variance
+    loses when the scan's shapes and ratios are known exactly (achieved: to 1e-11 of its
+    largest value); where it makes most of the stated variance in some half second (a scan 8
+    times noisier) the run is noted, and on the fixture's scan it is not."""
+    from forcecal.transient import any_drive_setup, run_channels, window_forces
+    from forcecal.wiener import stft_frame
+
+    rig = beam[3]
+    run = random_run[0]
+    rng = np.random.default_rng(12)
+    noisy = build_broadband_model(rig, dataclasses.replace(
+        scan, response=scan.response + 400e-6 * rng.standard_normal(scan.response.shape)))
+    exact = dataclasses.replace(
+        noisy, ratio_std=0.0 * noisy.ratio_std,
+        shapes=tuple(dataclasses.replace(s, coefficient_covariance=0.0 * s.coefficient_covariance)
+                     for s in noisy.shapes))
+    gauges, probes, _ = run_channels(rig, run)
+    frame = stft_frame(FS, run.n_samples)
+    est, known = (window_forces(any_drive_setup(rig, m, gauges, probes, FS), m, gauges, probes,
+                                frame) for m in (noisy, exact))
+    np.testing.assert_array_equal(est.total, known.total)
+    assert np.max(known.scan_noise) < 1e-20
+    lost = est.total_std**2 - known.total_std**2
+    assert np.max(np.abs(lost - est.scan_noise)) < 1e-6 * np.max(est.scan_noise)
+    noted = [t for t in reconstruct_any(rig, noisy, run).notes if "the scan's noise makes" in t]
+    assert len(noted) == 1 and "random.csv" in noted[0], noted
+    assert not any("the scan's noise" in t for t in reconstruct_any(rig, bb_model, run).notes)

@@ -23,8 +23,8 @@ import numpy as np
 
 from .broadband import BroadbandModel
 
-__all__ = ["above_band_weights", "correction_sensitivities", "inertia_error_weights",
-           "shape_error_weights"]
+__all__ = ["ScanNoiseShare", "above_band_weights", "correction_sensitivities",
+           "inertia_error_weights", "scan_noise_weights", "shape_error_weights"]
 
 SHAPE_DRAWS = 400
 """Draws of the shapes' coefficients (:func:`shape_error_weights`): the variance to about 7 %."""
@@ -130,24 +130,93 @@ def above_band_weights(model: BroadbandModel, frequencies: np.ndarray,
     return np.abs(rows @ (couplings * slope))[:, None] ** 2 * reach[None, :] ** 2
 
 
-def inertia_error_weights(model: BroadbandModel, frequencies: np.ndarray,
-                          probe_shapes: np.ndarray, weights: np.ndarray, couplings: np.ndarray,
-                          basis_couplings: np.ndarray, basis_probes: np.ndarray,
-                          rows: np.ndarray) -> np.ndarray:
+def scan_noise_weights(model: BroadbandModel, frequencies: np.ndarray,
+                       probe_shapes: np.ndarray, weights: np.ndarray, couplings: np.ndarray,
+                       basis_couplings: np.ndarray, basis_probes: np.ndarray,
+                       rows: np.ndarray) -> np.ndarray:
     """(n_rows, n_freq) [kg^2]: the variance, per unit |q''_1|^2, of each row of ``rows`` @ J
-    from the scan: the fitted shapes' coefficients (:func:`shape_error_weights`), the standard
-    uncertainty of every ratio a_k / a_1, of its real and of its imaginary part, through the
-    correction (:func:`correction_sensitivities`), and above the band the correction's slope
-    (:func:`above_band_weights`); ``couplings`` (n_gauges,) is m_{r,1}. Sample by sample, the
-    variance is q''_1's short-time power weighted by it
-    (:func:`forcecal.wiener.short_time_variance`)."""
+    from the scan's noise, the part a scan that averages longer lowers: the fitted shapes'
+    coefficients (:func:`shape_error_weights`) and the standard uncertainty of every ratio
+    a_k / a_1, of its real and of its imaginary part, through the correction
+    (:func:`correction_sensitivities`); ``couplings`` (n_gauges,) is m_{r,1}."""
     weight = shape_error_weights(model, frequencies, probe_shapes, weights, basis_couplings,
                                  basis_probes, rows)
     if model.n_shapes > 1:
-        weight = weight + above_band_weights(model, frequencies, probe_shapes, weights,
-                                             couplings, rows)
         sens = correction_sensitivities(model, frequencies, probe_shapes, weights)
         per = np.einsum("cg,g,gkb->ckb", rows, couplings, sens)         # (n_rows, n_k, bins)
         weight = weight + 2.0 * np.einsum("ckb,kb->cb", np.abs(per) ** 2,
                                           model.mixing_std(frequencies) ** 2)
     return weight
+
+
+def inertia_error_weights(model: BroadbandModel, frequencies: np.ndarray,
+                          probe_shapes: np.ndarray, weights: np.ndarray, couplings: np.ndarray,
+                          basis_couplings: np.ndarray, basis_probes: np.ndarray,
+                          rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two (n_rows, n_freq) arrays [kg^2]: the variance, per unit |q''_1|^2, of each row of
+    ``rows`` @ J from the scan, all of it (its noise, :func:`scan_noise_weights`, and above the
+    band the correction's slope, :func:`above_band_weights`) and its noise's part alone.
+    Sample by sample, the variance is q''_1's short-time power weighted by it
+    (:func:`forcecal.wiener.short_time_variance`)."""
+    noise = scan_noise_weights(model, frequencies, probe_shapes, weights, couplings,
+                               basis_couplings, basis_probes, rows)
+    if model.n_shapes == 1:
+        return noise, noise
+    return noise + above_band_weights(model, frequencies, probe_shapes, weights, couplings,
+                                      rows), noise
+
+
+SCAN_NOISE_SHARE = 0.5
+"""A run whose total's stated variance the scan's noise makes more than this share of, in some
+half second, is noted: the scan, not the run, limits the estimate there."""
+
+
+class ScanNoiseShare:
+    """A note when the scan's noise (:func:`scan_noise_weights`) makes more than
+    ``SCAN_NOISE_SHARE`` of the total force's stated variance in any half second: a scan that
+    averages more periods at every point lowers it, and the run does not.
+
+    The variances are fed as they come (:meth:`add`: the whole record in batch, block by block
+    in a stream); every complete half second is read once, and the largest share is kept.
+
+    Parameters
+    ----------
+    fs : float [Hz]
+    t0 : float [s]
+        The time of the first sample.
+    """
+
+    def __init__(self, fs: float, t0: float = 0.0):
+        self.fs, self.t0 = fs, t0
+        self._n = max(int(0.5 * fs), 1)
+        self._buffer = np.empty((2, 0))
+        self._done = 0
+        self._worst = (0.0, t0)
+
+    def add(self, scan_noise: np.ndarray, total_var: np.ndarray) -> None:
+        """Feed the next samples' variance of the total from the scan's noise and all of its
+        stated variance [N^2]."""
+        self._buffer = np.hstack([self._buffer, np.vstack([scan_noise, total_var])])
+        while self._buffer.shape[1] >= self._n:
+            share = self._share(self._buffer[:, :self._n])
+            if share > self._worst[0]:
+                self._worst = (share, self.t0 + self._done / self.fs)
+            self._buffer, self._done = self._buffer[:, self._n:], self._done + self._n
+
+    def notes(self, source: str) -> tuple[str, ...]:
+        """The note on the run ``source``, if its worst half second's share exceeded
+        ``SCAN_NOISE_SHARE`` (a record shorter than half a second read whole)."""
+        share, at = self._worst
+        if not self._done and self._buffer.size:
+            share, at = self._share(self._buffer), self.t0
+        if share <= SCAN_NOISE_SHARE:
+            return ()
+        return (f"run '{source}': the scan's noise makes {100 * share:.0f} % of the total "
+                f"force's stated variance in the half second from {at:.3g} s (its operating "
+                "shapes, through the inertia): a scan that averages more periods at every "
+                "point lowers it",)
+
+    @staticmethod
+    def _share(block: np.ndarray) -> float:
+        total = float(np.sum(block[1]))
+        return float(np.sum(block[0])) / total if total > 0 else 0.0

@@ -56,6 +56,7 @@ import numpy as np
 from .broadband import BroadbandModel
 from .channel_checks import AboveBand, check_channel_noise
 from .errors import DataError
+from .inertia_errors import ScanNoiseShare
 from .forces import channels_si
 from .kalman import BandModel, smooth_states
 from .reaction_transfer import ReactionTransfer, filtered
@@ -155,7 +156,8 @@ class WindowEstimate:
     ``force``, ``force_std`` (n_forces, N); ``total``, ``total_std`` (N,); ``static``
     (n_forces, N) reactions only; ``inertia``, ``reactions`` (n_gauges, N); ``coordinate``
     (N,); ``passed`` (n_forces,): the share of each force's smoothed noise the Wiener gains
-    let through.
+    let through; ``scan_noise`` (N,) [N^2]: the part of the total's variance the scan's noise
+    gives (:func:`forcecal.inertia_errors.scan_noise_weights`).
     """
 
     force: np.ndarray
@@ -167,6 +169,7 @@ class WindowEstimate:
     reactions: np.ndarray
     coordinate: np.ndarray
     passed: np.ndarray
+    scan_noise: np.ndarray
 
     def part(self, samples: slice) -> WindowEstimate:
         """The ``samples`` of the stretch (``passed`` is the window's)."""
@@ -278,8 +281,10 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                   ext.missed[:, :n_g].max(axis=1)),
         _edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach,
                   ext.missed[:, n_g:].max(axis=1)))
-    var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2
-                    + short_time_variance(acc, setup.error_weights(model, frame), fs, frame)
+    scan = short_time_variance(acc, np.vstack([setup.error_weights(model, frame),
+                                               setup.noise_weights(model, frame)[-1:]]),
+                               fs, frame)                 # and the total's by its noise alone
+    var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2 + scan[:-1]
                     + type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv,
                                       acc, inertia, reactions, fs)) + edge**2
     inner = ext.inner
@@ -288,7 +293,8 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                           total=inner(sw.total), total_std=np.sqrt(inner(sw.total_std**2)
                                                                    + var[-1]),
                           static=-pinv @ gauges, inertia=inner(inertia),
-                          reactions=inner(reactions), coordinate=inner(q), passed=sw.passed)
+                          reactions=inner(reactions), coordinate=inner(q), passed=sw.passed,
+                          scan_noise=inner(scan[-1]))
 
 
 TRANSFER_MISFIT = 2.0
@@ -433,11 +439,13 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
                         run.t0, run.source)
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
+    scan = ScanNoiseShare(fs, run.t0)
+    scan.add(est.scan_noise, est.total_std**2)
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
              transfer_note(setup.transfer, run.source),
              *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),
              *type_b_notes(rig, run.source), *hum_notes(rig, tare, run.source),
-             *above)
+             *scan.notes(run.source), *above)
     return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
                                          notes)

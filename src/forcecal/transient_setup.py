@@ -136,8 +136,8 @@ class AnyDriveSetup:
     unseen: UnseenMotion | None = None
     type_b: TypeBMoves | None = None
     hum: tuple[tuple[int, float, float], ...] = ()
-    _weights: dict[int, np.ndarray] = dataclasses.field(default_factory=dict, compare=False,
-                                                        repr=False)
+    _weights: dict[int, tuple[np.ndarray, np.ndarray]] = dataclasses.field(
+        default_factory=dict, compare=False, repr=False)
 
     def error_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
         """(n_forces + 1, frame // 2 + 1) [kg^2]: the variance the scan's errors give each
@@ -146,13 +146,23 @@ class AnyDriveSetup:
         the scan did not see where the probes found one
         (:func:`forcecal.unseen_motion.unseen_weights`); computed once per frame length (a
         stream's windows share it)."""
+        return self._scan_weights(model, frame)[0]
+
+    def noise_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
+        """(n_forces + 1, frame // 2 + 1) [kg^2]: the part of :meth:`error_weights` that the
+        scan's noise gives (:func:`forcecal.inertia_errors.scan_noise_weights`)."""
+        return self._scan_weights(model, frame)[1]
+
+    def _scan_weights(self, model: BroadbandModel, frame: int
+                      ) -> tuple[np.ndarray, np.ndarray]:
         if frame not in self._weights:
             f = np.fft.rfftfreq(frame, 1.0 / self.fs)
             rows = np.vstack([self.pinv, self.pinv.sum(axis=0)])
-            self._weights[frame] = inertia_error_weights(
+            every, noise = inertia_error_weights(
                 model, f, self.probe_shapes, self.probe_weights, self.couplings,
-                self.basis_couplings, self.basis_probes, rows) + unseen_weights(
-                self.unseen, f, self.couplings, self.probe_shapes, rows)
+                self.basis_couplings, self.basis_probes, rows)
+            self._weights[frame] = every + unseen_weights(
+                self.unseen, f, self.couplings, self.probe_shapes, rows), noise
         return self._weights[frame]
 
 

@@ -39,6 +39,7 @@ import numpy as np
 from ..broadband import BroadbandModel
 from ..channel_checks import NOISE_BLOCK, AboveBand, check_channel_noise
 from ..errors import InputError
+from ..inertia_errors import ScanNoiseShare
 from ..io.blocks import RunBlocks
 from ..io.table_writer import CSV_DIGITS, table_writer
 from ..records import Run
@@ -111,6 +112,12 @@ class AnyDriveStream:
         A zero-current record's gauges: with ``acquisition.mains``, their hum tones join the
         noise (:func:`forcecal.transient_setup.any_drive_setup`).
 
+    Attributes
+    ----------
+    scan_share : ScanNoiseShare
+        The share of the total's stated variance the scan's noise makes, over the samples
+        given so far (:class:`forcecal.inertia_errors.ScanNoiseShare`).
+
     Raises
     ------
     InputError
@@ -131,6 +138,7 @@ class AnyDriveStream:
         self._tare, self._tare_fs = tare, tare_fs
         self._setup = setup
         self._own_setup = setup is None
+        self.scan_share = ScanNoiseShare(self.fs, self.t0)
         frame = stft_frame(fs, 1 << 62)            # the Wiener frame of any record long enough
         self._hop = frame // 4
         self._warmup = int(math.ceil(warmup * fs))
@@ -200,8 +208,10 @@ class AnyDriveStream:
         est = window_forces(setup, self.model, window[:self._n_g], window[self._n_g:],
                             stft_frame(self.fs, window.shape[1]), self.source,
                             (start == 0, final))
+        given = est.part(slice(self._given - start, end - start))
+        self.scan_share.add(given.scan_noise, given.total_std**2)
         out.append(StreamChunk(time=self.t0 + np.arange(self._given, end) / self.fs,
-                               estimate=est.part(slice(self._given - start, end - start))))
+                               estimate=given))
         self._given = end
         keep = max(self._given - self._history, 0)
         keep -= keep % self._hop
@@ -279,7 +289,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
                                           *unseen_notes(stream.setup.unseen,
                                                         tuple(rig.sensor_names), name),
                                           *type_b_notes(rig, name),
-                                          *hum_notes(rig, tare, name)))
+                                          *hum_notes(rig, tare, name),
+                                          *stream.scan_share.notes(name)))
 
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
@@ -349,7 +360,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
             for text in unseen_notes(stream.setup.unseen, tuple(rig.sensor_names),
                                      blocks.source):
                 note(text)
-        for text in hum_notes(rig, tare, blocks.source):
+        for text in (*hum_notes(rig, tare, blocks.source),
+                     *stream.scan_share.notes(blocks.source)):
             note(text)
         for text in above.notes(blocks.source):
             note(text)
