@@ -56,8 +56,8 @@ import numpy as np
 from .broadband import BroadbandModel
 from .channel_checks import AboveBand, check_channel_noise
 from .errors import DataError
-from .inertia_errors import ScanNoiseShare
 from .forces import channels_si
+from .inertia_errors import ScanNoiseShare
 from .kalman import BandModel, smooth_states
 from .reaction_transfer import ReactionTransfer, filtered
 from .record_ends import extend
