@@ -258,10 +258,13 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
              else (2j * np.pi * f) ** 2 * transfer.response(f))
     per_gauge = [(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
                  * smoother_response(bm_r[r], 0, frame) for r in range(len(gauges))]
-    hum = [per_gauge[r] * tone_density(frame, fs, tone, power)     # each gauge's hum tones
-           for r, tone, power in setup.hum if power > 0]
+    per_q = smoother_response(bm_res, 2, frame) * to_force        # the probes' path, per q_1
+    n_g = len(gauges)
+    hum = [(per_gauge[c] if c < n_g else setup.coordinate_map[c - n_g] * per_q)
+           * tone_density(frame, fs, tone, power)     # each gauge's and probe's hum tones
+           for c, tone, power in setup.hum if power > 0]
     noise = np.concatenate([
-        (np.sqrt(setup.var_q) * smoother_response(bm_res, 2, frame) * to_force)[:, None, :],
+        (np.sqrt(setup.var_q) * per_q)[:, None, :],
         np.stack([g * np.sqrt(v) for g, v in zip(per_gauge, setup.var_g, strict=True)]
                  + hum, axis=1)], axis=1)
     # smoothed as the total and its complement (an orthonormal basis whose first row is the
@@ -274,7 +277,6 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                        np.vstack([basis.T, basis.sum(axis=1)]))
     # the ends: the gauges' part of the inertia lost in the share the gauges' prediction
     # misses, the probes' in the probes'
-    n_g = len(gauges)
     part_g, part_p = (ext.inner(pinv @ x) for x in (by_gauges, by_probes))
     edge = np.hypot(
         _edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach,
@@ -426,7 +428,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     reach = AboveBand(fs, model.band, run.t0)
     reach.add(current)
     above = reach.notes(run.source)
-    zero = None if tare is None else run_channels(rig, tare)[0]
+    zero = None if tare is None else np.vstack(run_channels(rig, tare)[:2])
     if not smooth:
         from .stream.any_drive import stream_arrays
 

@@ -112,9 +112,11 @@ class AnyDriveSetup:
         How the rig's declared type-B uncertainties move the estimate
         (:mod:`forcecal.transient_budget`).
     hum : tuple of (int, float, float)
-        (gauge, frequency [Hz], |a|^2 [N^2]): every gauge's mains hum tones, read from a
-        zero-current record (:func:`forcecal.mains_hum.hum_tones`); the Wiener gains take
-        them for noise.
+        (channel, frequency [Hz], |a|^2 [N^2 or m^2]): every gauge's and probe's mains hum
+        tones (channels: the gauges, then the probes), read from a zero-current record
+        (:func:`forcecal.mains_hum.hum_tones`); the Wiener gains take them for noise (a
+        probe's hum is no motion, yet the inertia takes it for one: 0.6 um at 50 Hz on both
+        probes of the beam moves the total by 0.06 N).
     """
 
     band: tuple[float, float]
@@ -175,7 +177,7 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
     coordinate map, the band models of the coordinate and of every reaction, the
     structure's transfer from the reactions-only force to the coordinate with the band model
     of what it leaves, the probes' misfit to the scan's operating shapes, the type-B moves
-    and the gauges' hum.
+    and the gauges' and probes' hum.
 
     Parameters
     ----------
@@ -186,9 +188,9 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
     fs : float [Hz]
     source : str
         The run, named in messages.
-    tare : (n_gauges, n) array [N], optional
-        A zero-current record's gauges: with ``acquisition.mains``, each gauge's hum tones
-        (:func:`forcecal.mains_hum.hum_tones`).
+    tare : (n_gauges + n_probes, n) array [N and m], optional
+        A zero-current record's gauges, then its probes: with ``acquisition.mains``, each
+        channel's hum tones (:func:`forcecal.mains_hum.hum_tones`).
     tare_fs : float, optional [Hz]
         Its sampling rate.
 
@@ -241,19 +243,19 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
                          unseen=probe_misfit(model, probes, fs, gam, model.stds(at_probes).real,
                                              w, q_map, rig.type_b.probe_scale, hum),
                          type_b=type_b_moves(rig, model),
-                         hum=_gauge_hum(rig, band, tare, tare_fs))
+                         hum=_channel_hum(rig, band, tare, tare_fs))
 
 
 HUM_REACH = 4.0
-"""The gauges' hum tones are read up to this many times the band's top (at most 0.45 of the
+"""The channels' hum tones are read up to this many times the band's top (at most 0.45 of the
 tare's sampling rate): the smoothers let through a part of those beyond the band, and nothing
 (their eighth-order fall, 4^-8) beyond."""
 
 
-def _gauge_hum(rig: Rig, band: tuple[float, float], tare: np.ndarray | None,
-               tare_fs: float | None) -> tuple[tuple[int, float, float], ...]:
-    """Every gauge's hum tones, from the zero-current record's gauges (none without
-    ``acquisition.mains`` or a tare), up to ``HUM_REACH`` times the band's top."""
+def _channel_hum(rig: Rig, band: tuple[float, float], tare: np.ndarray | None,
+                 tare_fs: float | None) -> tuple[tuple[int, float, float], ...]:
+    """Every channel's hum tones, from the zero-current record's gauges and probes (none
+    without ``acquisition.mains`` or a tare), up to ``HUM_REACH`` times the band's top."""
     if rig.mains is None or tare is None or tare_fs is None:
         return ()
     tones, power = hum_tones(tare, tare_fs, rig.mains, min(0.45 * tare_fs, HUM_REACH * band[1]))
@@ -278,5 +280,5 @@ def hum_notes(rig: Rig, tare: object, source: str) -> tuple[str, ...]:
     if rig.mains is None or tare is not None:
         return ()
     return (f"run '{source}': acquisition.mains is {rig.mains:g} Hz, but without a tare record "
-            "the gauges' hum on its harmonics is not in the uncertainty (give a zero-current "
-            "record, --tare)",)
+            "the gauges' and probes' hum on its harmonics is not in the uncertainty (give a "
+            "zero-current record, --tare)",)

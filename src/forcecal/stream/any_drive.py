@@ -108,9 +108,9 @@ class AnyDriveStream:
         :data:`WARMUP`, :data:`STEP`).
     source : str
         The run, named in messages.
-    tare, tare_fs : (n_gauges, n) array [N] and float [Hz], optional
-        A zero-current record's gauges: with ``acquisition.mains``, their hum tones join the
-        noise (:func:`forcecal.transient_setup.any_drive_setup`).
+    tare, tare_fs : (n_gauges + n_probes, n) array [N and m] and float [Hz], optional
+        A zero-current record's gauges, then its probes: with ``acquisition.mains``, their hum
+        tones join the noise (:func:`forcecal.transient_setup.any_drive_setup`).
 
     Attributes
     ----------
@@ -332,7 +332,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     """
     check_length(model, blocks.n_samples, blocks.fs, blocks.source)
     stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0, source=blocks.source,
-                            tare=None if tare is None else run_channels(rig, tare)[0],
+                            tare=None if tare is None
+                            else np.vstack(run_channels(rig, tare)[:2]),
                             tare_fs=None if tare is None else tare.fs)
     names = list(rig.force_names)
     above = AboveBand(blocks.fs, model.band, blocks.t0)
