@@ -1023,3 +1023,87 @@ def test_the_probes_hum_is_stated_from_the_tare(beam, bb_model, monkeypatch):
     monkeypatch.setattr(transient_setup, "_channel_hum",
                         lambda *a: tuple(h for h in every(*a) if h[0] < len(rig.gauges)))
     assert all(v > 4.0 for v in z(reconstruct_any(rig, bb_model, run, tare=tare)))
+
+
+@pytest.fixture(scope="module")
+def chirp(beam):
+    """The fixture's chirp scan without its noise: every point's velocity and reference."""
+    _preset, model, phi, _rig, modal = beam
+    rng = np.random.default_rng(11)
+    n, x = int(FS), np.linspace(0.0, 0.6, 41)
+    f = np.fft.rfftfreq(n, 1 / FS)
+    rows = model.row(x) @ phi
+    ref = np.array([np.tile(0.1 * _band_noise(rng, n // 4, 3.0, 250.0), 4) for _ in x])
+    resp = np.array([np.fft.irfft(modal(f, 2j * np.pi * f * np.fft.rfft(r) * 10.0), n,
+                                  axis=0) @ rows[k] for k, r in enumerate(ref)])
+    return x, resp, ref
+
+
+def _noisy(chirp, noise, seed):
+    """The chirp scan with white noise ``noise`` [m/s] on every response and 1e-3 A on every
+    reference, drawn from ``seed``."""
+    x, resp, ref = chirp
+    rng = np.random.default_rng(seed)
+    return Scan(points=x, response=resp + noise * rng.standard_normal(resp.shape),
+                reference=ref + 1e-3 * rng.standard_normal(ref.shape), fs=FS,
+                quantity="velocity", source="noisy.uff")
+
+
+def test_the_scans_noise_moves_the_forces_as_stated(beam, chirp):
+    """Six draws of a chirp scan's noise (100 um/s, twice the fixture's), each its own model:
+    what each moves the total force by, against a scan 50 times quieter, over the stated
+    variance the scan's noise gives (``scan_noise``), on a 2 s run of a random force over
+    5-40 Hz: the mean of the squares' ratio 0.80 (test 0.4-1.6). With the ratios smoothed as
+    far as their noise allows (Morozov's discrepancy principle, the penalty before), 4.4: the
+    smoothing's bias at the band's bottom, the same in every draw, was not stated."""
+    from forcecal.transient import any_drive_setup, run_channels, window_forces
+    from forcecal.wiener import stft_frame
+
+    rig = beam[3]
+    run = _run(beam, np.random.default_rng(5), 40.0, seconds=2.0)[0]
+    gauges, probes, _ = run_channels(rig, run)
+    frame = stft_frame(FS, run.n_samples)
+    inner = slice(int(0.2 * FS), -int(0.2 * FS))
+
+    def forces(scan):
+        m = build_broadband_model(rig, scan)
+        return window_forces(any_drive_setup(rig, m, gauges, probes, FS), m, gauges, probes,
+                             frame)
+
+    quiet = forces(_noisy(chirp, 2e-6, 0)).total[inner]
+    moved, stated = [], []
+    for seed in range(6):
+        est = forces(_noisy(chirp, 100e-6, 100 + seed))
+        moved.append(np.mean((est.total[inner] - quiet) ** 2))
+        stated.append(np.mean(est.scan_noise[inner]))
+    ratio = np.mean(moved) / np.mean(stated)
+    assert 0.4 < ratio < 1.6, ratio
+
+
+def test_the_spline_family_is_scipys_smoothing_spline():
+    """:class:`forcecal.spline_smoother.SplineFamily`'s map at any penalty gives the values of
+    :func:`scipy.interpolate.make_smoothing_spline` (achieved 1e-15 of their size, 8e-13 at
+    the largest penalty; test 1e-9), its limit the weighted straight line, and the penalty of
+    least C_p is none for values with no smooth part and, for a line, within the noise (1e-3;
+    achieved 4e-4) of the straight line."""
+    import scipy.interpolate
+
+    from forcecal.spline_smoother import SplineFamily
+
+    rng = np.random.default_rng(41)
+    x = np.arange(8.0, 201.0, 4.0)                         # a chirp's lines, a few dropped
+    x = np.delete(x, rng.choice(x.size, 5, replace=False))
+    w = rng.uniform(0.5, 2.0, x.size) * 1e6                 # inverse variances: sigma 1e-3
+    y = np.sin(x / 30.0) + 1e-3 * rng.standard_normal(x.size)
+    family = SplineFamily.over(x, w)
+    for lam in (1e-2, 1.0, 1e3, 1e6):
+        spline = scipy.interpolate.make_smoothing_spline(x, y, w=w, lam=lam)(x)
+        np.testing.assert_allclose(family.matrix(lam) @ y, spline, atol=1e-9)
+    design = np.column_stack([np.ones_like(x), x])
+    line = design @ np.linalg.lstsq(design * np.sqrt(w)[:, None], y * np.sqrt(w), rcond=None)[0]
+    np.testing.assert_allclose(family.matrix(np.inf) @ y, line, atol=1e-9)
+    assert 0.0 < family.least_risk(y) < np.inf
+    straight = 0.3 + 0.01 * x + 1e-3 * rng.standard_normal(x.size)
+    np.testing.assert_allclose(family.matrix(family.least_risk(straight)) @ straight,
+                               family.matrix(np.inf) @ straight, atol=1e-3)
+    assert family.least_risk(rng.standard_normal(x.size) * 10.0) == 0.0

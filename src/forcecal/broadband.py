@@ -19,9 +19,9 @@ referred to the coil current, never the shapes they mix.
    coordinates, with their covariance from the points' noise.
 4. The operating shape's ratios a_k / a_1 over frequency, smooth where the coordinates swing
    through a resonance (they share its denominator): a smoothing spline per ratio, every line
-   weighted by its inverse variance, as smooth as the lines' noise allows (the largest
-   roughness penalty whose weighted residuals stay within that noise, chi-square per value at
-   most 1; Morozov's discrepancy principle). A line-by-line ratio carries each line's noise:
+   weighted by its inverse variance, its roughness penalty the one of least estimated mean
+   squared error (Mallows' C_p, the lines' variances known), its uncertainty the lines' noise
+   through the spline and the spline's bias. A line-by-line ratio carries each line's noise:
    on the beam's chirp scan its scatter at 8-12 Hz reaches 0.01-0.03, which moves the
    operating shape at the pole by tenths of a percent.
 
@@ -41,7 +41,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import scipy.interpolate
 
 from ._atomic import write_text_atomic
 from .basis import ShapeFit, shape_similarity
@@ -60,6 +59,7 @@ from .spatial import (
     shape_from_json,
     shape_to_json,
 )
+from .spline_smoother import SplineFamily
 
 __all__ = ["STEADY_HARMONICS", "BroadbandModel", "build_broadband_model", "load_any_model",
            "steady_model"]
@@ -369,11 +369,6 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
                           ratios=ratios, ratio_std=ratio_std)
 
 
-SETTLED = 1e-4
-"""A smoothing spline within this share of the data's spread of the weighted straight line has
-reached its limit: the line serves from there."""
-
-
 def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The ratios a_k / a_1 smoothed over the lines, and their standard uncertainty.
@@ -392,13 +387,18 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
         The first row 1.
     std : (n_shapes, n_lines) array
         Of Re and of Im each (the first row 0): the lines' noise through the smoother,
-        sqrt(sum_j S_ij^2 var_j), S the spline's linear map from the lines to its values.
+        sum_j S_ij^2 var_j (S the spline's linear map from the lines to its values), and its
+        bias as the smoother's own estimate shows it, |(S - I) S r|^2 / 2, in quadrature.
 
-    Every ratio's Re and Im get a smoothing spline (:func:`scipy.interpolate.
-    make_smoothing_spline`) weighted by the inverse variance of the line's ratio, to first
-    order (var(a_k) + |r|^2 var(a_1) - 2 Re(r) cov(a_k, a_1)) / |a_1|^2, with the largest
-    roughness penalty (over decades, then 2, 4 or 8 times the last) that leaves the weighted
-    residuals at most one per value (the weighted straight line where even it does).
+    Every ratio's Re and Im get a cubic smoothing spline (:class:`forcecal.spline_smoother.
+    SplineFamily`) weighted by the inverse variance of the line's ratio, to first order
+    (var(a_k) + |r|^2 var(a_1) - 2 Re(r) cov(a_k, a_1)) / |a_1|^2, with the roughness penalty
+    of least estimated risk (Mallows' C_p; none, or the weighted straight line, where either
+    serves best). The largest penalty whose
+    residuals stay within the noise (Morozov's discrepancy principle) smoothed too far: on the
+    FE beam's chirp scan the ratios' error at 10 and 30 Hz was 3-5 times their stated
+    uncertainty, a bias the same in every draw of the scan's noise, and the inertia's error
+    from them 2-3 times its statement.
     """
     tiny = np.finfo(float).tiny
     first = np.where(np.abs(coords[0]) > tiny, coords[0], tiny)
@@ -408,63 +408,15 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
         r = ratios[k]
         var = np.maximum((cov[:, k, k] + np.abs(r) ** 2 * cov[:, 0, 0]
                           - 2.0 * r.real * cov[:, k, 0]) / np.abs(first) ** 2, tiny)
-        w = 1.0 / var
-        top = float(np.max(w))                # weights scaled to at most 1 for the spline
-        lam = _discrepancy_penalty(frequencies, r, w / top, top) if r.size >= 5 else None
-        if lam is None:                       # no smoothing within the noise
+        if r.size < 5:                        # too few lines to smooth
             out[k], std[k] = r, np.sqrt(var)
             continue
-        smoother = (_line(frequencies, w / top) if np.isinf(lam) else
-                    np.column_stack([_spline(frequencies, e, w / top, lam)
-                                     for e in np.eye(r.size)]))
+        family = SplineFamily.over(frequencies, 1.0 / var)
+        smoother = family.matrix(family.least_risk(r))
         out[k] = smoother @ r
-        std[k] = np.sqrt(smoother**2 @ var)
+        bias = smoother @ out[k] - out[k]     # the smoother's bias on its own estimate
+        std[k] = np.sqrt(smoother**2 @ var + np.abs(bias) ** 2 / 2.0)
     return out, std
-
-
-def _spline(x: np.ndarray, y: np.ndarray, w: np.ndarray, lam: float) -> np.ndarray:
-    return scipy.interpolate.make_smoothing_spline(x, y, w=w, lam=lam)(x)
-
-
-def _line(x: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """(n, n): the weighted least-squares straight line's linear map from values at ``x`` to
-    its values there, the smoothing spline's limit at an infinite penalty."""
-    design = np.column_stack([np.ones_like(x), x - np.mean(x)])
-    return design @ np.linalg.solve(design.T @ (design * w[:, None]), (design * w[:, None]).T)
-
-
-def _discrepancy_penalty(x: np.ndarray, y: np.ndarray, w: np.ndarray, scale: float
-                         ) -> float | None:
-    """The largest penalty of the smoothing spline of complex ``y`` at ``x`` (weights ``w``,
-    the inverse variances over ``scale``) whose residuals' chi-square per value is <= 1; None
-    when even the smallest tried exceeds it; infinity when the spline's limit, the weighted
-    straight line, stays within the noise.
-
-    The penalty grows no further once the spline is within ``SETTLED`` of the data's spread
-    of that line: far beyond, its solve loses its digits (its values, and its linear map,
-    fall towards zero), so the line itself serves."""
-    def chi2(values: np.ndarray) -> float:
-        return float(np.sum(w * np.abs(values - y) ** 2) * scale / (2 * y.size))
-
-    line = _line(x, w) @ y
-    spread = float(np.max(np.abs(y - np.mean(y)))) + np.finfo(float).tiny
-    best = None
-    lam = 1e-12 * float(np.ptp(x)) ** 3
-    for _ in range(40):                        # decades: the last that stays within the noise
-        values = _spline(x, y.real, w, lam) + 1j * _spline(x, y.imag, w, lam)
-        if chi2(values) > 1.0:
-            break
-        if np.max(np.abs(values - line)) <= SETTLED * spread:
-            return np.inf
-        best, lam = lam, lam * 10.0
-    if best is None:
-        return None
-    for factor in (8.0, 4.0, 2.0):             # then the largest of 8, 4, 2 times it that does
-        trial = factor * best
-        if trial < lam and chi2(_spline(x, y.real, w, trial)
-                                + 1j * _spline(x, y.imag, w, trial)) <= 1.0:
-            return trial
-    return best
 
 
 def _span_size(sv: np.ndarray, chi2: np.ndarray, shape: tuple[int, int]) -> tuple[int, str]:
