@@ -948,7 +948,8 @@ def test_the_scans_noise_is_its_part_of_the_stated_variance_and_noted(beam, scan
     """The total's variance from the scan's noise (``scan_noise``) is what the stated variance
     loses when the scan's shapes and ratios are known exactly (achieved: to 1e-11 of its
     largest value); where it makes most of the stated variance in some half second (a scan 8
-    times noisier) the run is noted, and on the fixture's scan it is not."""
+    times noisier) the run is noted, in batch and in the stream, and on the fixture's scan it
+    is not."""
     from forcecal.transient import any_drive_setup, run_channels, window_forces
     from forcecal.wiener import stft_frame
 
@@ -969,8 +970,10 @@ def test_the_scans_noise_is_its_part_of_the_stated_variance_and_noted(beam, scan
     assert np.max(known.scan_noise) < 1e-20
     lost = est.total_std**2 - known.total_std**2
     assert np.max(np.abs(lost - est.scan_noise)) < 1e-6 * np.max(est.scan_noise)
-    noted = [t for t in reconstruct_any(rig, noisy, run).notes if "the scan's noise makes" in t]
-    assert len(noted) == 1 and "random.csv" in noted[0], noted
+    for smooth in (True, False):                                    # batch and stream
+        noted = [t for t in reconstruct_any(rig, noisy, run, smooth=smooth).notes
+                 if "the scan's noise makes" in t]
+        assert len(noted) == 1 and "run 'random" in noted[0], noted
     assert not any("the scan's noise" in t for t in reconstruct_any(rig, bb_model, run).notes)
 
 
