@@ -394,11 +394,10 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     SplineFamily`) weighted by the inverse variance of the line's ratio, to first order
     (var(a_k) + |r|^2 var(a_1) - 2 Re(r) cov(a_k, a_1)) / |a_1|^2, with the roughness penalty
     of least estimated risk (Mallows' C_p; none, or the weighted straight line, where either
-    serves best). The largest penalty whose
-    residuals stay within the noise (Morozov's discrepancy principle) smoothed too far: on the
-    FE beam's chirp scan the ratios' error at 10 and 30 Hz was 3-5 times their stated
-    uncertainty, a bias the same in every draw of the scan's noise, and the inertia's error
-    from them 2-3 times its statement.
+    serves best). The largest penalty whose residuals stay within the noise (Morozov's
+    discrepancy principle) smoothed too far: on the FE beam's chirp scan the ratios' error at
+    10 and 30 Hz was 3-5 times their stated uncertainty, a bias the same in every draw of the
+    scan's noise, and what that noise moved the total force by 2.1 times its statement.
     """
     tiny = np.finfo(float).tiny
     first = np.where(np.abs(coords[0]) > tiny, coords[0], tiny)
