@@ -1113,3 +1113,25 @@ def test_the_spline_family_is_scipys_smoothing_spline():
     np.testing.assert_allclose(family.matrix(family.least_risk(straight)) @ straight,
                                family.matrix(np.inf) @ straight, atol=1e-3)
     assert family.least_risk(rng.standard_normal(x.size) * 10.0) == 0.0
+
+
+def test_a_line_whose_noise_reads_zero_does_not_take_the_ratios():
+    """:func:`forcecal.broadband.smooth_ratios` with one line's covariance zero, one line's
+    1e200 and every line's 1e-300 times its size: the smoothed ratio stays within 1e-2 of the
+    lines (achieved 1.0e-3, their noise's size; a zero-variance line had taken the spline to
+    1e132), with finite uncertainties."""
+    from forcecal.broadband import smooth_ratios
+
+    rng = np.random.default_rng(43)
+    f = np.arange(8.0, 201.0, 4.0)
+    coords = np.vstack([np.full(f.size, 1.0 + 0.1j),
+                        0.01 * np.sin(f / 30.0) + 1e-4 * rng.standard_normal(f.size) + 0j])
+    for change in ("zero", "huge", "tiny"):
+        cov = np.zeros((f.size, 2, 2))
+        cov[:, 0, 0] = cov[:, 1, 1] = 1e-8
+        cov[3] = 0.0 if change == "zero" else cov[3]
+        cov[5, 1, 1] = 1e200 if change == "huge" else cov[5, 1, 1]
+        cov = cov * (1e-300 if change == "tiny" else 1.0)
+        ratios, std = smooth_ratios(f, coords, cov)
+        assert np.all(np.isfinite(ratios)) and np.all(np.isfinite(std)), change
+        assert np.max(np.abs(ratios[1] - coords[1] / coords[0])) < 1e-2, change

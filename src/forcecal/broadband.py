@@ -369,6 +369,12 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
                           ratios=ratios, ratio_std=ratio_std)
 
 
+WEIGHT_RANGE = 1e8
+"""A line's ratio variance is held within this factor of the lines' median either way before
+it weighs the spline: a line whose noise reads zero took the whole fit (its ratio 1e132) and
+one of no weight overflowed the penalties tried."""
+
+
 def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
                   ) -> tuple[np.ndarray, np.ndarray]:
     """The ratios a_k / a_1 smoothed over the lines, and their standard uncertainty.
@@ -410,6 +416,8 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
         if r.size < 5:                        # too few lines to smooth
             out[k], std[k] = r, np.sqrt(var)
             continue
+        typical = float(np.median(var))        # a line "without noise", or without signal,
+        var = np.clip(var, typical / WEIGHT_RANGE, WEIGHT_RANGE * typical)   # no outlier
         family = SplineFamily.over(frequencies, 1.0 / var)
         smoother = family.matrix(family.least_risk(r))
         out[k] = smoother @ r

@@ -7,7 +7,9 @@
   from its usual level in some half second (:func:`check_channel_noise`): died, saturated or
   come loose; refused where it happens, in batch and in a stream;
 - the drive's force above the scan's band (:class:`AboveBand`): a biased magnet pulls at twice
-  its drive's frequencies, where the scan has no operating shape; noted.
+  its drive's frequencies, where the scan has no operating shape; noted. Its half-second
+  reading (:class:`WorstHalfSecond`) serves other notes too
+  (:class:`forcecal.inertia_errors.ScanNoiseShare`).
 """
 
 from __future__ import annotations
@@ -19,8 +21,8 @@ import scipy.signal
 
 from .errors import DataError, InputError
 
-__all__ = ["ABOVE_BAND", "NOISE_BLOCK", "NOISE_CHANGE", "AboveBand", "channel_noise",
-           "check_channel_noise"]
+__all__ = ["ABOVE_BAND", "NOISE_BLOCK", "NOISE_CHANGE", "AboveBand", "WorstHalfSecond",
+           "channel_noise", "check_channel_noise"]
 
 
 def channel_noise(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.ndarray:
@@ -124,15 +126,57 @@ SIGNIFICANT = 5.0
 noise's own Welch estimate summed over the same lines."""
 
 
-class AboveBand:
+class WorstHalfSecond:
+    """The largest of a share read over every complete half second of samples fed as they come
+    (:meth:`add`: the whole record in batch, block by block in a stream); a record shorter
+    than half a second is read whole. Subclasses say what the share is (:meth:`_share`, of
+    a block whose last axis is time).
+
+    Parameters
+    ----------
+    fs : float [Hz]
+    t0 : float [s]
+        The time of the first sample.
+    least : int
+        The fewest samples read at once.
+    """
+
+    def __init__(self, fs: float, t0: float = 0.0, least: int = 1):
+        self.fs, self.t0 = fs, t0
+        self._n = max(int(0.5 * fs), least)
+        self._buffer: np.ndarray | None = None
+        self._done = 0
+        self._worst = (0.0, t0)
+
+    def add(self, samples: np.ndarray) -> None:
+        """Feed the next samples (time on the last axis)."""
+        self._buffer = (samples if self._buffer is None
+                        else np.concatenate([self._buffer, samples], axis=-1))
+        while self._buffer.shape[-1] >= self._n:
+            share = self._share(self._buffer[..., :self._n])
+            if share > self._worst[0]:
+                self._worst = (share, self.t0 + self._done / self.fs)
+            self._buffer, self._done = self._buffer[..., self._n:], self._done + self._n
+
+    def worst(self) -> tuple[float, float]:
+        """(share, the time [s] its half second starts)."""
+        if not self._done and self._buffer is not None and self._buffer.shape[-1]:
+            return self._share(self._buffer), self.t0
+        return self._worst
+
+    def _share(self, block: np.ndarray) -> float:
+        raise NotImplementedError
+
+
+class AboveBand(WorstHalfSecond):
     """A note when the coil current's square (the magnet's force at a fixed gap) holds more
     than ``ABOVE_BAND`` of its AC power above the scan's band in any half second, its white
     noise (:func:`channel_noise`) taken out: that content has no operating shape, so the
     smoothers set it aside and its inertia is not compensated. A biased magnet pulls at twice
     its drive's frequencies, which a scan over the drive's band alone misses.
 
-    The current is fed as it comes (:meth:`add`: the whole record in batch, block by block in
-    a stream); every complete half second is read once, and the largest share is kept.
+    The current [A] is fed as it comes (:meth:`add`); every complete half second is read
+    once, and the largest share is kept.
 
     Parameters
     ----------
@@ -143,27 +187,13 @@ class AboveBand:
     """
 
     def __init__(self, fs: float, band: tuple[float, float], t0: float = 0.0):
-        self.fs, self.band, self.t0 = fs, band, t0
-        self._n = max(int(0.5 * fs), 256)
-        self._buffer = np.empty(0)
-        self._done = 0
-        self._worst = (0.0, t0)
-
-    def add(self, current: np.ndarray) -> None:
-        """Feed the next samples of the current [A]."""
-        self._buffer = np.concatenate([self._buffer, current])
-        while self._buffer.size >= self._n:
-            share = self._share(self._buffer[:self._n])
-            if share > self._worst[0]:
-                self._worst = (share, self.t0 + self._done / self.fs)
-            self._buffer, self._done = self._buffer[self._n:], self._done + self._n
+        super().__init__(fs, t0, least=256)
+        self.band = band
 
     def notes(self, source: str) -> tuple[str, ...]:
         """The note on the run ``source``, if its worst half second held more than
         ``ABOVE_BAND`` (a record shorter than half a second read whole)."""
-        share, at = self._worst
-        if not self._done and self._buffer.size:
-            share, at = self._share(self._buffer), self.t0
+        share, at = self.worst()
         if share <= ABOVE_BAND:
             return ()
         return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(share):.2g} % of "

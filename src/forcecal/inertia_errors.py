@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from .broadband import BroadbandModel
+from .channel_checks import WorstHalfSecond
 
 __all__ = ["ScanNoiseShare", "above_band_weights", "correction_sensitivities",
            "inertia_error_weights", "scan_noise_weights", "shape_error_weights"]
@@ -171,13 +172,14 @@ SCAN_NOISE_SHARE = 0.5
 half second, is noted: the scan, not the run, limits the estimate there."""
 
 
-class ScanNoiseShare:
+class ScanNoiseShare(WorstHalfSecond):
     """A note when the scan's noise (:func:`scan_noise_weights`) makes more than
     ``SCAN_NOISE_SHARE`` of the total force's stated variance in any half second: a scan that
     averages more periods at every point lowers it, and the run does not.
 
-    The variances are fed as they come (:meth:`add`: the whole record in batch, block by block
-    in a stream); every complete half second is read once, and the largest share is kept.
+    The total's variance from the scan's noise and all its stated variance [N^2] are fed as
+    they come, stacked (:meth:`add`, (2, n)); every complete half second is read once, and
+    the largest share is kept.
 
     Parameters
     ----------
@@ -186,29 +188,10 @@ class ScanNoiseShare:
         The time of the first sample.
     """
 
-    def __init__(self, fs: float, t0: float = 0.0):
-        self.fs, self.t0 = fs, t0
-        self._n = max(int(0.5 * fs), 1)
-        self._buffer = np.empty((2, 0))
-        self._done = 0
-        self._worst = (0.0, t0)
-
-    def add(self, scan_noise: np.ndarray, total_var: np.ndarray) -> None:
-        """Feed the next samples' variance of the total from the scan's noise and all of its
-        stated variance [N^2]."""
-        self._buffer = np.hstack([self._buffer, np.vstack([scan_noise, total_var])])
-        while self._buffer.shape[1] >= self._n:
-            share = self._share(self._buffer[:, :self._n])
-            if share > self._worst[0]:
-                self._worst = (share, self.t0 + self._done / self.fs)
-            self._buffer, self._done = self._buffer[:, self._n:], self._done + self._n
-
     def notes(self, source: str) -> tuple[str, ...]:
         """The note on the run ``source``, if its worst half second's share exceeded
         ``SCAN_NOISE_SHARE`` (a record shorter than half a second read whole)."""
-        share, at = self._worst
-        if not self._done and self._buffer.size:
-            share, at = self._share(self._buffer), self.t0
+        share, at = self.worst()
         if share <= SCAN_NOISE_SHARE:
             return ()
         return (f"run '{source}': the scan's noise makes {100 * share:.0f} % of the total "
@@ -216,7 +199,6 @@ class ScanNoiseShare:
                 "shapes, through the inertia): a scan that averages more periods at every "
                 "point lowers it",)
 
-    @staticmethod
-    def _share(block: np.ndarray) -> float:
+    def _share(self, block: np.ndarray) -> float:
         total = float(np.sum(block[1]))
         return float(np.sum(block[0])) / total if total > 0 else 0.0

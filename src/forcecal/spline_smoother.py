@@ -38,7 +38,10 @@ class SplineFamily:
     Attributes
     ----------
     root_weights : (n,) array
-        sqrt(w).
+        sqrt(w / scale): the weights over their median, so the basis is the same for weights
+        of any size.
+    scale : float
+        That median (the residuals' weights in the risk are the weights themselves).
     vectors : (n, n) array
         The Demmler-Reinsch basis: the eigenvectors of W^-1/2 K W^-1/2.
     alpha : (n,) array
@@ -48,6 +51,7 @@ class SplineFamily:
     root_weights: np.ndarray
     vectors: np.ndarray
     alpha: np.ndarray
+    scale: float = 1.0
 
     @classmethod
     def over(cls, x: np.ndarray, w: np.ndarray) -> SplineFamily:
@@ -63,17 +67,19 @@ class SplineFamily:
         r = (np.diag((h[:-1] + h[1:]) / 3.0) + np.diag(h[1:-1] / 6.0, 1)
              + np.diag(h[1:-1] / 6.0, -1))
         k = q @ np.linalg.solve(r, q.T)
-        sw = np.sqrt(np.asarray(w, float))
+        w = np.asarray(w, float)
+        scale = float(np.median(w))
+        sw = np.sqrt(w / scale)
         a = k / sw[:, None] / sw[None, :]
         alpha, vectors = np.linalg.eigh(0.5 * (a + a.T))
         alpha = np.where(alpha <= NULL * alpha[-1], 0.0, alpha)
-        return cls(root_weights=sw, vectors=vectors, alpha=alpha)
+        return cls(root_weights=sw, vectors=vectors, alpha=alpha, scale=scale)
 
     def gains(self, lam: float) -> np.ndarray:
         """(n,): the map's eigenvalues at penalty ``lam`` (``inf``: the straight line)."""
         if np.isinf(lam):
             return (self.alpha == 0.0).astype(float)
-        return 1.0 / (1.0 + lam * self.alpha)
+        return 1.0 / (1.0 + lam / self.scale * self.alpha)     # the basis's weights are w / scale
 
     def matrix(self, lam: float) -> np.ndarray:
         """(n, n): S(lam), the map from the values at the lines to the spline's there."""
@@ -84,11 +90,12 @@ class SplineFamily:
     def least_risk(self, y: np.ndarray) -> float:
         """The penalty of least C_p for complex (or real) values ``y`` at the lines: 0 (none)
         or ``inf`` (the straight line) among the candidates."""
-        c = np.abs(self.vectors.T @ (self.root_weights * y)) ** 2        # Re^2 + Im^2
+        c = self.scale * np.abs(self.vectors.T @ (self.root_weights * y)) ** 2  # Re^2 + Im^2
         parts = 2.0 if np.iscomplexobj(y) else 1.0
         live = self.alpha[self.alpha > 0.0]
-        grid = np.geomspace(1e-3 / live.max(), 1e3 / live.min(), PENALTIES)
-        candidates = np.r_[0.0, grid, np.inf]
+        with np.errstate(over="ignore"):    # weights near the float's end: what is finite
+            grid = self.scale * np.geomspace(1e-3 / live.max(), 1e3 / live.min(), PENALTIES)
+        candidates = np.r_[0.0, grid[np.isfinite(grid) & (grid > 0.0)], np.inf]
         risk = [float(np.sum(c * (1.0 - g) ** 2) + 2.0 * parts * np.sum(g))
                 for g in map(self.gains, candidates)]
         return float(candidates[int(np.argmin(risk))])

@@ -442,7 +442,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     scan = ScanNoiseShare(fs, run.t0)
-    scan.add(est.scan_noise, est.total_std**2)
+    scan.add(np.vstack([est.scan_noise, est.total_std**2]))
     notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
              transfer_note(setup.transfer, run.source),

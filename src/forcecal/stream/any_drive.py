@@ -209,7 +209,7 @@ class AnyDriveStream:
                             stft_frame(self.fs, window.shape[1]), self.source,
                             (start == 0, final))
         given = est.part(slice(self._given - start, end - start))
-        self.scan_share.add(given.scan_noise, given.total_std**2)
+        self.scan_share.add(np.vstack([given.scan_noise, given.total_std**2]))
         out.append(StreamChunk(time=self.t0 + np.arange(self._given, end) / self.fs,
                                estimate=given))
         self._given = end
