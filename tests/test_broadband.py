@@ -162,8 +162,8 @@ def test_broadband_span_shapes_and_couplings(beam, bb_model):
 def test_steady_model_from_broadband(beam, bb_model):
     """Each harmonic of a steady run gets the operating shape of its own frequency: the ratio
     of its mass coupling to its value at a probe is the FE beam's own at that frequency
-    (achieved within 0.12 % at 36-180 Hz with the smoothed ratios, 0.26 % with each line's
-    own; test 0.35 %, where one shape for all is up to 7.3 % off)."""
+    (achieved within 0.057 % at 36-180 Hz with the smoothed ratios, 0.40 % with each line's
+    own; test 0.17 %, where one shape for all is up to 7.2 % off)."""
     from forcecal.simulate.virtual_rig import _inertia
 
     preset, model, phi, rig, modal = beam
@@ -179,7 +179,7 @@ def test_steady_model_from_broadband(beam, bb_model):
         first = bb_model.couplings[:, 0] / bb_model.values(np.array([0.1]))[0, 0]
         errors.append(np.max(np.abs(got / want - 1)))
         one_shape.append(np.max(np.abs(first / want - 1)))
-    assert max(errors) < 3.5e-3
+    assert max(errors) < 1.7e-3, max(errors)
     assert max(one_shape) > 3e-2
     with pytest.raises(InputError, match="lies above the band"):
         steady_model(bb_model, rig, 250.0, 3)
@@ -187,15 +187,15 @@ def test_steady_model_from_broadband(beam, bb_model):
 
 def test_any_drive_forces_against_truth(beam, bb_model):
     """A band-limited random force (5-40 Hz) on the FE beam, sample by sample: the total within
-    0.17 % of its AC RMS (achieved 0.054 %; 0.24 % with the record's ends reflected, not
-    predicted), each force within 0.15 % (achieved 0.045-0.047 %; 0.12 % reflected),
+    0.17 % of its AC RMS (achieved 0.050 %; 0.24 % with the record's ends reflected, not
+    predicted), each force within 0.15 % (achieved 0.044-0.046 %; 0.12 % reflected),
     where the reactions alone are 24 % off; the inertia term's gain within 0.12 % of the
-    truth's (achieved 1.0007-1.0008; without the operating shapes' correction, the first shape
+    truth's (achieved 1.0005; without the operating shapes' correction, the first shape
     alone gives 0.965: at low frequencies the deflection is quasi-static, not the first mode).
-    The stated uncertainty holds the error inside the record: RMS error / stated 1.06 and
-    94.4 % of the samples within 2 u (test 0.85-1.25, which a doubled variance (0.80) or a
-    halved one (1.60) leaves), each force's 0.90-0.94 (the same test); and in its first and
-    last 50 ms: 0.23 and 0.38 (test <= 1.2; 4.6 and 4.8 without the ends' term, before the
+    The stated uncertainty holds the error inside the record: RMS error / stated 1.00 and
+    95.7 % of the samples within 2 u (test 0.85-1.25, which a doubled variance (0.71) or a
+    halved one (1.42) leaves), each force's 0.87 (the same test); and in its first and
+    last 50 ms: 0.26 and 0.42 (test <= 1.2; 4.6 and 4.8 without the ends' term, before the
     ends were predicted)."""
     rng = np.random.default_rng(5)
     run, u, gauges = _run(beam, rng, 40.0)
@@ -213,7 +213,7 @@ def test_any_drive_forces_against_truth(beam, bb_model):
         assert np.sqrt(np.mean(z_end**2)) <= 1.2, np.sqrt(np.mean(z_end**2))
     for k in range(2):
         assert np.sqrt(np.mean((est.force[k] - u) ** 2)) / ac < 0.0015
-        z_k = ((est.force[k] - u) / est.force_std[k])[inner]            # achieved 0.90-0.94
+        z_k = ((est.force[k] - u) / est.force_std[k])[inner]            # achieved 0.87
         assert 0.85 < np.sqrt(np.mean(z_k**2)) < 1.25, np.sqrt(np.mean(z_k**2))
     static = est.static.sum(axis=0) - truth
     assert np.std(static) / ac > 0.15
@@ -458,8 +458,8 @@ def test_a_force_above_the_scans_band_is_noted(beam, bb_model, random_run):
 
 def test_operating_shapes_are_smooth_over_frequency(beam, bb_model):
     """The operating shape from a probe to the poles against the FE beam's, at the midpoints
-    of the scan's lines over the band: within 1 % with the smoothed ratios (achieved 0.35 %,
-    at 198 Hz); each line's own ratio errs 2.0 % at 6-46 Hz, where the
+    of the scan's lines over the band: within 1 % with the smoothed ratios (achieved 0.48 %,
+    at 198 Hz); each line's own ratio errs 3.0 % at 6-46 Hz, where the
     scan's velocity lines are weakest."""
     _preset, model, phi, _rig, modal = beam
     probe, poles = np.array([0.1]), np.array([0.25, 0.35])
@@ -532,7 +532,7 @@ def test_the_reactions_carry_the_inertia_where_the_probes_are_noisy(beam, bb_mod
     times w^2 is the inertia's largest error at the top of the band, and the structure's
     transfer from the reactions to the motion, fitted over the record, takes the inertia from
     the far quieter gauges. Inside the record every 0.5 s window is within 0.6 % of its AC RMS
-    (achieved 0.20-0.23 %), each force within 0.35 % of it (achieved 0.11-0.12 %); from the
+    (achieved 0.18-0.28 %), each force within 0.35 % of it (achieved 0.11-0.12 %); from the
     probes alone (no transfer) the windows err 1.2-1.7 % (test > 1 %). The transfer leaves
     chi-square 1.02 per degree of freedom (test 0.8-1.25), and the note says so."""
     import forcecal.transient_setup as transient_setup
@@ -562,7 +562,7 @@ def test_what_the_transfer_misses_is_left_to_the_probes(beam, bb_model, monkeypa
     """A transfer 2 % off (as a structure that has changed since its record would leave it):
     what it misses of the coordinate rises far above the probes' noise, and the smoother of
     that residual keeps it, so the random force over 5-150 Hz stays within 2.5 % of its AC RMS
-    in every 0.5 s window inside the record (achieved 1.08-1.61 %, the probes alone's 1.2-1.7 %);
+    in every 0.5 s window inside the record (achieved 1.09-1.62 %, the probes alone's 1.2-1.7 %);
     without the residual (every line of it taken for noise) the windows err 10-22 % (test
     > 5 %)."""
     import forcecal.transient_setup as transient_setup
@@ -636,7 +636,7 @@ def test_each_declared_type_b_uncertainty_moves_the_forces_as_stated(beam, bb_mo
     """The rig's type-B uncertainties under any drive, each parameter's first-order change of
     every force and the total against the estimate's own change when the parameter is moved by
     it (the readings scaled; the rig moved, its couplings with the span's shapes recomputed):
-    RMS ratio within 3 % of 1 (achieved 0.990-1.000 for a gauge's and a probe's sensitivity,
+    RMS ratio within 3 % of 1 (achieved 0.989-1.000 for a gauge's and a probe's sensitivity,
     a probe's and a gauge's position and the distributed mass; with the couplings' or the
     probes' part dropped, 1e147). A rig that declares none is estimated with the defaults, and
     a note says so."""
@@ -752,7 +752,7 @@ def test_mains_hum_is_no_motion_and_its_split_is_stated(beam, bb_model):
 def test_the_ratios_stated_uncertainty_covers_their_error(beam, bb_model):
     """The operating shape's ratios a_k / a_1 against the FE beam's own (its operating shape
     projected on the span), over the scan's lines: error over stated standard uncertainty,
-    Re and Im of every ratio, RMS 0.75-1.3 (achieved 0.95, 99 % within 2; with each line's
+    Re and Im of every ratio, RMS 0.75-1.3 (achieved 1.00, 97 % within 2; with each line's
     covariance from its points' noise alone 2.0: near the mode a line is strong
     enough for the span's own misfit to exceed its noise, and it takes its Birge ratio)."""
     _preset, model, phi, _rig, modal = beam
@@ -771,8 +771,8 @@ def test_the_shapes_errors_reach_the_inertia_as_stated(beam, bb_model):
     """:func:`forcecal.inertia_errors.shape_error_weights` (400 draws) against 4000 draws of
     the shapes' coefficients from their covariance, the scan's operating shape projected back
     on every drawn span: every row's variance within 25 % at 20, 70 and 150 Hz (achieved
-    0.91-1.15; a first-order propagation states 1.8-6 times it at 20 and 70 Hz, the span's
-    weakest shapes being known to a few times their size); and
+    0.79-1.15, the 400 draws' own scatter; a first-order propagation states 1.8-6 times it at
+    20 and 70 Hz, the span's weakest shapes being known to a few times their size); and
     :func:`~forcecal.inertia_errors.correction_sensitivities` against finite differences of
     the correction (within 1e-5 of its scale)."""
     from forcecal.inertia import mass_coupling
