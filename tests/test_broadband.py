@@ -1111,6 +1111,80 @@ def test_the_scans_noise_moves_the_forces_as_stated(beam, chirp):
     assert 0.4 < ratio < 1.6, ratio
 
 
+def _spectra_uff(scan: Scan, path, top: float):
+    """The scan as a PSV-like spectra export: node coordinates (dataset 15) and per point the
+    complex spectra (function type 12: pyuff writes them as FRFs, retyped) of the velocity
+    ('Vib  Velocity') and of the current ('Ref1  Current') over 0-``top`` Hz, peak amplitudes
+    of the record's transform."""
+    import pyuff
+
+    n = scan.response.shape[1]
+    lines = int(top * n / scan.fs) + 1
+    step = scan.fs / n
+    nodes = np.arange(1, len(scan.points) + 1)
+    x = np.asarray(scan.points, float).ravel()
+    zeros = np.zeros(len(nodes), dtype=int)
+    sets = [pyuff.prepare_15(node_nums=nodes, def_cs=zeros, disp_cs=zeros, color=zeros + 8,
+                             x=x, y=0 * x, z=0 * x)]
+    for k, node in enumerate(nodes):
+        for values, id2, ordinate in ((scan.response[k], "Vib  Velocity", 11),
+                                      (scan.reference[k], "Ref1  Current", 0)):
+            data = 2.0 * np.fft.rfft(values)[:lines] / n
+            sets.append(pyuff.prepare_58(
+                data=data, x=np.arange(lines) * step, binary=0, func_type=4,
+                rsp_node=int(node), rsp_dir=3, ref_node=0, ref_dir=0, id1="FFT", id2=id2,
+                abscissa_spacing=1, abscissa_inc=step, abscissa_min=0.0,
+                abscissa_spec_data_type=18, abscissa_axis_units_lab="Hz",
+                ordinate_spec_data_type=ordinate, orddenom_spec_data_type=0,
+                z_axis_spec_data_type=0))
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    text = path.read_text(encoding="ascii").split("\n")
+    for k, line in enumerate(text[:-1]):
+        if line.strip() == "-1" and text[k + 1].strip() == "58":
+            text[k + 7] = f"{12:5d}" + text[k + 7][5:]
+    path.write_text("\n".join(text), encoding="ascii")
+    return path
+
+
+def test_a_broadband_scan_exported_as_spectra_gives_the_time_records_model(beam, chirp,
+                                                                           tmp_path, capsys):
+    """The chirp scan (four periods a record) exported as SLDV software exports spectra
+    (0-400 Hz, peak amplitudes, a Universal File): ``scan`` builds from it the broadband
+    model the time records give (the same lines, its ratios within 1e-9 of theirs: the file
+    keeps 12 digits). Spectra of a drive not periodic in its record carry no noise estimate
+    (one acquisition a point, no line between the drive's): refused in one line, exit 2."""
+    import json
+
+    import tomli_w
+
+    from forcecal.cli import main
+    from forcecal.rig import rig_to_dict
+
+    rig = beam[3]
+    (tmp_path / "rig.toml").write_text(tomli_w.dumps(rig_to_dict(rig)), encoding="utf-8")
+    scan = _noisy(chirp, 50e-6, 7)
+    want = build_broadband_model(rig, scan)
+    path = _spectra_uff(scan, tmp_path / "spectra.uff", 400.0)
+    model = tmp_path / "model.json"
+    assert main(["scan", "-q", str(tmp_path / "rig.toml"), str(path), "-o", str(model)]) == 0
+    got = BroadbandModel.from_json(json.loads(model.read_text()))
+    np.testing.assert_array_equal(got.frequencies, want.frequencies)
+    assert got.n_shapes == want.n_shapes and got.shapes[0].order == want.shapes[0].order
+    np.testing.assert_allclose(got.mixing(got.frequencies), want.mixing(want.frequencies),
+                               rtol=0, atol=1e-9)
+    rng = np.random.default_rng(8)
+    n = scan.response.shape[1]
+    ref = np.array([_band_noise(rng, n, 3.0, 250.0) for _ in scan.points])   # not periodic
+    bad = _spectra_uff(dataclasses.replace(scan, reference=ref), tmp_path / "random.uff", 400.0)
+    capsys.readouterr()
+    assert main(["scan", "-q", str(tmp_path / "rig.toml"), str(bad), "-o",
+                 str(tmp_path / "bad.json")]) == 2
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and "random.uff': spectra hold one acquisition a point" in said[0]
+    assert "not periodic in its record" in said[0], said
+    assert not (tmp_path / "bad.json").exists()
+
+
 def test_the_spline_family_is_scipys_smoothing_spline():
     """:class:`forcecal.spline_smoother.SplineFamily`'s map at any penalty gives the values of
     :func:`scipy.interpolate.make_smoothing_spline` (achieved 1e-15 of their size, 8e-13 at

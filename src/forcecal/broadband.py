@@ -8,7 +8,8 @@ needs no modal parameters: the magnet's negative stiffness shifts the poles of r
 referred to the coil current, never the shapes they mix.
 
 1. Per point, the frequency response of the displacement to the reference
-   (:mod:`forcecal.frf`: leakage-free on the lines of a periodic drive, Welch's H1 otherwise)
+   (:mod:`forcecal.frf`: leakage-free on the lines of a periodic drive, Welch's H1 otherwise;
+   from time records, or from the spectra SLDV software exports when the drive is periodic)
    and the standard uncertainty of its Re and of its Im.
 2. Over the lines of the band: every line in units of its own noise, Re and Im side by side,
    a singular value decomposition (the rank-d least-squares fit of the lines). The span keeps
@@ -295,8 +296,10 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     ----------
     rig : Rig
         With ``acquisition.band``; a beam or a plate.
-    scan : Scan
-        Time records (a spectrum export holds one line per harmonic, not a band).
+    scan : Scan or ScanSpectra
+        Time records, or their spectra as SLDV software exports them (every line of the
+        record's transform over the band: the drive periodic in the record, the lines between
+        its own giving the noise, :func:`forcecal.frf.scan_response`).
     criterion : str
         "gcv" or "bic", how the shapes' order is chosen.
 
@@ -307,13 +310,11 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     Raises
     ------
     InputError
-        No band in the rig, a spectrum scan, a body, or a drive that leaves no line coherent.
+        No band in the rig, a body, spectra of a drive not periodic in their record, or a
+        drive that leaves no line coherent.
     """
     if rig.band is None:
         raise InputError(f"rig '{rig.source}': a broadband scan needs 'acquisition.band'")
-    if not isinstance(scan, Scan):
-        raise InputError(f"scan '{scan.source}': a broadband model is built from time records "
-                         "(a spectrum export holds the lines of one fundamental)")
     st = rig.structure
     if st.directed:
         raise InputError(f"rig '{rig.source}': broadband shapes are built for beams and plates "

@@ -24,7 +24,7 @@ import scipy.ndimage
 import scipy.signal
 
 from .errors import InputError
-from .records import Scan
+from .records import Scan, ScanSpectra
 
 __all__ = ["NOISE_LINES", "PERIODIC_SHARE", "SEGMENTS", "ScanResponse", "periods_in_record",
            "scan_response"]
@@ -89,12 +89,19 @@ def periods_in_record(reference: np.ndarray, fs: float, band: tuple[float, float
     f = np.fft.rfftfreq(n, 1.0 / fs)
     power = np.abs(np.fft.rfft(reference - reference.mean(axis=-1, keepdims=True),
                                axis=-1)) ** 2
-    in_band = (f >= band[0]) & (f <= band[1])
+    return _periods_on_lines(power, f, np.arange(len(f)), band)
+
+
+def _periods_on_lines(power: np.ndarray, f: np.ndarray, lines: np.ndarray,
+                      band: tuple[float, float]) -> int:
+    """The largest m >= 2 (at most 64) with at least :data:`PERIODIC_SHARE` of every
+    record's reference ``power`` (n_points, n_lines) in the band on the lines whose index
+    from 0 Hz (``lines``) is a multiple of m, or 0."""
+    in_band = (f >= band[0]) & (f <= band[1]) & (lines > 0)
     total = power[:, in_band].sum(axis=-1)
     if np.any(total <= 0):
         return 0
-    lines = np.arange(len(f))
-    for m in range(min(64, n // 4), 1, -1):
+    for m in range(min(64, int(lines[-1]) // 2), 1, -1):
         on = in_band & (lines % m == 0)
         if np.count_nonzero(on) >= 3 and np.all(power[:, on].sum(axis=-1)
                                                 >= PERIODIC_SHARE * total):
@@ -102,13 +109,15 @@ def periods_in_record(reference: np.ndarray, fs: float, band: tuple[float, float
     return 0
 
 
-def scan_response(scan: Scan, band: tuple[float, float]) -> ScanResponse:
+def scan_response(scan: Scan | ScanSpectra, band: tuple[float, float]) -> ScanResponse:
     """Each record's frequency response over ``band`` (leakage-free for a periodic drive).
 
     Parameters
     ----------
-    scan : Scan
-        Time records under a broadband drive, the coil current as reference.
+    scan : Scan or ScanSpectra
+        Time records under a broadband drive, the coil current as reference; or their spectra
+        as SLDV software exports them (one acquisition a point: the drive must be periodic,
+        m >= 2 periods a record, for the lines between to give the noise).
     band : (low, high) [Hz]
         The band the drive covered.
 
@@ -119,16 +128,24 @@ def scan_response(scan: Scan, band: tuple[float, float]) -> ScanResponse:
     Raises
     ------
     InputError
-        Records too short to resolve the band, or a band without a line.
+        Records too short to resolve the band, a band without a line, or spectra of a drive
+        that is not periodic in their record.
     """
-    if band[1] >= scan.fs / 2:
-        raise InputError(f"scan '{scan.source}': the band's top {band[1]:g} Hz is not below "
-                         f"the Nyquist frequency {scan.fs / 2:g} Hz")
-    m = periods_in_record(scan.reference, scan.fs, band)
-    if m:
-        f, h, std, coh = _periodic(scan, band, m)
+    if isinstance(scan, ScanSpectra):
+        f, h, std, coh, m = _from_spectra(scan, band)
     else:
-        f, h, std, coh = _welch(scan, band)
+        if band[1] >= scan.fs / 2:
+            raise InputError(f"scan '{scan.source}': the band's top {band[1]:g} Hz is not "
+                             f"below the Nyquist frequency {scan.fs / 2:g} Hz")
+        m = periods_in_record(scan.reference, scan.fs, band)
+        if m:
+            f = np.fft.rfftfreq(scan.response.shape[-1], 1.0 / scan.fs)
+            f, h, std, coh = _periodic(f, np.arange(len(f)),
+                                       np.fft.rfft(scan.response, axis=-1),
+                                       np.fft.rfft(scan.reference, axis=-1), band, m,
+                                       scan.source)
+        else:
+            f, h, std, coh = _welch(scan, band)
     if scan.quantity == "velocity":
         jw = 2j * np.pi * f
         h, std = h / jw, std / np.abs(jw)
@@ -136,20 +153,42 @@ def scan_response(scan: Scan, band: tuple[float, float]) -> ScanResponse:
                         source=scan.source, periods=m)
 
 
-def _periodic(scan: Scan, band: tuple[float, float],
-              m: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """H on the drive's lines of records of ``m`` whole periods, noise from the lines between."""
-    n = scan.response.shape[-1]
-    f = np.fft.rfftfreq(n, 1.0 / scan.fs)
-    x = np.fft.rfft(scan.response, axis=-1)
-    r = np.fft.rfft(scan.reference, axis=-1)
-    lines = np.arange(len(f))
+def _from_spectra(scan: ScanSpectra, band: tuple[float, float]
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """The periodic estimator on exported spectra: their lines are those of the record's
+    transform (the amplitude convention, common to response and reference, cancels in H)."""
+    f = scan.frequencies
+    step = float(f[1] - f[0]) if len(f) > 1 else 0.0
+    lines = np.rint(f / step).astype(int) if step > 0 else np.zeros(len(f), int)
+    if step <= 0 or np.any(np.abs(f - lines * step) > 1e-6 * step):
+        raise InputError(f"scan '{scan.source}': the spectra's lines are not multiples of "
+                         "their spacing from 0 Hz, as a record's transform puts them")
+    if band[1] > f[-1] or band[0] < f[0]:
+        raise InputError(f"scan '{scan.source}': the spectra cover {f[0]:g}-{f[-1]:g} Hz, "
+                         f"not the band {band[0]:g}-{band[1]:g} Hz")
+    m = _periods_on_lines(np.abs(scan.reference) ** 2, f, lines, band)
+    if not m:
+        raise InputError(f"scan '{scan.source}': spectra hold one acquisition a point, so "
+                         "their noise can only be read between the lines of a periodic drive "
+                         "(m >= 2 periods a record), and this reference is not periodic in "
+                         "its record; export the time records")
+    return (*_periodic(f, lines, scan.response, scan.reference, band, m, scan.source), m)
+
+
+def _periodic(f: np.ndarray, lines: np.ndarray, x: np.ndarray, r: np.ndarray,
+              band: tuple[float, float], m: int, source: str
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """H on the drive's lines (every ``m``-th from 0 Hz; ``lines`` the index of each of ``f``
+    from 0 Hz) of the response's and the reference's spectra ``x`` and ``r``, noise from the
+    lines between."""
     in_band = (f >= band[0]) & (f <= band[1]) & (lines > 0)
     on = np.flatnonzero(in_band & (lines % m == 0))
-    if len(on) < 3:
-        raise InputError(f"scan '{scan.source}': {len(on)} line(s) of the periodic drive in "
-                         f"the band {band[0]:g}-{band[1]:g} Hz")
     between = np.flatnonzero((lines % m != 0) & (lines > 0))
+    if len(on) < 3 or len(between) == 0:
+        raise InputError(f"scan '{source}': {len(on)} line(s) of the periodic drive in the "
+                         f"band {band[0]:g}-{band[1]:g} Hz"
+                         + ("" if len(between) else ", and no line between them to read "
+                            "the noise on"))
     p_between = np.abs(x[:, between]) ** 2
     # each drive line's noise: the mean over the nearest NOISE_LINES lines between
     width = min(NOISE_LINES, len(between))
