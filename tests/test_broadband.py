@@ -1117,6 +1117,7 @@ def _spectra_uff(scan: Scan, path, top: float):
     ('Vib  Velocity') and of the current ('Ref1  Current') over 0-``top`` Hz, peak amplitudes
     of the record's transform."""
     import pyuff
+    from uff_files import retype, write_uff
 
     n = scan.response.shape[1]
     lines = int(top * n / scan.fs) + 1
@@ -1137,13 +1138,7 @@ def _spectra_uff(scan: Scan, path, top: float):
                 abscissa_spec_data_type=18, abscissa_axis_units_lab="Hz",
                 ordinate_spec_data_type=ordinate, orddenom_spec_data_type=0,
                 z_axis_spec_data_type=0))
-    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
-    text = path.read_text(encoding="ascii").split("\n")
-    for k, line in enumerate(text[:-1]):
-        if line.strip() == "-1" and text[k + 1].strip() == "58":
-            text[k + 7] = f"{12:5d}" + text[k + 7][5:]
-    path.write_text("\n".join(text), encoding="ascii")
-    return path
+    return retype(write_uff(path, sets), 12)
 
 
 def test_a_broadband_scan_exported_as_spectra_gives_the_time_records_model(beam, chirp,

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 import pyuff
 from nptdms import ChannelObject, GroupObject, TdmsWriter
+from uff_files import retype
 
 import forcecal
 from forcecal.errors import DataError, InputError, RigError
@@ -99,17 +100,6 @@ def test_every_toml_block_parses_and_every_rig_loads(tmp_path):
 # polytec.md: a scan exported in time mode or as spectra; FRFs refused
 
 
-def set_function_type(path: Path, func_type: int) -> Path:
-    """Rewrite the function type (record 6, field 1) of every ASCII dataset 58 of a file:
-    pyuff writes no spectrum (12), so spectra are written as FRFs (4) and retyped."""
-    lines = path.read_text(encoding="ascii").split("\n")
-    for k, line in enumerate(lines[:-1]):
-        if line.strip() == "-1" and lines[k + 1].strip() == "58":
-            lines[k + 7] = f"{func_type:5d}" + lines[k + 7][5:]
-    path.write_text("\n".join(lines), encoding="ascii")
-    return path
-
-
 def psv_scan(path: Path, n_points: int = 13, func_type: int = 1, twice: int | None = None
              ) -> Path:
     """A PSV-like scan: node coordinates (dataset 15), per node a velocity record (ordinate
@@ -130,7 +120,7 @@ def psv_scan(path: Path, n_points: int = 13, func_type: int = 1, twice: int | No
             sets.append(record(data, int(node), func_type=min(func_type, 4), id2=id2,
                                ordinate_spec_data_type=ordinate))
     write_uff(path, sets)
-    return set_function_type(path, func_type) if func_type == 12 else path
+    return retype(path, func_type) if func_type == 12 else path
 
 
 def test_polytec_time_export_is_read_as_a_scan(tmp_path):

@@ -11,14 +11,13 @@ the one field that differs.
 from __future__ import annotations
 
 import dataclasses
-import gc
 import json
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
 import pyuff
+from uff_files import retype, write_uff
 
 from forcecal.cli import main
 from forcecal.errors import DataError, InputError
@@ -58,24 +57,6 @@ def spectrum_record(node: int, data: np.ndarray, df: float, id2: str, ordinate: 
         ordinate_spec_data_type=ordinate, ordinate_axis_units_lab=units,
         orddenom_spec_data_type=0, z_axis_spec_data_type=0, data=np.asarray(data),
         x=np.arange(len(data)) * df)
-
-
-def write_uff(path: Path, sets: list[dict]) -> Path:
-    with warnings.catch_warnings():  # pyuff may leave a reopened handle to the collector
-        warnings.simplefilter("ignore", ResourceWarning)
-        pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
-        gc.collect()
-    return path
-
-
-def retype(path: Path, func_type: int) -> Path:
-    """Set the function type (record 6, field 1) of every ASCII dataset 58 of a file."""
-    lines = path.read_text(encoding="ascii").split("\n")
-    for k, line in enumerate(lines[:-1]):
-        if line.strip() == "-1" and lines[k + 1].strip() == "58":
-            lines[k + 7] = f"{func_type:5d}" + lines[k + 7][5:]
-    path.write_text("\n".join(lines), encoding="ascii")
-    return path
 
 
 @dataclasses.dataclass(frozen=True)
