@@ -457,7 +457,7 @@ def _smooth_patterns(structure: Any, points: np.ndarray, patterns: np.ndarray,
     its statement (F 0.0005-0.04, against 1.3e7 and 1.5e3 for the two smooth ones), and on
     the ``lab`` rig's on the mains hum's lines (50 and 150 Hz). In the span they soak that
     junk up, away from the smooth shapes' coordinates (without them the ``lab`` sweep's
-    windows erred 10-30 %); but they must not choose the shapes' order: no order fits them,
+    windows erred up to 29 %); but they must not choose the shapes' order: no order fits them,
     so they drag the order down, which left the strong shape's own bias in the inertia.
     """
     n = len(points)
