@@ -1080,9 +1080,11 @@ def test_the_scans_noise_moves_the_forces_as_stated(beam, chirp):
     """Six draws of a chirp scan's noise (100 um/s, twice the fixture's), each its own model:
     what each moves the total force by, against a scan 50 times quieter, over the stated
     variance the scan's noise gives (``scan_noise``), on a 2 s run of a random force over
-    5-40 Hz: the mean of the squares' ratio 1.12 (test 0.4-1.6). The shapes' order chosen by
-    all the span's patterns, the rough ones too (as before), gives 1.86: the quiet scan's
-    shapes then got a higher order than the draws' and the draws' bias showed. The ratios
+    5-40 Hz: the mean of the squares' ratio 1.12 (test 0.4-1.6). The shapes' order of least
+    score instead of the highest plausible gives 2.20, and the rough patterns let into the
+    order's choice 1.61: the draws' shapes then take a lower order than the quiet scan's, and
+    their bias shows (when every pattern chose the order by least score, the quiet scan's
+    shapes shared the draws' order 7 and its bias, and this read 1.17). The ratios
     smoothed with 100 times the penalty of least risk give 8.5; with the penalty used before
     (the largest within the noise, Morozov's discrepancy principle) the same study over 8
     draws at the fixture's noise gave 4.4: the smoothing's bias at the band's bottom, the
