@@ -1178,7 +1178,7 @@ def test_a_broadband_scan_exported_as_spectra_gives_the_time_records_model(beam,
                  str(tmp_path / "bad.json")]) == 2
     said = capsys.readouterr().err.strip().splitlines()
     assert len(said) == 1 and "random.uff': spectra hold one acquisition a point" in said[0]
-    assert "not periodic in its record" in said[0], said
+    assert "does not repeat two or more whole times in its record" in said[0], said
     assert not (tmp_path / "bad.json").exists()
 
 

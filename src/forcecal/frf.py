@@ -170,8 +170,8 @@ def _from_spectra(scan: ScanSpectra, band: tuple[float, float]
     if not m:
         raise InputError(f"scan '{scan.source}': spectra hold one acquisition a point, so "
                          "their noise can only be read between the lines of a periodic drive "
-                         "(m >= 2 periods a record), and this reference is not periodic in "
-                         "its record; export the time records")
+                         "(m >= 2 periods a record), and this reference does not repeat two "
+                         "or more whole times in its record; export the time records")
     return (*_periodic(f, lines, scan.response, scan.reference, band, m, scan.source), m)
 
 
