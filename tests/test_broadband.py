@@ -1148,8 +1148,9 @@ def test_a_broadband_scan_exported_as_spectra_gives_the_time_records_model(beam,
     """The chirp scan (four periods a record) exported as SLDV software exports spectra
     (0-400 Hz, peak amplitudes, a Universal File): ``scan`` builds from it the broadband
     model the time records give (the same lines, its ratios within 1e-9 of theirs: the file
-    keeps 12 digits). Spectra of a drive not periodic in its record carry no noise estimate
-    (one acquisition a point, no line between the drive's): refused in one line, exit 2."""
+    keeps 12 digits). Spectra of a drive not periodic in its record, or of one period a record,
+    carry no noise estimate (one acquisition a point, no line between the drive's): refused in
+    one line, exit 2."""
     import json
 
     import tomli_w
@@ -1180,6 +1181,13 @@ def test_a_broadband_scan_exported_as_spectra_gives_the_time_records_model(beam,
     assert len(said) == 1 and "random.uff': spectra hold one acquisition a point" in said[0]
     assert "does not repeat two or more whole times in its record" in said[0], said
     assert not (tmp_path / "bad.json").exists()
+    quarter = n // 4                                   # one period of the chirp a record
+    one = dataclasses.replace(scan, response=scan.response[:, :quarter],
+                              reference=scan.reference[:, :quarter])
+    assert main(["scan", "-q", str(tmp_path / "rig.toml"),
+                 str(_spectra_uff(one, tmp_path / "one.uff", 400.0)), "-o",
+                 str(tmp_path / "one.json")]) == 2
+    assert "does not repeat two or more whole times" in capsys.readouterr().err
 
 
 def test_the_spline_family_is_scipys_smoothing_spline():
