@@ -164,7 +164,19 @@ class WorstHalfSecond:
             return self._share(self._buffer), self.t0
         return self._worst
 
+    def notes(self, source: str) -> tuple[str, ...]:
+        """The note on the run ``source``, if its worst half second's share exceeded
+        :attr:`limit` (a record shorter than half a second read whole)."""
+        share, at = self.worst()
+        return () if share <= self.limit else (self._note(source, share, at),)
+
+    limit: float = 0.0
+    """The share above which the worst half second is noted."""
+
     def _share(self, block: np.ndarray) -> float:
+        raise NotImplementedError
+
+    def _note(self, source: str, share: float, at: float) -> str:
         raise NotImplementedError
 
 
@@ -190,18 +202,15 @@ class AboveBand(WorstHalfSecond):
         super().__init__(fs, t0, least=256)
         self.band = band
 
-    def notes(self, source: str) -> tuple[str, ...]:
-        """The note on the run ``source``, if its worst half second held more than
-        ``ABOVE_BAND`` (a record shorter than half a second read whole)."""
-        share, at = self.worst()
-        if share <= ABOVE_BAND:
-            return ()
+    limit = ABOVE_BAND
+
+    def _note(self, source: str, share: float, at: float) -> str:
         return (f"run '{source}': the drive's force (i^2) holds {100 * np.sqrt(share):.2g} % of "
                 f"its AC amplitude above the scan's band ({self.band[1]:g} Hz) in the half "
                 f"second from {at:.3g} s: no operating shape is known there, so that part of "
                 "the force is only what the gauges' smoother lets through, its inertia "
                 "extrapolated from the band's top; scan over a band that covers it (a biased "
-                "magnet pulls at twice its drive's frequencies)",)
+                "magnet pulls at twice its drive's frequencies)")
 
     def _share(self, current: np.ndarray) -> float:
         """The share of the AC power of i^2 above the band, both less the white noise's, or 0

@@ -188,16 +188,13 @@ class ScanNoiseShare(WorstHalfSecond):
         The time of the first sample.
     """
 
-    def notes(self, source: str) -> tuple[str, ...]:
-        """The note on the run ``source``, if its worst half second's share exceeded
-        ``SCAN_NOISE_SHARE`` (a record shorter than half a second read whole)."""
-        share, at = self.worst()
-        if share <= SCAN_NOISE_SHARE:
-            return ()
+    limit = SCAN_NOISE_SHARE
+
+    def _note(self, source: str, share: float, at: float) -> str:
         return (f"run '{source}': the scan's noise makes {100 * share:.0f} % of the total "
                 f"force's stated variance in the half second from {at:.3g} s (its operating "
                 "shapes, through the inertia): a scan that averages more periods at every "
-                "point lowers it",)
+                "point lowers it")
 
     def _share(self, block: np.ndarray) -> float:
         total = float(np.sum(block[1]))
