@@ -26,7 +26,7 @@ from .errors import (
     InputError,
     RigError,
 )
-from .records import Run, Scan, ScanSpectra
+from .records import Run, Scan, ScanFRF, ScanSpectra
 from .rig import Rig, load_rig
 
 if TYPE_CHECKING:
@@ -58,6 +58,7 @@ __all__ = [
     "RigError",
     "Run",
     "Scan",
+    "ScanFRF",
     "ScanSpectra",
     "__version__",
     "build_spatial_model",

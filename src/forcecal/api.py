@@ -32,7 +32,7 @@ from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
 from .forces import reconstruct
 from .io.run_files import read_run
 from .io.scan_files import read_scan as _read_scan
-from .records import Scan, ScanSpectra
+from .records import Scan, ScanFRF, ScanSpectra
 from .rig import Rig, load_rig
 from .spatial import SpatialModel, build_spatial_model, load_model
 
@@ -53,7 +53,7 @@ __all__ = [
 
 
 def read_scan(path: str | Path, rig: Rig | None = None,
-              reference_label: str = "Ref") -> Scan | ScanSpectra:
+              reference_label: str = "Ref") -> Scan | ScanSpectra | ScanFRF:
     """Read an SLDV scan, choosing the reader from the file suffix.
 
     Parameters
@@ -69,9 +69,10 @@ def read_scan(path: str | Path, rig: Rig | None = None,
 
     Returns
     -------
-    Scan or ScanSpectra
+    Scan, ScanSpectra or ScanFRF
         The records in SI units, ``source`` = ``str(path)``: time records per point, or (a
-        Universal File of spectra, function type 12) complex spectra per point.
+        Universal File of spectra, function type 12) complex spectra per point, or (a broadband
+        scan's FRFs with their coherence, function types 4 and 6) FRFs per point.
 
     Raises
     ------

@@ -9,8 +9,8 @@ referred to the coil current, never the shapes they mix.
 
 1. Per point, the frequency response of the displacement to the reference
    (:mod:`forcecal.frf`: leakage-free on the lines of a periodic drive, Welch's H1 otherwise;
-   from time records, or from the spectra SLDV software exports when the drive is periodic)
-   and the standard uncertainty of its Re and of its Im.
+   from time records, from the spectra SLDV software exports when the drive is periodic, or
+   from its FRFs and their coherence) and the standard uncertainty of its Re and of its Im.
 2. Over the lines of the band: every line in units of its own noise, Re and Im side by side,
    a singular value decomposition (the rank-d least-squares fit of the lines). The span keeps
    the shapes whose singular values stand clear of those of noise alone; the lines' reduced
@@ -51,7 +51,7 @@ from .basis import ShapeFit, shape_similarity
 from .errors import InputError
 from .frf import scan_response
 from .inertia import mass_coupling
-from .records import Scan, ScanSpectra
+from .records import Scan, ScanFRF, ScanSpectra
 from .rig import Rig
 from .screening import record_weights
 from .spatial import (
@@ -288,7 +288,7 @@ def _real_shape(s: object) -> ShapeFit:
     return dataclasses.replace(s, coefficients=np.real(s.coefficients))
 
 
-def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
+def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
                           criterion: str = "gcv") -> BroadbandModel:
     """The span of the operating shapes of a scan under a broadband drive.
 
@@ -296,10 +296,11 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     ----------
     rig : Rig
         With ``acquisition.band``; a beam or a plate.
-    scan : Scan or ScanSpectra
+    scan : Scan, ScanSpectra or ScanFRF
         Time records, or their spectra as SLDV software exports them (every line of the
         record's transform over the band: the drive periodic in the record, the lines between
-        its own giving the noise, :func:`forcecal.frf.scan_response`).
+        its own giving the noise, :func:`forcecal.frf.scan_response`), or its FRFs and their
+        coherence (the rig giving ``acquisition.scan_averages``).
     criterion : str
         "gcv" or "bic", how the shapes' order is chosen.
 
@@ -310,8 +311,8 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     Raises
     ------
     InputError
-        No band in the rig, a body, spectra of a drive not periodic in their record, or a
-        drive that leaves no line coherent.
+        No band in the rig, a body, spectra of a drive not periodic in their record, FRFs
+        without the rig's number of averages, or a drive that leaves no line coherent.
     """
     if rig.band is None:
         raise InputError(f"rig '{rig.source}': a broadband scan needs 'acquisition.band'")
@@ -319,7 +320,12 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra,
     if st.directed:
         raise InputError(f"rig '{rig.source}': broadband shapes are built for beams and plates "
                          "(a body's vector shapes are not supported over a band)")
-    resp = scan_response(scan, rig.band)
+    if isinstance(scan, ScanFRF) and rig.scan_averages is None:
+        raise InputError(f"rig '{rig.source}': the scan '{scan.source}' holds FRFs, whose noise "
+                         "follows from their coherence and the number of averages behind them; "
+                         "a Universal File does not record that number: give it as "
+                         "'acquisition.scan_averages'")
+    resp = scan_response(scan, rig.band, rig.scan_averages)
     good = np.median(resp.coherence, axis=0) >= MIN_COHERENCE
     if np.count_nonzero(good) < 3:
         raise InputError(f"scan '{scan.source}': {np.count_nonzero(good)} line(s) of the band "

@@ -1,6 +1,6 @@
 """Every scan point's frequency response to the drive over a band (a broadband scan).
 
-Two estimators, chosen from the reference itself:
+From time records (or spectra), two estimators, chosen from the reference itself:
 
 - **Periodic drive** (a periodic chirp, a multisine, periodic random: what SLDV software plays
   by default). When the record holds m >= 2 whole periods of the reference, its discrete
@@ -13,6 +13,11 @@ Two estimators, chosen from the reference itself:
   half overlap) and the coherence; the standard uncertainty of Re and of Im is
   |H| sqrt((1 - coh) / (2 n_avg coh)) (Bendat and Piersol, random errors of frequency-response
   estimates).
+
+FRFs as SLDV software exports them (:class:`~forcecal.records.ScanFRF`) are taken as they are,
+their noise by the same formula from their coherence and the number of averages the rig
+declares; a coherence within :data:`COHERENCE_RESOLUTION` of 1 is held there (a file's last digit
+is not a noise statement).
 """
 
 from __future__ import annotations
@@ -24,10 +29,10 @@ import scipy.ndimage
 import scipy.signal
 
 from .errors import InputError
-from .records import Scan, ScanSpectra
+from .records import Scan, ScanFRF, ScanSpectra
 
-__all__ = ["NOISE_LINES", "PERIODIC_SHARE", "SEGMENTS", "ScanResponse", "periods_in_record",
-           "scan_response"]
+__all__ = ["COHERENCE_RESOLUTION", "NOISE_LINES", "PERIODIC_SHARE", "SEGMENTS", "ScanResponse",
+           "periods_in_record", "scan_response"]
 
 SEGMENTS = 8
 """Welch segments aimed at per record (half overlap): the frequency resolution is about
@@ -37,6 +42,8 @@ PERIODIC_SHARE = 0.999
 lies on every m-th line (and m >= 2)."""
 NOISE_LINES = 12
 """Lines between the drive's lines averaged, around each drive line, for its noise."""
+COHERENCE_RESOLUTION = 1e-9
+"""An exported coherence is held at most 1 - this: a line written as 1.0 states no noise."""
 
 
 @dataclass(frozen=True)
@@ -109,17 +116,21 @@ def _periods_on_lines(power: np.ndarray, f: np.ndarray, lines: np.ndarray,
     return 0
 
 
-def scan_response(scan: Scan | ScanSpectra, band: tuple[float, float]) -> ScanResponse:
+def scan_response(scan: Scan | ScanSpectra | ScanFRF, band: tuple[float, float],
+                  averages: int | None = None) -> ScanResponse:
     """Each record's frequency response over ``band`` (leakage-free for a periodic drive).
 
     Parameters
     ----------
-    scan : Scan or ScanSpectra
+    scan : Scan, ScanSpectra or ScanFRF
         Time records under a broadband drive, the coil current as reference; or their spectra
         as SLDV software exports them (one acquisition a point: the drive must be periodic,
-        m >= 2 periods a record, for the lines between to give the noise).
+        m >= 2 periods a record, for the lines between to give the noise); or their FRFs and
+        coherences.
     band : (low, high) [Hz]
         The band the drive covered.
+    averages : int, optional
+        For FRFs: the number of averages they were estimated from (required).
 
     Returns
     -------
@@ -128,10 +139,13 @@ def scan_response(scan: Scan | ScanSpectra, band: tuple[float, float]) -> ScanRe
     Raises
     ------
     InputError
-        Records too short to resolve the band, a band without a line, or spectra of a drive
-        that is not periodic in their record.
+        Records too short to resolve the band, a band without a line, spectra of a drive
+        that is not periodic in their record, or FRFs without their number of averages.
     """
-    if isinstance(scan, ScanSpectra):
+    m = 0
+    if isinstance(scan, ScanFRF):
+        f, h, std, coh = _from_frfs(scan, band, averages)
+    elif isinstance(scan, ScanSpectra):
         f, h, std, coh, m = _from_spectra(scan, band)
     else:
         if band[1] >= scan.fs / 2:
@@ -151,6 +165,31 @@ def scan_response(scan: Scan | ScanSpectra, band: tuple[float, float]) -> ScanRe
         h, std = h / jw, std / np.abs(jw)
     return ScanResponse(points=scan.points, frequencies=f, values=h, std=std, coherence=coh,
                         source=scan.source, periods=m)
+
+
+def _from_frfs(scan: ScanFRF, band: tuple[float, float], averages: int | None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Exported FRFs on their lines in the band, their noise from coherence and averages."""
+    if averages is None or averages < 1:
+        raise InputError(f"scan '{scan.source}': FRFs state their noise only with the number of "
+                         "averages they were estimated from, which the file does not hold")
+    f = scan.frequencies
+    if band[1] > f[-1] or band[0] < f[0]:
+        raise InputError(f"scan '{scan.source}': the FRFs cover {f[0]:g}-{f[-1]:g} Hz, not "
+                         f"the band {band[0]:g}-{band[1]:g} Hz")
+    lines = (f >= band[0]) & (f <= band[1]) & (f > 0)
+    if np.count_nonzero(lines) < 3:
+        raise InputError(f"scan '{scan.source}': {np.count_nonzero(lines)} line(s) of the FRFs "
+                         f"in the band {band[0]:g}-{band[1]:g} Hz")
+    h = scan.values[:, lines]
+    coh = np.clip(scan.coherence[:, lines], 1e-12, 1.0 - COHERENCE_RESOLUTION)
+    return f[lines], h, _h1_std(h, coh, averages), coh
+
+
+def _h1_std(h: np.ndarray, coh: np.ndarray, n_avg: int) -> np.ndarray:
+    """Standard uncertainty of Re and of Im of an H1 estimate from ``n_avg`` averages of
+    coherence ``coh`` (Bendat and Piersol)."""
+    return np.abs(h) * np.sqrt((1.0 - coh) / (2.0 * n_avg * coh))
 
 
 def _from_spectra(scan: ScanSpectra, band: tuple[float, float]
@@ -225,5 +264,4 @@ def _welch(scan: Scan, band: tuple[float, float]
     h = s_rx / np.maximum(s_rr, tiny)
     coh = np.clip(np.abs(s_rx) ** 2 / np.maximum(s_rr * s_xx, tiny), 1e-12, 1.0)
     n_avg = max((n - nperseg) // (nperseg // 2) + 1, 1)
-    std = np.abs(h) * np.sqrt((1.0 - coh) / (2.0 * n_avg * coh))
-    return f, h, std, coh
+    return f, h, _h1_std(h, coh, n_avg), coh

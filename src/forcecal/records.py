@@ -1,5 +1,5 @@
-"""Containers for recorded data: an SLDV scan (time records, or the spectra of a frequency-domain
-export) and a run recording.
+"""Containers for recorded data: an SLDV scan (time records, the spectra of a frequency-domain
+export, or a broadband scan's FRFs with their coherence) and a run recording.
 
 All hold SI values (conversion happens once, in :mod:`forcecal.io`), time on the last axis.
 """
@@ -13,7 +13,7 @@ import numpy as np
 
 from .errors import DataError, DimensionError
 
-__all__ = ["Run", "Scan", "ScanSpectra"]
+__all__ = ["FRF_PHASE", "Run", "Scan", "ScanFRF", "ScanSpectra"]
 
 SPECTRUM_AMPLITUDES = ("peak", "rms")
 """What a spectrum line holds for a sinusoid A cos(2 pi f t + phi) on it: A exp(j phi) (peak) or
@@ -170,6 +170,84 @@ class ScanSpectra:
     def spacing(self) -> float:
         """The line spacing [Hz]."""
         return float(self.frequencies[1] - self.frequencies[0])
+
+
+FRF_PHASE = ("whose phase at a line is relative to the reference at that same line: the "
+             "harmonics' phases relative to the drive's fundamental, which the method needs, are "
+             "lost, and so are their amplitudes relative to each other")
+"""Why a steady drive's scan cannot be read from FRFs, for messages."""
+
+
+@dataclass(frozen=True)
+class ScanFRF:
+    """A broadband SLDV scan exported as FRFs: per point the frequency response of the vibration
+    to the reference (the coil current) and its ordinary coherence, over common lines.
+
+    An FRF states its noise only with its coherence and the number of averages it was
+    estimated from (:func:`forcecal.frf.scan_response`), which a Universal File does not hold:
+    the rig gives it (``acquisition.scan_averages``).
+
+    Attributes
+    ----------
+    points : (n_points, n_dim) array [m]
+        Coordinates of the scan points, as for :class:`Scan`.
+    frequencies : (n_lines,) array [Hz]
+        The lines, increasing, at least 0 Hz.
+    values : (n_points, n_lines) complex array [m/s per A] or [m per A]
+        H = vibration / current, velocity or displacement as ``quantity`` says.
+    coherence : (n_points, n_lines) array [1]
+        The ordinary coherence of every line, within 0-1.
+    quantity : {"velocity", "displacement"}
+    source : str
+        Where the scan was read from, for messages.
+    """
+
+    points: np.ndarray
+    frequencies: np.ndarray
+    values: np.ndarray
+    coherence: np.ndarray
+    quantity: str = "velocity"
+    source: str = "<scan>"
+
+    def __post_init__(self) -> None:
+        where = f"scan '{self.source}'"
+        pts = np.asarray(self.points, dtype=float)
+        if pts.ndim == 1:
+            pts = pts[:, None]
+        object.__setattr__(self, "points", pts)
+        freq = np.asarray(self.frequencies, dtype=float)
+        values = np.atleast_2d(np.asarray(self.values, dtype=complex))
+        coh = np.atleast_2d(np.asarray(self.coherence, dtype=float))
+        object.__setattr__(self, "frequencies", freq)
+        object.__setattr__(self, "values", values)
+        if (freq.ndim != 1 or values.shape != coh.shape
+                or values.shape != (pts.shape[0], freq.size)):
+            raise DimensionError(f"{where}: {pts.shape[0]} points, {freq.size} lines, FRFs "
+                                 f"{values.shape}, coherence {coh.shape}; expected one FRF and "
+                                 "one coherence of every line per point")
+        if (freq.size < 2 or not np.all(np.isfinite(freq)) or freq[0] < 0
+                or np.any(np.diff(freq) <= 0)):
+            raise DimensionError(f"{where}: the FRFs' lines must be at least 2, increasing and "
+                                 "at 0 Hz or above")
+        if not (np.all(np.isfinite(values)) and np.all(np.isfinite(coh))):
+            raise DataError(f"{where}: FRFs or coherence hold NaN or infinite values")
+        if coh.min() < 0.0 or coh.max() > 1.0 + 1e-6:
+            raise DataError(f"{where}: a coherence lies within 0-1; found {coh.min():.4g} to "
+                            f"{coh.max():.4g}")
+        object.__setattr__(self, "coherence", np.minimum(coh, 1.0))
+        if self.quantity not in ("velocity", "displacement"):
+            raise DimensionError(f"{where}: quantity '{self.quantity}' is neither velocity nor "
+                                 "displacement")
+
+    @property
+    def x(self) -> np.ndarray:
+        """(n_points,) first coordinate of every point [m]."""
+        return self.points[:, 0]
+
+    @property
+    def n_points(self) -> int:
+        """Number of scan points (records)."""
+        return self.points.shape[0]
 
 
 @dataclass(frozen=True)

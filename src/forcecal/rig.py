@@ -19,6 +19,7 @@ import numpy as np
 
 from ._toml import TableReader, channel_map, check_numbers, node_channel, parse_node_channel
 from .errors import RigError
+from .rig_acquisition import read_acquisition
 from .structures import KINDS, UP, LumpedMass, Structure, locations
 
 __all__ = [
@@ -175,6 +176,9 @@ class Rig:
     band: tuple[float, float] | None = None
     """``acquisition.band`` [Hz]: (low, high), the band a broadband scan's drive covered; when
     given, ``scan`` builds the shapes over that band (:mod:`forcecal.broadband`)."""
+    scan_averages: int | None = None
+    """``acquisition.scan_averages``: the averages behind every FRF of a broadband scan
+    exported as FRFs (their noise follows from it and their coherence); None when not given."""
     drive: str = "steady"
     """``acquisition.drive``: "steady" (periodic at one fundamental, the harmonic path) or
     "any" (swept, multi-tone or random: forces sample by sample, :mod:`forcecal.transient`)."""
@@ -301,14 +305,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     forces = tuple(ForcePoint(**f) for f in _points(r, doc, "forces", structure, ("gap",)))
     sensors = tuple(Sensor(**s) for s in _points(r, doc, "sensors", structure, ("scale",)))
     actuator = _actuator(r, r.table(doc, "actuator", required=False))
-    acq = r.table(doc, "acquisition", required=False)
-    frequency = r.number(acq, "frequency", "acquisition", required=False, positive=True)
-    group = r.text(acq, "group", "acquisition", required=False, default=None)
-    temperature = _temperature(r, acq)
-    mains = r.number(acq, "mains", "acquisition", required=False, positive=True)
-    if mains is not None and not 10.0 <= mains <= 1000.0:
-        raise r.fail("acquisition.mains", f"= {mains!r} Hz is not a mains frequency (50 or 60)")
-    band, drive = _drive_band(r, acq)
+    acq = read_acquisition(r, r.table(doc, "acquisition", required=False))
     _check_names(r, gauges, forces, sensors, actuator)
     _check_statics(r, structure, gauges, forces, sensors)
     names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
@@ -316,45 +313,8 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     channels = channel_map(r, r.table(doc, "channels", required=False), names)
     type_b = _type_b(r, r.table(doc, "uncertainty", required=False), "uncertainty" in doc)
     return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,
-               forces=forces, sensors=sensors, actuator=actuator, frequency=frequency,
-               source=source, channel_map=channels, run_group=group, type_b=type_b,
-               temperature=temperature, mains=mains, band=band, drive=drive)
-
-
-DRIVES = ("steady", "any")
-"""What ``acquisition.drive`` may say."""
-
-
-def _drive_band(r: TableReader, acq: dict[str, Any]) -> tuple[tuple[float, float] | None, str]:
-    """``acquisition.band`` [Hz] (None when absent) and ``acquisition.drive``."""
-    drive = r.text(acq, "drive", "acquisition", required=False, default="steady")
-    if drive not in DRIVES:
-        raise r.fail("acquisition.drive", f"= {drive!r} is not one of {', '.join(DRIVES)}")
-    band = None
-    if "band" in acq:
-        lo, hi = r.vector(acq, "band", "acquisition", 2, "a band (low, high) in Hz")
-        if not 0.0 <= lo < hi:
-            raise r.fail("acquisition.band", f"= [{lo!r}, {hi!r}] Hz is not a band "
-                         "(0 <= low < high)")
-        band = (float(lo), float(hi))
-    if drive == "any" and band is None:
-        raise r.fail("acquisition.drive", "= 'any' needs 'acquisition.band', the band a "
-                     "broadband scan covered")
-    return band, drive
-
-
-_TEMPERATURE_RANGE_C = (-100.0, 200.0)
-"""Ambient temperatures ``acquisition.temperature`` may give [°C]; beyond is probably kelvin."""
-
-
-def _temperature(r: TableReader, acq: dict[str, Any]) -> float | None:
-    """``acquisition.temperature`` [°C], or None when absent."""
-    value = r.number(acq, "temperature", "acquisition", required=False)
-    lo, hi = _TEMPERATURE_RANGE_C
-    if value is not None and not lo <= value <= hi:
-        raise r.fail("acquisition.temperature", f"= {value!r} °C is not an ambient temperature "
-                     f"between {lo:g} and {hi:g} °C (23.0 for 23 °C; not in kelvin)")
-    return value
+               forces=forces, sensors=sensors, actuator=actuator, source=source,
+               channel_map=channels, type_b=type_b, **acq)
 
 
 def _type_b(r: TableReader, table: dict[str, Any], declared: bool) -> TypeB:
@@ -574,6 +534,8 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         acquisition["mains"] = rig.mains
     if rig.band is not None:
         acquisition["band"] = list(rig.band)
+    if rig.scan_averages is not None:
+        acquisition["scan_averages"] = rig.scan_averages
     if rig.drive != "steady":
         acquisition["drive"] = rig.drive
     if acquisition:

@@ -9,7 +9,9 @@ exp(-j n theta_k) (the corrected eq. 13), and normalized by the record's drive a
 
 A scan exported as spectra (:class:`~forcecal.records.ScanSpectra`) gives the same phasors read
 off its lines (:mod:`forcecal.scan_spectra`); the conversion, alignment and normalization that
-follow are the same, in :func:`aligned_shapes`.
+follow are the same, in :func:`aligned_shapes`. A broadband scan's FRFs
+(:class:`~forcecal.records.ScanFRF`) are refused: their phases are relative to the reference at
+each line.
 """
 
 from __future__ import annotations
@@ -19,13 +21,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .checks import check_scan_length
-from .errors import DataError
+from .errors import DataError, InputError
 from .harmonics import fit_harmonics, refine_fundamental
-from .records import Scan, ScanSpectra
+from .records import FRF_PHASE, Scan, ScanFRF, ScanSpectra
 from .scan_spectra import spectrum_phasors
 from .screening import record_weights
 
-__all__ = ["HarmonicShapes", "aligned_shapes", "harmonic_shapes"]
+__all__ = ["HarmonicShapes", "aligned_shapes", "harmonic_shapes", "steady_scan"]
 
 
 @dataclass(frozen=True)
@@ -84,7 +86,23 @@ class HarmonicShapes:
         return ratio
 
 
-def harmonic_shapes(scan: Scan | ScanSpectra, f0_nominal: float,
+def steady_scan(scan: Scan | ScanSpectra | ScanFRF) -> Scan | ScanSpectra:
+    """The scan, when a steady drive's harmonics can be read from it.
+
+    Raises
+    ------
+    InputError
+        FRFs: their phases are relative to the reference at each line.
+    """
+    if isinstance(scan, ScanFRF):
+        raise InputError(f"scan '{scan.source}': holds FRFs (function type 4), {FRF_PHASE}; a "
+                         "steady drive's model is read from the time records or the complex "
+                         "spectra of the response and of the reference (FRFs serve a broadband "
+                         "scan: a rig with 'acquisition.band')")
+    return scan
+
+
+def harmonic_shapes(scan: Scan | ScanSpectra | ScanFRF, f0_nominal: float,
                     n_harmonics: int = 6) -> HarmonicShapes:
     """Fit (or read off the lines), convert and phase-align the harmonics of every scan record.
 
@@ -111,7 +129,10 @@ def harmonic_shapes(scan: Scan | ScanSpectra, f0_nominal: float,
         more than half of the reference records without the drive (a record whose reference
         shows no drive is kept and flagged in ``reference_ok``; the spatial model sets it
         aside, :mod:`forcecal.screening`); spectra whose harmonics are not on lines.
+    InputError
+        FRFs (a broadband scan's export).
     """
+    scan = steady_scan(scan)
     if isinstance(scan, ScanSpectra):
         lines = spectrum_phasors(scan, f0_nominal, n_harmonics)
         return aligned_shapes(scan.points, lines.f0, lines.response, lines.response_std,

@@ -24,9 +24,9 @@ from ._schema import check_model_document, reject_constant
 from .basis import PolynomialBasis, ShapeFit, shape_similarity
 from .errors import DataError, InputError
 from .inertia import mass_coupling
-from .records import Scan, ScanSpectra
+from .records import Scan, ScanFRF, ScanSpectra
 from .rig import Rig, rig_to_dict
-from .scan import HarmonicShapes, harmonic_shapes
+from .scan import HarmonicShapes, harmonic_shapes, steady_scan
 from .scan_spectra import unusable_spectra
 from .screening import Screening, record_weights, screen_records, unusable_records
 from .vector_basis import AXES, VectorShapeFit
@@ -331,7 +331,8 @@ def read_model_document(path: str | Path) -> Any:
     return doc
 
 
-def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | Sequence[Scan | ScanSpectra],
+def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF
+                        | Sequence[Scan | ScanSpectra],
                         n_harmonics: int = 6,
                         criterion: str = "gcv", shapes: HarmonicShapes | None = None,
                         basis: str = "polynomial") -> SpatialModel:
@@ -362,7 +363,7 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | Sequence[Scan | Sca
     -------
     SpatialModel
     """
-    if not isinstance(scan, Scan | ScanSpectra):
+    if not isinstance(scan, Scan | ScanSpectra | ScanFRF):
         scans = list(scan)
         if not scans or not all(isinstance(s, Scan | ScanSpectra) for s in scans):
             raise InputError("build_spatial_model: 'scan' must be a Scan or a non-empty list of "
@@ -373,6 +374,7 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | Sequence[Scan | Sca
             return merge_models(rig, [build_spatial_model(rig, s, n_harmonics, criterion,
                                                           basis=basis) for s in scans])
         scan = scans[0]
+    scan = steady_scan(scan)
     hs = shapes if shapes is not None else harmonic_shapes(scan, rig.drive_frequency,
                                                            n_harmonics)
     st = rig.structure

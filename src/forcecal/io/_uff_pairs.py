@@ -13,7 +13,8 @@ import numpy as np
 from ..errors import DataError, InputError
 from ._uff_sets import PLUS_Z, QUANTITY_OF_ORDINATE
 
-__all__ = ["MIN_MEASURED_SHARE", "Row", "scan_quantity", "scan_rows", "split_records"]
+__all__ = ["MIN_MEASURED_SHARE", "Row", "check_no_missing_points", "scan_quantity", "scan_rows",
+           "split_records"]
 
 MIN_MEASURED_SHARE = 0.5
 """Fewest of the geometry's nodes, as a share, that a scan must measure (else it was cut)."""
@@ -113,17 +114,18 @@ def _paired_nodes(records: tuple[dict, dict, dict], geometry: dict[int, tuple],
                 f"scan '{path}': node {node} has {what} but no coordinates "
                 "(dataset 2411 or 15)"
             )
-    _check_no_missing_points(geometry, set(vibrations), path, what)
+    check_no_missing_points(geometry, set(vibrations), path, what)
     return sorted(vibrations)
 
 
-def _check_no_missing_points(geometry: dict[int, tuple], measured: set[int],
-                             path: str | Path, what: str) -> None:
+def check_no_missing_points(geometry: dict[int, tuple], measured: set[int],
+                            path: str | Path, what: str, depth: int = 0) -> None:
     """Nodes of the geometry without records: a scan cut short (an export interrupted, a file
     truncated) would otherwise give a model from its first points only.
 
     DataError when fewer than :data:`MIN_MEASURED_SHARE` of the geometry's nodes are measured;
-    a warning naming the unmeasured nodes otherwise (a mesh may hold nodes never scanned).
+    a warning naming the unmeasured nodes otherwise (a mesh may hold nodes never scanned),
+    ``depth`` calls fewer below the caller of ``read_scan_uff`` than the time records' path.
     """
     missing = sorted(set(geometry) - measured)
     if not missing:
@@ -134,7 +136,7 @@ def _check_no_missing_points(geometry: dict[int, tuple], measured: set[int],
             f"have {what}; no records for node {shown}")
     if len(measured) < MIN_MEASURED_SHARE * len(geometry):
         raise DataError(f"{text} (a scan cut short?)")
-    warnings.warn(f"{text}; the model uses the measured ones", stacklevel=_WARN_DEPTH)
+    warnings.warn(f"{text}; the model uses the measured ones", stacklevel=_WARN_DEPTH - depth)
 
 
 def _check_references_paired(records: tuple[dict, dict, dict], path: str | Path) -> None:
@@ -180,7 +182,7 @@ def _located_rows(records: tuple[dict, dict, dict], geometry: dict[int, tuple],
                                 f"none with the response direction {code} of its vibration "
                                 "record")
             rows.append((node, code, vib, ref))
-    _check_no_missing_points(geometry, set(vibrations), path, what)
+    check_no_missing_points(geometry, set(vibrations), path, what)
     return rows
 
 

@@ -1,6 +1,7 @@
-"""Reading an SLDV scan from a Universal File: the records' kind decided (time records, or
-spectra read by :mod:`._uff_spectra`; FRFs refused), time records paired by node, sampling and
-values checked (see :mod:`forcecal.io.uff` for the layout).
+"""Reading an SLDV scan from a Universal File: the records' kind decided (time records, spectra
+read by :mod:`._uff_spectra`, or FRFs with their coherence read by :mod:`._uff_frf`; FRFs
+without coherence refused), time records paired by node, sampling and values checked (see
+:mod:`forcecal.io.uff` for the layout).
 """
 
 from __future__ import annotations
@@ -12,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataError, InputError
-from ..records import Scan, ScanSpectra
+from ..records import FRF_PHASE, Scan, ScanFRF, ScanSpectra
+from ._uff_frf import COHERENCE, FRF, frfs_from_sets
 from ._uff_pairs import (
     MIN_MEASURED_SHARE,
     Row,
@@ -36,22 +38,25 @@ from ._uff_spectra import spectra_from_sets
 __all__ = ["MIN_MEASURED_SHARE", "read_scan_uff"]
 
 _KINDS = {2: "auto spectra", 3: "cross spectra", 4: "frequency response functions",
-          5: "transmissibilities", 9: "power spectral densities", 10: "energy spectral densities"}
+          5: "transmissibilities", 6: "coherences", 9: "power spectral densities",
+          10: "energy spectral densities"}
 """Names of the dataset-58 function types a scan cannot be read from, for messages."""
 _RELATIVE_PHASE = (3, 4, 5)
 """Function types whose phase at a line is relative to the reference at that same line."""
 
 
 def read_scan_uff(path: str | Path, reference_label: str = "Ref",
-                  locations: bool = False) -> Scan | ScanSpectra:
+                  locations: bool = False) -> Scan | ScanSpectra | ScanFRF:
     """Read an SLDV scan from a Universal File (ASCII or binary).
 
     The scan records are dataset-58 time records (function type 1), or the complex spectra
     (function type 12) of a frequency-domain export of the same content, read by
-    :func:`forcecal.io._uff_spectra.spectra_from_sets`. A file holding both kinds is refused, and
-    so is a file of FRFs, cross spectra or auto spectra without time records or spectra: their
-    phases are relative to the reference at each line (or absent), so the harmonics' phases
-    relative to the drive's fundamental cannot be recovered from them.
+    :func:`forcecal.io._uff_spectra.spectra_from_sets`, or a broadband scan's FRFs (4) with
+    their coherence (6), read by :func:`forcecal.io._uff_frf.frfs_from_sets` (a steady drive's
+    model refuses them). A file holding time records and spectra is refused, and so is a file
+    of FRFs without coherence, cross spectra or auto spectra: their phases are relative to the
+    reference at each line (or absent), so the harmonics' phases relative to the drive's
+    fundamental cannot be recovered from them, and an FRF alone states no noise.
 
     Parameters
     ----------
@@ -68,27 +73,31 @@ def read_scan_uff(path: str | Path, reference_label: str = "Ref",
 
     Returns
     -------
-    Scan or ScanSpectra
+    Scan, ScanSpectra or ScanFRF
         A Scan from time records: ``points`` (n_points, n_dim) [m] ordered by node number,
         n_dim = 2 when any y coordinate is non-zero, else 1 (z, the measuring direction, is not
         a scan coordinate); with ``locations``, (n_records, 6) ordered by node then direction;
         ``response`` (n_points, n_samples) [m/s] or [m]; ``reference`` (n_points, n_samples)
-        [A]; ``fs`` [Hz] = 1 / abscissa increment. A ScanSpectra from spectra, with the same
-        points.
+        [A]; ``fs`` [Hz] = 1 / abscissa increment. A ScanSpectra from spectra, a ScanFRF from
+        FRFs and coherences, with the same points.
 
     Raises
     ------
     InputError
         The file is missing, is not a Universal File, or lacks node coordinates, time records
-        (or spectra) or reference records; it holds FRFs only, or time records and spectra.
+        (or spectra) or reference records; it holds FRFs without coherence, or time records
+        and spectra.
     DataError
         A scan point lacks one of its two records, or the records disagree in length,
         sampling or quantity.
     """
     sets = read_sets(path, "scan")
     geometry = geometry_of(sets, path, "scan")
-    if _record_kind(sets, path) == SPECTRUM:
+    function_type = _record_kind(sets, path)
+    if function_type == SPECTRUM:
         return spectra_from_sets(sets, geometry, path, reference_label, locations)
+    if function_type == FRF:
+        return frfs_from_sets(sets, geometry, path, locations)
     return _time_scan(sets, geometry, path, reference_label, locations)
 
 
@@ -116,10 +125,12 @@ def _time_scan(sets: Sequence[dict], geometry: dict[int, tuple], path: str | Pat
 
 
 def _record_kind(sets: Sequence[dict], path: str | Path) -> int:
-    """The function type the scan is read from: TIME_RESPONSE or SPECTRUM.
+    """The function type the scan is read from: TIME_RESPONSE, SPECTRUM or FRF (with
+    coherences).
 
     Raises InputError, in one line, for a file without dataset 58, with both time records and
-    spectra, or with neither (saying why FRFs, cross and auto spectra cannot serve).
+    spectra, or with none of the three (saying why FRFs alone, cross and auto spectra cannot
+    serve).
     """
     records = [s for s in sets if set_type(s) == 58]
     if not records:
@@ -136,6 +147,8 @@ def _record_kind(sets: Sequence[dict], path: str | Path) -> int:
         return TIME_RESPONSE
     if types[SPECTRUM]:
         return SPECTRUM
+    if types[FRF] and types[COHERENCE]:
+        return FRF
     found = ", ".join(f"{n} {_KINDS.get(t, 'records')} (function type {t})"
                       for t, n in sorted(types.items()))
     text = (f"scan '{path}': none of the {len(records)} dataset-58 records is a time record "
@@ -144,9 +157,8 @@ def _record_kind(sets: Sequence[dict], path: str | Path) -> int:
               "reference")
     if any(t in _RELATIVE_PHASE for t in types):
         raise InputError(
-            f"{text}, whose phase at a line is relative to the reference at that same line: the "
-            "harmonics' phases relative to the drive's fundamental, which the method needs, "
-            f"are lost, and so are their amplitudes relative to each other; {export}")
+            f"{text}, {FRF_PHASE}; {export} (a broadband scan may also be read from its FRFs "
+            "with their coherence, function type 6, which states their noise)")
     if any(t in _KINDS for t in types):
         raise InputError(f"{text}, which hold no phase; {export}")
     raise InputError(f"{text}; {export}")

@@ -23,7 +23,7 @@ from ..records import ScanSpectra
 from ._uff_pairs import Row, record_values, scan_quantity, scan_rows, split_records
 from ._uff_sets import SPECTRUM, TIME_ABSCISSA, length_factor, set_type
 
-__all__ = ["spectra_from_sets"]
+__all__ = ["common_lines", "spectra_from_sets"]
 
 _LABELS = ("id1", "id2", "id3", "id4", "id5", "ordinate_axis_lab", "ordinate_axis_units_lab")
 """The text fields of a record searched for its amplitude convention."""
@@ -67,7 +67,7 @@ def spectra_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: st
                              locations, "spectra")
     factor = length_factor(sets, path)
     quantity = scan_quantity(rows, path)
-    frequencies = _common_lines(rows, path)
+    frequencies = common_lines(rows, path)
     response = np.array([record_values(v, n, "vibration spectrum", path, factor, True)
                          for n, _, v, _ in rows])
     reference = np.array([record_values(r, n, "reference spectrum", path, 1.0, True)
@@ -79,13 +79,16 @@ def spectra_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: st
     return scan
 
 
-def _common_lines(rows: list[Row], path: str | Path) -> np.ndarray:
-    """(n_lines,) [Hz] the lines shared by every spectrum of the rows."""
+def common_lines(rows: list[Row], path: str | Path,
+                 kinds: tuple[str, str] = ("vibration spectrum", "reference spectrum")
+                 ) -> np.ndarray:
+    """(n_lines,) [Hz] the lines shared by both records of every row (named ``kinds`` in
+    messages)."""
     node0, _, first, _ = rows[0]
-    start0, step0 = _lines_of(first, node0, "vibration spectrum", path)
+    start0, step0 = _lines_of(first, node0, kinds[0], path)
     n0 = np.atleast_1d(first.get("data", [])).size
     for node, _, vibration, reference in rows:
-        for kind, record in (("vibration spectrum", vibration), ("reference spectrum", reference)):
+        for kind, record in zip(kinds, (vibration, reference), strict=True):
             n = np.atleast_1d(record.get("data", [])).size
             if n != n0:
                 raise DataError(f"scan '{path}': node {node}: {kind} has {n} lines, expected "
@@ -96,7 +99,7 @@ def _common_lines(rows: list[Row], path: str | Path) -> np.ndarray:
                                 f"Hz every {step:.6g} Hz, expected from {start0:.6g} Hz every "
                                 f"{step0:.6g} Hz (as node {node0})")
     if n0 < 2:
-        raise DataError(f"scan '{path}': spectra hold {n0} lines; at least 2 needed")
+        raise DataError(f"scan '{path}': the records hold {n0} lines; at least 2 needed")
     return start0 + step0 * np.arange(n0)
 
 
@@ -104,8 +107,8 @@ def _lines_of(record: dict, node: int, kind: str, path: str | Path) -> tuple[flo
     """First line and line spacing [Hz] of one spectrum."""
     where = f"scan '{path}': node {node}: {kind}"
     if record.get("abscissa_spec_data_type") == TIME_ABSCISSA:
-        raise DataError(f"{where} is given over time (abscissa data type 17); a spectrum's "
-                        "abscissa is frequency in Hz")
+        raise DataError(f"{where} is given over time (abscissa data type 17); its abscissa "
+                        "must be frequency in Hz")
     if record.get("abscissa_spacing", 1) == 1:
         start = float(record.get("abscissa_min", 0.0))
         step = float(record.get("abscissa_inc", 0.0))

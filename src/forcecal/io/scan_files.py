@@ -6,8 +6,9 @@ scalar ``fs`` [Hz] and the string ``quantity`` ("velocity" or "displacement"). A
 body gives ``x`` as (n_records, 3) and ``direction`` (n_records, 3), the measuring direction of
 every record (default +z); a point measured along three axes is three records.
 
-A Universal File may instead hold the scan as spectra (dataset 58, function type 12): it is then
-read as a :class:`~forcecal.records.ScanSpectra` (see :mod:`forcecal.io.uff`).
+A Universal File may instead hold the scan as spectra (dataset 58, function type 12), read as a
+:class:`~forcecal.records.ScanSpectra`, or a broadband scan as FRFs (4) with their coherence
+(6), read as a :class:`~forcecal.records.ScanFRF` (see :mod:`forcecal.io.uff`).
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ import numpy as np
 from .._atomic import atomic_path
 from ..checks import check_scan_values
 from ..errors import DataError, InputError
-from ..records import Scan, ScanSpectra
+from ..records import Scan, ScanFRF, ScanSpectra
 from .uff import read_scan_uff
 
 __all__ = ["SCAN_SUFFIXES", "read_scan", "write_scan_hdf5", "write_scan_npz"]
@@ -34,7 +35,7 @@ _OPTIONAL = ("direction",)
 
 
 def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = False
-              ) -> Scan | ScanSpectra:
+              ) -> Scan | ScanSpectra | ScanFRF:
     """Read a scan, choosing the reader from the file suffix.
 
     Parameters
@@ -48,21 +49,21 @@ def read_scan(path: str | Path, reference_label: str = "Ref", locations: bool = 
 
     Returns
     -------
-    Scan or ScanSpectra
+    Scan, ScanSpectra or ScanFRF
         The records in SI units, ``source`` = ``str(path)``; a ScanSpectra for a Universal File
-        of spectra (function type 12).
+        of spectra (function type 12), a ScanFRF for one of FRFs with their coherence (4, 6).
 
     Raises
     ------
     InputError
         An unknown suffix, a missing or unreadable file, or a missing or malformed array; a
-        Universal File of FRFs only, or of time records and spectra together.
+        Universal File of FRFs without coherence, or of time records and spectra together.
     DataError
         Records that do not pair up or disagree (see :func:`forcecal.io.uff.read_scan_uff`).
     """
     path = Path(path)
     suffix = path.suffix.lower()
-    scan: Scan | ScanSpectra | None = None
+    scan: Scan | ScanSpectra | ScanFRF | None = None
     if suffix in (".uff", ".unv"):
         scan = read_scan_uff(path, reference_label=reference_label, locations=locations)
     elif suffix in (".h5", ".hdf5"):

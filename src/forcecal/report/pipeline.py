@@ -18,7 +18,7 @@ from matplotlib.figure import Figure
 from ..forces import ForceEstimate, reconstruct
 from ..io.results import write_estimate
 from ..io.run_files import read_table_csv
-from ..records import Run, Scan, ScanSpectra
+from ..records import Run, Scan, ScanFRF, ScanSpectra
 from ..rig import Rig
 from ..scan import HarmonicShapes, harmonic_shapes
 from ..spatial import SpatialModel, build_spatial_model, check_model_rig
@@ -51,7 +51,8 @@ def _pct(x: float) -> str:
     return f"{100 * x:.3g} %"
 
 
-def _scan_shapes(rig: Rig, scan: Scan | ScanSpectra, n_harmonics: int) -> HarmonicShapes:
+def _scan_shapes(rig: Rig, scan: Scan | ScanSpectra | ScanFRF, n_harmonics: int
+                 ) -> HarmonicShapes:
     """The scan's harmonic shapes at the rig's nominal drive frequency."""
     return harmonic_shapes(scan, rig.drive_frequency, n_harmonics)
 
@@ -65,9 +66,10 @@ def _model_scan(model: SpatialModel, rig: Rig) -> Scan | ScanSpectra | None:
     if not path.is_file():
         return None
     try:
-        return read_scan(path, locations=rig.structure.directed)
+        scan = read_scan(path, locations=rig.structure.directed)
     except ForcecalError:
         return None
+    return None if isinstance(scan, ScanFRF) else scan
 
 
 def _model_section(model: SpatialModel, shapes_png: Path | None,
@@ -193,7 +195,7 @@ def _run_section(rig: Rig, est: ForceEstimate, run: Run, truth: dict[str, np.nda
     return Section(f"Run {run.name}", blocks)
 
 
-def run_report(rig: Rig, scan: Scan | ScanSpectra | SpatialModel, runs: Sequence[Run],
+def run_report(rig: Rig, scan: Scan | ScanSpectra | ScanFRF | SpatialModel, runs: Sequence[Run],
                out_dir: str | Path,
                truth_dir: str | Path | None = None, n_harmonics: int = 6,
                criterion: str = "gcv", basis: str = "polynomial",
