@@ -47,6 +47,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/stated_vs_observed.py
 	$(BIN)/python benchmarks/cluster.py
 	$(BIN)/python benchmarks/any_drive.py
+	$(BIN)/python benchmarks/frf_export.py
 
 clean:
 	rm -rf $(VENV) demo-output

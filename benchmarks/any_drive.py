@@ -150,7 +150,7 @@ def _drive_run(folder: Path, run: str) -> dict:
     streamed = folder / f"{run}.stream.csv"
     start = time.perf_counter()
     if main(["stream", str(folder / "rig.toml"), str(model), str(folder / "runs" / f"{run}.csv"),
-             "-o", str(streamed)]) != 0:
+             *(["--tare", str(tare)] if tare.exists() else []), "-o", str(streamed)]) != 0:
         raise SystemExit(f"stream of {run} failed")
     stream_s = time.perf_counter() - start
     est = pd.read_csv(out / f"{run}.forces.csv")

@@ -1269,8 +1269,8 @@ def test_a_broadband_scan_exported_as_frfs_gives_its_model_with_stated_noise(bea
     records give (its ratios within 1e-9, achieved 4e-11: the file keeps 12 digits of the
     values, 6 of the line spacing); from FRFs of the
     software's own resolution (15 averages), the ratios a_k / a_1 against the FE beam's own
-    err by 1.11 times their stated uncertainty in RMS (test 0.75-1.45: the noise stated from
-    twice the averages, 1.57, fails)."""
+    err by 1.07 times their stated uncertainty in RMS (test 0.85-1.35: twice the averages
+    declared, 1.44, and half of them, 0.76, fail)."""
     import json
 
     from forcecal.cli import main
@@ -1301,7 +1301,7 @@ def test_a_broadband_scan_exported_as_frfs_gives_its_model_with_stated_noise(bea
     err = (got.mixing(f) - coords / coords[:1])[1:]
     std = got.mixing_std(f)[1:]
     rms = float(np.sqrt(np.mean(np.concatenate([err.real / std, err.imag / std]) ** 2)))
-    assert 0.75 < rms < 1.45, rms
+    assert 0.85 < rms < 1.35, rms
 
 
 def test_frf_exports_that_cannot_state_their_noise_are_refused(beam, random_scan, tmp_path,
@@ -1352,6 +1352,44 @@ def test_frf_exports_that_cannot_state_their_noise_are_refused(beam, random_scan
     refused(_rig_file(rig, tmp_path / "noband.toml", band=None, drive=None, frequency=36.0,
                       scan_averages=15), good, "noband.toml",
             "acquisition.scan_averages", "give 'acquisition.band' too")
+
+
+def test_the_random_preset_scanned_as_frfs_gives_each_force_sample_by_sample(tmp_path, capsys):
+    """``forcecal simulate --preset random --scan-export frfs`` writes the chirp scan as SLDV
+    software exports FRFs (H1 and coherence over its four periods, ``scan_averages = 4``);
+    ``scan`` and ``reconstruct`` then give each force within 2 % of its AC RMS in every 0.5 s
+    window against the simulator's truth (achieved F1 1.48 %, F2 1.73 %, total 1.54 %, the
+    first window the worst; with the time records 1.55 % for the total), each force's error
+    over its stated uncertainty 0.90-0.94 inside the record (test 0.7-1.3). A steady preset's
+    FRFs are refused before anything is written."""
+    import tomllib
+
+    import pandas as pd
+
+    from forcecal.cli import main
+
+    out = tmp_path / "random"
+    assert main(["simulate", "-q", str(out), "--preset", "random", "--scan-export", "frfs"]) == 0
+    assert tomllib.loads((out / "rig.toml").read_text())["acquisition"]["scan_averages"] == 4
+    assert main(["scan", "-q", str(out / "rig.toml"), str(out / "scan.uff"), "-o",
+                 str(out / "model.json")]) == 0
+    assert main(["reconstruct", "-q", str(out / "rig.toml"), str(out / "model.json"),
+                 str(out / "runs" / "random.csv"), "-o", str(out / "out")]) == 0
+    est = pd.read_csv(out / "out" / "random.forces.csv")
+    truth = pd.read_csv(out / "truth" / "random.forces.csv")
+    w = int(0.5 / (truth["time"][1] - truth["time"][0]))
+    for name in ("F1", "F2", "total"):
+        err, want = (est[name] - truth[name]).to_numpy(), truth[name].to_numpy()
+        windows = [np.sqrt(np.mean(err[k:k + w] ** 2)) / np.std(want[k:k + w])
+                   for k in range(0, len(err) - w + 1, w)]
+        assert max(windows) < 0.02, (name, windows)
+        z = err[w:-w] / est[f"{name}_std"].to_numpy()[w:-w]
+        assert 0.7 < np.sqrt(np.mean(z**2)) < 1.3, (name, np.sqrt(np.mean(z**2)))
+    capsys.readouterr()
+    assert main(["simulate", "-q", str(tmp_path / "paper"), "--scan-export", "frfs"]) == 2
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and "preset 'paper' scans under a steady drive" in said[0], said
+    assert not (tmp_path / "paper").exists()
 
 
 def test_the_spline_family_is_scipys_smoothing_spline():

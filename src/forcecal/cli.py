@@ -97,15 +97,17 @@ def _progress(done: int, total: int, name: str) -> None:
 
 def _cmd_simulate(args) -> int:
     from .io.staging import staged_folder
-    from .simulate.export import write_simulation
+    from .simulate.export import check_scan_export, write_simulation
     from .simulate.presets import get_preset
 
     realism = getattr(args, "realism", "ideal")
-    get_preset(args.preset, realism)  # an unknown preset is refused before any folder is made
+    export = getattr(args, "scan_export", "time")
+    # an unknown preset, or an export it cannot give, is refused before any folder is made
+    check_scan_export(get_preset(args.preset, realism), export)
     with staged_folder(args.out) as stage:
         write_simulation(stage, args.preset, seed=args.seed,
                          progress=lambda m: _info(f"  simulating {m}"),
-                         binary_uff=args.binary_uff, realism=realism)
+                         binary_uff=args.binary_uff, realism=realism, scan_export=export)
     _print(args.out)
     return 0
 

@@ -48,6 +48,10 @@ def _simulate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
                         "(a band-limited random run); a second scan is written to scan2.uff")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--binary-uff", action="store_true", help="write the scans as dataset 58b")
+    p.add_argument("--scan-export", choices=("time", "frfs"), default="time",
+                   help="time: the scans' time records (default); frfs: a broadband preset's "
+                        "scans as SLDV software exports FRFs (H1 and its coherence), the "
+                        "averages behind them in rig.toml's acquisition.scan_averages")
     p.add_argument("--realism", choices=("ideal", "lab"), default="ideal",
                    help="ideal: white noise only (default); lab: 1/f noise and 50 Hz mains hum "
                         "with its 3rd and 5th harmonics on every channel, 16-bit ADCs, sensor "

@@ -11,8 +11,8 @@ From time records (or spectra), two estimators, chosen from the reference itself
   floor is followed; Re and Im of H each have the standard uncertainty sqrt(P / 2) / |R|.
 - **Any other drive** (a sweep, random): H1 = S_xr / S_rr from Welch averages (Hann window,
   half overlap) and the coherence; the standard uncertainty of Re and of Im is
-  |H| sqrt((1 - coh) / (2 n_avg coh)) (Bendat and Piersol, random errors of frequency-response
-  estimates).
+  |H| sqrt((1 - coh) / (2 (n_avg - 1) coh)) (Bendat and Piersol, random errors of
+  frequency-response estimates, with the coherence's own degrees of freedom: see ``_h1_std``).
 
 FRFs as SLDV software exports them (:class:`~forcecal.records.ScanFRF`) are taken as they are,
 their noise by the same formula from their coherence and the number of averages the rig
@@ -130,7 +130,7 @@ def scan_response(scan: Scan | ScanSpectra | ScanFRF, band: tuple[float, float],
     band : (low, high) [Hz]
         The band the drive covered.
     averages : int, optional
-        For FRFs: the number of averages they were estimated from (required).
+        For FRFs: the number of averages they were estimated from (required, at least 2).
 
     Returns
     -------
@@ -170,13 +170,14 @@ def scan_response(scan: Scan | ScanSpectra | ScanFRF, band: tuple[float, float],
 def _from_frfs(scan: ScanFRF, band: tuple[float, float], averages: int | None
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Exported FRFs on their lines in the band, their noise from coherence and averages."""
-    if averages is None or averages < 1:
+    if averages is None or averages < 2:
         raise InputError(f"scan '{scan.source}': FRFs state their noise only with the number of "
                          "averages they were estimated from, which the file does not hold")
     f = scan.frequencies
-    if band[1] > f[-1] or band[0] < f[0]:
-        raise InputError(f"scan '{scan.source}': the FRFs cover {f[0]:g}-{f[-1]:g} Hz, not "
-                         f"the band {band[0]:g}-{band[1]:g} Hz")
+    spacing = float(np.max(np.diff(f)))
+    if band[1] - f[-1] > spacing * (1 + 1e-6) or f[0] - band[0] > spacing * (1 + 1e-6):
+        raise InputError(f"scan '{scan.source}': the FRFs' lines cover {f[0]:g}-{f[-1]:g} Hz, "
+                         f"not the band {band[0]:g}-{band[1]:g} Hz (within a line spacing)")
     lines = (f >= band[0]) & (f <= band[1]) & (f > 0)
     if np.count_nonzero(lines) < 3:
         raise InputError(f"scan '{scan.source}': {np.count_nonzero(lines)} line(s) of the FRFs "
@@ -187,9 +188,14 @@ def _from_frfs(scan: ScanFRF, band: tuple[float, float], averages: int | None
 
 
 def _h1_std(h: np.ndarray, coh: np.ndarray, n_avg: int) -> np.ndarray:
-    """Standard uncertainty of Re and of Im of an H1 estimate from ``n_avg`` averages of
-    coherence ``coh`` (Bendat and Piersol)."""
-    return np.abs(h) * np.sqrt((1.0 - coh) / (2.0 * n_avg * coh))
+    """Standard uncertainty of Re and of Im of an H1 estimate from ``n_avg`` averages, given
+    its estimated coherence ``coh``: Bendat and Piersol's |H| sqrt((1 - coh) / (2 n coh)) with
+    n - 1 for n. The coherence is estimated from the same averages, and the response's part
+    the reference explains takes one of their degrees of freedom: with the noise on the
+    response, 1 - coh is (1 - coherence) chi^2_{2(n-1)} / (2 n), low by (n - 1) / n on average,
+    so n - 1 makes the variance unbiased (4 averages of the test system: observed / stated 1.40
+    with n, the t-like spread of a 6-degree-of-freedom variance with n - 1)."""
+    return np.abs(h) * np.sqrt((1.0 - coh) / (2.0 * max(n_avg - 1, 1) * coh))
 
 
 def _from_spectra(scan: ScanSpectra, band: tuple[float, float]

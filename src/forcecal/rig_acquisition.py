@@ -69,7 +69,10 @@ def _scan_averages(r: TableReader, acq: dict[str, Any], band: tuple[float, float
         return None
     if n != int(n) or n > 1e6:
         raise r.fail("acquisition.scan_averages", f"= {n!r} is not a number of averages (a "
-                     "whole number, 1 to 1e6)")
+                     "whole number, 2 to 1e6)")
+    if n < 2:
+        raise r.fail("acquisition.scan_averages", f"= {int(n)}: the coherence of one average is "
+                     "1 on every line and states no noise; FRFs need 2 or more averages")
     if band is None:
         raise r.fail("acquisition.scan_averages", "serves a broadband scan's FRFs; give "
                      "'acquisition.band' too")

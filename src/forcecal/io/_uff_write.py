@@ -1,5 +1,6 @@
-"""Writing an SLDV scan as a Universal File with pyuff, atomically (see :mod:`forcecal.io.uff`
-for the layout and the precision of what pyuff writes).
+"""Writing an SLDV scan as a Universal File with pyuff, atomically: time records, or a broadband
+scan's FRFs with their coherence (see :mod:`forcecal.io.uff` for the layout and the precision of
+what pyuff writes).
 """
 
 from __future__ import annotations
@@ -14,10 +15,18 @@ import pyuff
 
 from .._atomic import atomic_path
 from ..errors import DataError, InputError
-from ..records import Scan
-from ._uff_sets import GENERAL_ORDINATE, ORDINATE_OF_QUANTITY, PLUS_Z, TIME_ABSCISSA, TIME_RESPONSE
+from ..records import Scan, ScanFRF
+from ._uff_frf import COHERENCE, FRF
+from ._uff_sets import (
+    FREQUENCY_ABSCISSA,
+    GENERAL_ORDINATE,
+    ORDINATE_OF_QUANTITY,
+    PLUS_Z,
+    TIME_ABSCISSA,
+    TIME_RESPONSE,
+)
 
-__all__ = ["write_scan_uff"]
+__all__ = ["write_frf_uff", "write_scan_uff"]
 
 
 def write_scan_uff(
@@ -71,6 +80,64 @@ def write_scan_uff(
         for node, response, reference in zip(nodes, scan.response, scan.reference, strict=True):
             sets.append(_vibration_set(int(node), response, scan.fs, scan.quantity, binary))
             sets.append(_reference_set(int(node), reference, scan.fs, binary))
+    with atomic_path(path) as tmp:
+        _write_sets(sets, tmp)
+    return Path(path)
+
+
+def write_frf_uff(scan: ScanFRF, path: str | Path, binary: bool = False) -> Path:
+    """Write a broadband scan's FRFs and coherences as a Universal File, atomically.
+
+    Dataset 2411 (nodes 1..n, coordinates [m]) then, per point, its FRF (function type 4, id
+    line 2 ``Vib  Velocity / Ref1  Current`` or ``Vib  Displacement / Ref1  Current``, ordinate
+    type 11 or 8 over the current) and its coherence (function type 6), both over the scan's
+    lines [Hz] from the first, evenly spaced, response node the point's, direction +Z. The
+    number of averages is not a field of dataset 58: the rig states it
+    (``acquisition.scan_averages``).
+
+    Parameters
+    ----------
+    scan : ScanFRF
+        A beam's or a plate's scan, its lines evenly spaced.
+    path : str or Path
+        The ``.uff`` file, replaced atomically.
+    binary : bool
+        Dataset 58b (float64) instead of ASCII 58 (12 significant digits).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    DataError
+        Lines not evenly spaced.
+    """
+    f = scan.frequencies
+    step = float(f[1] - f[0])
+    if np.max(np.abs(np.diff(f) - step)) > 1e-9 * step:
+        raise DataError(f"scan '{scan.source}': FRF lines not evenly spaced; a UFF stores an "
+                        "even abscissa")
+    ordinate, unit, word = ORDINATE_OF_QUANTITY[scan.quantity]
+    nodes = 1 + np.arange(scan.n_points)
+    sets = [_node_set(nodes, scan.points)]
+    for node, h, coh in zip(nodes, scan.values, scan.coherence, strict=True):
+        for data, kind, ids, axis in (
+                (h, FRF, ("H1", f"Vib  {word} / Ref1  Current"), (ordinate, 1, word, f"{unit}/A")),
+                (coh, COHERENCE, ("Coh", "Coherence  Vib / Ref1"), (GENERAL_ORDINATE, 0,
+                                                                     "Coherence", ""))):
+            spec_type, length_exp, label, units = axis
+            dataset = pyuff.prepare_58(
+                binary=1 if binary else 0, id1=ids[0], id2=ids[1], func_type=kind,
+                rsp_node=int(node), rsp_dir=PLUS_Z, ref_node=0, ref_dir=0, abscissa_spacing=1,
+                abscissa_min=float(f[0]), abscissa_inc=step,
+                abscissa_spec_data_type=FREQUENCY_ABSCISSA, abscissa_axis_units_lab="Hz",
+                ordinate_spec_data_type=spec_type, ordinate_len_unit_exp=length_exp,
+                ordinate_axis_units_lab=units, orddenom_spec_data_type=GENERAL_ORDINATE,
+                z_axis_spec_data_type=0, data=np.array(data), x=f.copy())
+            dataset["abscissa_axis_lab"] = "Frequency"
+            dataset["ordinate_axis_lab"] = label
+            sets.append(dataset)
     with atomic_path(path) as tmp:
         _write_sets(sets, tmp)
     return Path(path)

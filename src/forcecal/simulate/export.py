@@ -17,7 +17,10 @@ A rig under broadband drives (``Preset.band``: a sweep, random) writes its scan'
 hi]`` [Hz] and ``drive = "any"`` in the rig file's ``[acquisition]``; its runs that are not
 listed (``RunSpec.manifest`` false: the swept and random ones) are written with their truth but
 left out of ``manifest.csv``. A magnet whose core lags (eddy currents) has its ``eddy_time_s``
-and the law it gives stated in ``simulator.json``'s ``eddy``.
+and the law it gives stated in ``simulator.json``'s ``eddy``. Such a rig's scans may be written
+as SLDV software exports FRFs (``scan_export="frfs"``, :mod:`.sldv_frf`): per point H1 and its
+coherence up to the acquisition's bandwidth (fs / 2.56), the averages behind them stated as
+``acquisition.scan_averages``.
 """
 
 from __future__ import annotations
@@ -31,9 +34,10 @@ import numpy as np
 import tomli_w
 
 from .._atomic import atomic_path, write_text_atomic
+from ..errors import InputError
 from ..io.manifest import write_manifest
 from ..io.run_files import write_run_csv, write_table_csv
-from ..io.uff import write_scan_uff
+from ..io.uff import write_frf_uff, write_scan_uff
 from ..records import Scan
 from ..rig import rig_to_dict
 from .beam import natural_frequencies
@@ -41,6 +45,7 @@ from .lab import draw_errors, record_lab_scan
 from .magnet import Drive
 from .presets import BodySpec, PlateSpec, Preset, get_preset, with_tare
 from .realism import Realism
+from .sldv_frf import frf_export
 from .virtual_rig import (
     Model,
     Truth,
@@ -52,7 +57,12 @@ from .virtual_rig import (
     static_gaps,
 )
 
-__all__ = ["write_simulation", "write_truth"]
+__all__ = ["BANDWIDTH", "SCAN_EXPORTS", "check_scan_export", "write_simulation", "write_truth"]
+
+SCAN_EXPORTS = ("time", "frfs")
+"""How a simulation writes its scans: time records, or (a broadband rig) FRFs and coherences."""
+BANDWIDTH = 2.56
+"""An FRF export's top line is the sampling rate over this (the usual anti-aliased bandwidth)."""
 
 
 def write_truth(out: Path, name: str, truth: Truth) -> None:
@@ -172,21 +182,35 @@ def _eddy_facts(preset: Preset) -> dict:
                "lag(f) = atan(2 pi f tau)"}}
 
 
-def _rig_document(preset: Preset) -> dict:
+def _rig_document(preset: Preset, averages: int | None = None) -> dict:
     """The public rig file's document; a rig under broadband drives also states its scan's
-    ``band`` [Hz] and ``drive = "any"`` in ``[acquisition]``."""
+    ``band`` [Hz] and ``drive = "any"`` in ``[acquisition]``, and the ``scan_averages`` behind
+    an FRF export."""
     doc = rig_to_dict(public_rig(preset))
     if preset.band is not None:
         acquisition = doc.setdefault("acquisition", {})
         acquisition["band"] = [float(preset.band[0]), float(preset.band[1])]
         acquisition["drive"] = "any"
+        if averages is not None:
+            acquisition["scan_averages"] = averages
     return doc
+
+
+def _write_scan(preset: Preset, scan: Scan, path: Path, binary: bool, export: str
+                ) -> int | None:
+    """One scan written as time records, or as FRFs (returning their averages)."""
+    if export == "time" or preset.band is None:
+        write_scan_uff(scan, path, binary=binary)
+        return None
+    frfs, averages = frf_export(scan, preset.band, scan.fs / BANDWIDTH)
+    write_frf_uff(frfs, path, binary=binary)
+    return averages
 
 
 def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
                      progress: Callable[[str], None] | None = None,
                      binary_uff: bool = False,
-                     realism: str | Realism | None = None) -> Path:
+                     realism: str | Realism | None = None, scan_export: str = "time") -> Path:
     """Simulate ``preset_name`` and write every file of the public formats under ``out``.
 
     Parameters
@@ -204,6 +228,9 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     realism : str, Realism or None
         ``"ideal"`` (white noise only) or ``"lab"`` (:class:`.realism.Realism` defaults), or a
         Realism; None keeps the preset's own (ideal for every built-in one).
+    scan_export : {"time", "frfs"}
+        The scans as time records, or (a rig under broadband drives) as SLDV software exports
+        FRFs with their coherence.
 
     Returns
     -------
@@ -213,7 +240,7 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     Raises
     ------
     InputError
-        An unknown preset.
+        An unknown preset or scan export, or FRFs asked of a steady drive's scan.
     SimulationError
         A pole closes its gap or the magnetic circuit does not converge.
 
@@ -224,6 +251,7 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     errors are drawn before all of them.
     """
     preset = get_preset(preset_name, realism)
+    check_scan_export(preset, scan_export)
     if preset.realism is not None:
         preset = with_tare(preset)
     out = Path(out)
@@ -234,8 +262,8 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
 
     say("scan")
     scan = record_scan(preset, rng, model) if lab is None else lab.scan(0)
-    write_text_atomic(out / "rig.toml", tomli_w.dumps(_rig_document(preset)))
-    write_scan_uff(scan, out / scan_file(0), binary=binary_uff)
+    averages = _write_scan(preset, scan, out / scan_file(0), binary_uff, scan_export)
+    write_text_atomic(out / "rig.toml", tomli_w.dumps(_rig_document(preset, averages)))
 
     rows = []
     for k, spec in enumerate(preset.runs):
@@ -257,13 +285,24 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     for k in range(1, len(preset.scans)):
         say(f"scan {k + 1}/{len(preset.scans)}")
         more = record_scan(preset, rng, model, which=k) if lab is None else lab.scan(k)
-        write_scan_uff(more, out / scan_file(k), binary=binary_uff)
+        _write_scan(preset, more, out / scan_file(k), binary_uff, scan_export)
     write_manifest(out / "manifest.csv", rows)
     facts = _simulator_facts(preset)
     if lab is not None:
         facts["realism"] = lab.facts()
     write_text_atomic(out / "truth" / "simulator.json", json.dumps(facts, indent=2))
     return out
+
+
+def check_scan_export(preset: Preset, scan_export: str) -> None:
+    """InputError for an unknown scan export, or FRFs of a steady drive's scan (their phases are
+    relative to the reference at each line: no steady model can be built from them)."""
+    if scan_export not in SCAN_EXPORTS:
+        raise InputError(f"scan export '{scan_export}' is not one of {', '.join(SCAN_EXPORTS)}")
+    if scan_export == "frfs" and preset.band is None:
+        raise InputError(f"preset '{preset.name}' scans under a steady drive, whose model is "
+                         "not built from FRFs; FRFs are exported for a broadband preset (sweep, "
+                         "random)")
 
 
 class _LabRecorder:
