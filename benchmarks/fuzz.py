@@ -2,7 +2,7 @@
 
 Run from the project root::
 
-    .venv/bin/python benchmarks/fuzz.py              # 2200 cases (200 per input kind)
+    .venv/bin/python benchmarks/fuzz.py              # 2400 cases (200 per input kind)
     .venv/bin/python benchmarks/fuzz.py --cases 500  # fewer
 
 Builds the small 'paper' lab of ``tests/fuzz_inputs.py`` once, then draws ``--cases`` cases
@@ -50,7 +50,7 @@ def table(counts: Counter, kinds: list[str]) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", type=int, default=2200, help="cases in all (default 2200)")
+    parser.add_argument("--cases", type=int, default=2400, help="cases in all (default 2400)")
     parser.add_argument("--start", type=int, default=0, help="first seed (default 0)")
     parser.add_argument("--kinds", nargs="*", default=list(KINDS), help="input kinds")
     parser.add_argument("--examples", type=int, default=4,

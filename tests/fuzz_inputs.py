@@ -41,8 +41,8 @@ OUTCOMES = (OK, REFUSED, UNCLEAN, INTERNAL, SILENT)
 unclean: a refusal that breaks the form (several lines, no name, output left behind);
 internal: exit 1 or an exception; silent: exit 0 with non-finite or absurd outputs."""
 
-KINDS = ("rig", "scan_uff", "scan_h5", "scan_npz", "run_csv", "run_tdms", "run_h5",
-         "manifest", "model", "calibration", "arguments")
+KINDS = ("rig", "scan_uff", "scan_frf", "scan_h5", "scan_npz", "run_csv", "run_tdms",
+         "run_h5", "manifest", "model", "calibration", "arguments")
 
 FORCE_FACTOR = 100.0
 """An output force beyond this many times the clean run's peak is absurd."""
@@ -122,14 +122,45 @@ def build_lab(root: Path) -> Lab:
 
         pred = predict(load_calibration(root / "calibration.json"), [1.0], 0.0009)
     lab.predict_force = float(abs(pred.total[0]))
+    _frf_scan(root)
     lab.files = {
         "rig": root / "rig.toml", "scan_uff": root / "scan.uff", "scan_h5": root / "scan.h5",
+        "scan_frf": root / "scan_frf.uff", "rig_frf": root / "rig_frf.toml",
         "scan_npz": root / "scan.npz", "run_csv": root / "runs" / "paper.csv",
         "run_tdms": root / "runs" / "paper.tdms", "run_h5": root / "runs" / "paper.h5",
         "manifest": root / "manifest.csv", "model": root / "model.json",
         "calibration": root / "calibration.json",
     }
     return lab
+
+
+def _frf_scan(root: Path) -> None:
+    """The 'random' preset's chirp scan as FRFs with their coherence (21 points, lines up to
+    300 Hz: ``scan_frf.uff``) and its broadband rig (``rig_frf.toml``, 4 averages)."""
+    import dataclasses
+
+    import tomli_w
+
+    from forcecal.io.uff import write_frf_uff
+    from forcecal.records import ScanFRF
+    from forcecal.rig import rig_to_dict
+    from forcecal.simulate.presets import get_preset
+    from forcecal.simulate.sldv_frf import frf_export
+    from forcecal.simulate.virtual_rig import build_model, public_rig, record_scan
+
+    preset = get_preset("random")
+    assert preset.band is not None
+    scan = record_scan(preset, np.random.default_rng(0), build_model(preset))
+    frfs, averages = frf_export(scan, preset.band, 300.0)
+    step = _SCAN_POINT_STEP
+    write_frf_uff(ScanFRF(points=frfs.points[::step], frequencies=frfs.frequencies,
+                          values=frfs.values[::step], coherence=frfs.coherence[::step],
+                          quantity=frfs.quantity), root / "scan_frf.uff")
+    rig = dataclasses.replace(public_rig(preset), band=preset.band, drive="any",
+                              scan_averages=averages)
+    (root / "rig_frf.toml").write_text(tomli_w.dumps(rig_to_dict(rig)), encoding="utf-8")
+    assert _quiet_main(["scan", str(root / "rig_frf.toml"), str(root / "scan_frf.uff"), "-o",
+                        str(root / "model_frf.json")]) == 0
 
 
 def _table_peak(path: Path) -> float:
@@ -366,9 +397,10 @@ def _case_scan_arrays(lab: Lab, d: Path, rng: random.Random, fmt: str) -> Case:
     return Case(f"scan_{fmt}", 0, what, argv, (str(target), target.name), [out], "scan")
 
 
-def _case_scan_uff(lab: Lab, d: Path, rng: random.Random) -> Case:
+def _case_scan_uff(lab: Lab, d: Path, rng: random.Random, kind: str = "scan_uff",
+                   rig: str = "rig") -> Case:
     target = d / "scan.uff"
-    text = lab.files["scan_uff"].read_bytes()
+    text = lab.files[kind].read_bytes()
     lines = text.split(b"\n")
     r = rng.random()
     if r < 0.35:  # a value in a data line
@@ -395,8 +427,8 @@ def _case_scan_uff(lab: Lab, d: Path, rng: random.Random) -> Case:
         data, what = _text_mutation(text, rng)
     _write(target, data)
     out = d / "model.json"
-    argv = ["scan", str(lab.files["rig"]), str(target), "-o", str(out)]
-    return Case("scan_uff", 0, what, argv, (str(target), target.name), [out], "scan")
+    argv = ["scan", str(lab.files[rig]), str(target), "-o", str(out)]
+    return Case(kind, 0, what, argv, (str(target), target.name), [out], "scan")
 
 
 def _csv_cell_value(rng: random.Random) -> str:
@@ -682,6 +714,7 @@ def _case_arguments(lab: Lab, d: Path, rng: random.Random) -> Case:
 _MAKERS: dict[str, Callable[[Lab, Path, random.Random], Case]] = {
     "rig": _case_rig,
     "scan_uff": _case_scan_uff,
+    "scan_frf": lambda lab, d, rng: _case_scan_uff(lab, d, rng, "scan_frf", "rig_frf"),
     "scan_h5": lambda lab, d, rng: _case_scan_arrays(lab, d, rng, "h5"),
     "scan_npz": lambda lab, d, rng: _case_scan_arrays(lab, d, rng, "npz"),
     "run_csv": _case_run_csv,
@@ -799,12 +832,21 @@ def _check_calibration(path: Path, lab: Lab) -> str | None:
 
 
 def _check_model(path: Path) -> str | None:
-    from forcecal.spatial import load_model
+    from forcecal.broadband import BroadbandModel, load_any_model
 
     try:
-        model = load_model(path)
+        model = load_any_model(path)
     except Exception as exc:
         return f"{path.name}: the written model is not readable ({exc})"
+    if isinstance(model, BroadbandModel):
+        lines = model.frequencies
+        if not (len(lines) >= 3 and model.band[0] - 5 <= lines[0] <= lines[-1]
+                <= model.band[1] + 5):
+            return f"{path.name}: lines {lines[:1]}..{lines[-1:]} Hz outside the band"
+        std = model.ratio_std if model.ratio_std is not None else np.zeros(1)
+        if not np.all(np.isfinite(std)) or np.max(std) > 1e6:
+            return f"{path.name}: ratio uncertainty up to {np.max(std):.3g}"
+        return None
     if not (0 < model.f0 < 1e6):
         return f"{path.name}: fundamental {model.f0} Hz"
     return None

@@ -403,6 +403,11 @@ SCAN_LIMITS = {"velocity": (1e3, "m/s"), "displacement": (1.0, "m"), "reference"
 current of 100 kA; beyond, the file's unit (or its ``fs``) is wrong."""
 
 
+FRF_LIMITS = {"velocity": (1e6, "m/s per A"), "displacement": (1e3, "m per A")}
+"""Largest plausible magnitude of a broadband scan's FRF: the vibrations of SCAN_LIMITS at a
+drive of 1 mA."""
+
+
 SCAN_FLOORS = {"response": 1e-15, "reference": 1e-12}
 """Below these peaks (m/s or m; A) a scan's records hold no signal at all."""
 

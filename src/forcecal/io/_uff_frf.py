@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..checks import FRF_LIMITS
 from ..errors import DataError, InputError
 from ..records import ScanFRF
 from ._uff_pairs import (
@@ -60,7 +61,8 @@ def frfs_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: str |
         A body's scan, or no FRF of a vibration.
     DataError
         A node with no, or more than one, FRF or coherence; records that disagree in lines or
-        quantity; a coherence outside 0-1; FRFs of real values; non-finite values.
+        quantity; a coherence outside 0-1; FRFs of real values; non-finite or implausible
+        values (:data:`forcecal.checks.FRF_LIMITS`).
     """
     if locations:
         raise InputError(f"scan '{path}': a body's scan is read from its time records or "
@@ -95,10 +97,18 @@ def frfs_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: str |
             bad = coh.min() if coh.min() < 0.0 else coh.max()
             raise DataError(f"scan '{path}': node {node}: coherence reaches {bad:.4g} on a "
                             "line; a coherence lies within 0-1")
-    if not np.any(np.abs(values) > 0):
+    quantity = scan_quantity(rows, path)
+    limit, unit = FRF_LIMITS[quantity]
+    peak = np.max(np.abs(values), axis=1)
+    if peak.max() > limit:
+        node = rows[int(np.argmax(peak))][0]
+        raise DataError(f"scan '{path}': node {node}: FRF reaches {peak.max():.4g} {unit} on a "
+                        f"line; a {quantity} FRF beyond {limit:g} {unit} is not plausible (a "
+                        "wrong unit or a damaged file?)")
+    if not peak.max() > 0:
         raise DataError(f"scan '{path}': every FRF is zero; no signal was recorded")
     return ScanFRF(points=scan_points(geometry, nodes), frequencies=frequencies, values=values,
-                   coherence=coherence, quantity=scan_quantity(rows, path), source=str(path))
+                   coherence=coherence, quantity=quantity, source=str(path))
 
 
 def _is(record: dict, function_type: int) -> bool:

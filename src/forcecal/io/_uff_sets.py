@@ -79,7 +79,10 @@ def read_sets(path: str | Path, what: str) -> list[dict]:
     if not path.is_file():
         raise InputError(f"{what} '{path}': file does not exist")
     try:
-        sets = pyuff.UFF(str(path)).read_sets()
+        # a non-finite value in a complex record makes numpy warn as pyuff assembles it; the
+        # readers refuse such a record in one line, naming its node
+        with np.errstate(invalid="ignore", over="ignore"):
+            sets = pyuff.UFF(str(path)).read_sets()
     except Exception as exc:  # pyuff raises bare Exception on anything malformed
         raise InputError(
             f"{what} '{path}': not a readable Universal File (pyuff: {first_line(exc)})"
