@@ -48,3 +48,14 @@ def test_the_long_campaigns_finds_are_refused_in_one_line(lab, work, kind, seed)
     outcome = fuzz_one(lab, work, kind, seed)
     assert outcome.outcome == REFUSED, (outcome.outcome, outcome.what, outcome.detail)
     assert "acquisition.frequency" in outcome.detail or "coefficient_covariance" in outcome.detail
+
+
+@pytest.mark.parametrize("seed", [24, 55])
+def test_an_absurd_frf_value_is_refused_naming_its_node(lab, work, seed):
+    """Cases the long campaign found in a broadband scan exported as FRFs: one line's value
+    set to 1e300 (seed 24) or 1e308 (seed 55) had overflowed the span's fit into numpy's
+    warnings and an internal error; the FRF's magnitude is now refused as implausible, naming
+    the node."""
+    outcome = fuzz_one(lab, work, "scan_frf", seed)
+    assert outcome.outcome == REFUSED, (outcome.outcome, outcome.what, outcome.detail)
+    assert "FRF reaches" in outcome.detail and "not plausible" in outcome.detail
