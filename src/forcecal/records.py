@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -20,8 +21,40 @@ SPECTRUM_AMPLITUDES = ("peak", "rms")
 (A / sqrt 2) exp(j phi) (rms)."""
 
 
+class _ScanPoints:
+    """What every scan form shares: its points (n_points, n_dim) [m] and their count."""
+
+    points: np.ndarray
+
+    @property
+    def x(self) -> np.ndarray:
+        """(n_points,) first coordinate of every point [m]."""
+        return self.points[:, 0]
+
+    @property
+    def n_points(self) -> int:
+        """Number of scan points (records)."""
+        return self.points.shape[0]
+
+
+def _set_points(scan: Any) -> np.ndarray:
+    """A frozen scan's ``points`` as a float (n_points, n_dim) array, set back on it."""
+    pts = np.asarray(scan.points, dtype=float)
+    if pts.ndim == 1:
+        pts = pts[:, None]
+    object.__setattr__(scan, "points", pts)
+    return pts
+
+
+def _check_quantity(quantity: str, where: str) -> None:
+    """DimensionError unless ``quantity`` is velocity or displacement."""
+    if quantity not in ("velocity", "displacement"):
+        raise DimensionError(f"{where}: quantity '{quantity}' is neither velocity nor "
+                             "displacement")
+
+
 @dataclass(frozen=True)
-class Scan:
+class Scan(_ScanPoints):
     """A sequential SLDV scan: one response record and one reference record per point.
 
     Attributes
@@ -49,10 +82,7 @@ class Scan:
     source: str = "<scan>"
 
     def __post_init__(self) -> None:
-        pts = np.asarray(self.points, dtype=float)
-        if pts.ndim == 1:
-            pts = pts[:, None]
-        object.__setattr__(self, "points", pts)
+        pts = _set_points(self)
         resp = np.atleast_2d(np.asarray(self.response, dtype=float))
         ref = np.atleast_2d(np.asarray(self.reference, dtype=float))
         object.__setattr__(self, "response", resp)
@@ -62,21 +92,8 @@ class Scan:
                 f"scan '{self.source}': {pts.shape[0]} points, response {resp.shape}, "
                 f"reference {ref.shape}; expected one response and one reference record per point"
             )
-        if self.quantity not in ("velocity", "displacement"):
-            raise DimensionError(
-                f"scan '{self.source}': quantity '{self.quantity}' is neither velocity nor "
-                "displacement"
-            )
+        _check_quantity(self.quantity, f"scan '{self.source}'")
 
-    @property
-    def x(self) -> np.ndarray:
-        """(n_points,) first coordinate of every point [m]."""
-        return self.points[:, 0]
-
-    @property
-    def n_points(self) -> int:
-        """Number of scan points (records)."""
-        return self.points.shape[0]
 
     @property
     def n_samples(self) -> int:
@@ -85,7 +102,7 @@ class Scan:
 
 
 @dataclass(frozen=True)
-class ScanSpectra:
+class ScanSpectra(_ScanPoints):
     """A sequential SLDV scan exported as spectra: per point the complex spectrum of the response
     and of the reference, both from one acquisition.
 
@@ -123,10 +140,7 @@ class ScanSpectra:
 
     def __post_init__(self) -> None:
         where = f"scan '{self.source}'"
-        pts = np.asarray(self.points, dtype=float)
-        if pts.ndim == 1:
-            pts = pts[:, None]
-        object.__setattr__(self, "points", pts)
+        pts = _set_points(self)
         freq = np.asarray(self.frequencies, dtype=float)
         resp = np.atleast_2d(np.asarray(self.response, dtype=complex))
         ref = np.atleast_2d(np.asarray(self.reference, dtype=complex))
@@ -144,22 +158,11 @@ class ScanSpectra:
             raise DimensionError(f"{where}: the spectral lines must be at least 2, evenly spaced, "
                                  f"increasing and from 0 Hz up; found {freq.size} lines from "
                                  f"{freq[0] if freq.size else float('nan'):.6g} Hz")
-        if self.quantity not in ("velocity", "displacement"):
-            raise DimensionError(f"{where}: quantity '{self.quantity}' is neither velocity nor "
-                                 "displacement")
+        _check_quantity(self.quantity, where)
         if self.amplitude not in SPECTRUM_AMPLITUDES:
             raise DimensionError(f"{where}: amplitude convention '{self.amplitude}' is neither "
                                  "'peak' nor 'rms'")
 
-    @property
-    def x(self) -> np.ndarray:
-        """(n_points,) first coordinate of every point [m]."""
-        return self.points[:, 0]
-
-    @property
-    def n_points(self) -> int:
-        """Number of scan points (records)."""
-        return self.points.shape[0]
 
     @property
     def n_lines(self) -> int:
@@ -179,7 +182,7 @@ FRF_PHASE = ("whose phase at a line is relative to the reference at that same li
 
 
 @dataclass(frozen=True)
-class ScanFRF:
+class ScanFRF(_ScanPoints):
     """A broadband SLDV scan exported as FRFs: per point the frequency response of the vibration
     to the reference (the coil current) and its ordinary coherence, over common lines.
 
@@ -211,10 +214,7 @@ class ScanFRF:
 
     def __post_init__(self) -> None:
         where = f"scan '{self.source}'"
-        pts = np.asarray(self.points, dtype=float)
-        if pts.ndim == 1:
-            pts = pts[:, None]
-        object.__setattr__(self, "points", pts)
+        pts = _set_points(self)
         freq = np.asarray(self.frequencies, dtype=float)
         values = np.atleast_2d(np.asarray(self.values, dtype=complex))
         coh = np.atleast_2d(np.asarray(self.coherence, dtype=float))
@@ -235,19 +235,8 @@ class ScanFRF:
             raise DataError(f"{where}: a coherence lies within 0-1; found {coh.min():.4g} to "
                             f"{coh.max():.4g}")
         object.__setattr__(self, "coherence", np.minimum(coh, 1.0))
-        if self.quantity not in ("velocity", "displacement"):
-            raise DimensionError(f"{where}: quantity '{self.quantity}' is neither velocity nor "
-                                 "displacement")
+        _check_quantity(self.quantity, where)
 
-    @property
-    def x(self) -> np.ndarray:
-        """(n_points,) first coordinate of every point [m]."""
-        return self.points[:, 0]
-
-    @property
-    def n_points(self) -> int:
-        """Number of scan points (records)."""
-        return self.points.shape[0]
 
 
 @dataclass(frozen=True)

@@ -41,12 +41,9 @@ def frfs_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: str |
 
     Parameters
     ----------
-    sets : sequence of dict
-        Every dataset of the file, as pyuff reads them.
-    geometry : dict
-        node -> (x, y, z) [m].
-    path : str or Path
-        The file, for messages and ``source``.
+    sets, geometry, path
+        The file's datasets, its node coordinates and its path, as for
+        :func:`._uff_spectra.spectra_from_sets`.
     locations : bool
         A 3-D body's scan: refused (a body's shapes are not built over a band).
 
