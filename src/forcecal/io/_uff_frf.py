@@ -66,6 +66,9 @@ def frfs_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: str |
                          "spectra, not from FRFs (its shapes are not built over a band)")
     frfs = _by_node([s for s in sets if _is(s, FRF)])
     cohs = _by_node([s for s in sets if _is(s, COHERENCE)])
+    # an export of every channel against the reference also holds the reference's coherence
+    # with itself, 1 on every line: it is not the vibration's
+    cohs = {n: [r for r in rs if not _all_one(r)] or rs for n, rs in cohs.items()}
     vibrations = {n: [r for r in rs if vibration_quantity(r)] for n, rs in frfs.items()}
     vibrations = {n: rs for n, rs in vibrations.items() if rs}
     if not vibrations:
@@ -114,6 +117,15 @@ def _is(record: dict, function_type: int) -> bool:
         return set_type(record) == 58 and int(record.get("func_type", -1)) == function_type
     except (TypeError, ValueError):
         return False
+
+
+def _all_one(record: dict) -> bool:
+    """A coherence record that is 1 on every line (the reference's with itself)."""
+    try:
+        data = np.asarray(record.get("data"), dtype=float)
+    except (TypeError, ValueError):
+        return False
+    return bool(data.size) and bool(np.all(np.abs(data - 1.0) <= 1e-9))
 
 
 def _by_node(records: list[dict]) -> dict[int, list[dict]]:
