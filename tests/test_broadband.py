@@ -224,10 +224,11 @@ def test_any_drive_forces_against_truth(beam, bb_model):
         assert 0.9988 < gain < 1.0012
 
 
-def test_cli_scan_and_reconstruct_any_drive(beam, scan, tmp_path):
+def test_cli_scan_and_reconstruct_any_drive(beam, scan, tmp_path, capsys):
     """``scan`` with acquisition.band writes a broadband model; ``reconstruct`` with
     acquisition.drive = "any" writes each run's forces sample by sample (the columns of a
-    steady run's series) and its summary; a steady-drive rig refuses nothing it did before."""
+    steady run's series) and its summary; a steady-drive rig refuses nothing it did before.
+    ``report`` (a steady drive's harmonic report) refuses the broadband rig in one line."""
     import json
 
     import pandas as pd
@@ -257,6 +258,13 @@ def test_cli_scan_and_reconstruct_any_drive(beam, scan, tmp_path):
     assert np.sqrt(np.mean(err**2)) / np.std(2 * u) < 0.015
     summary = json.loads((out / "random.json").read_text())
     assert summary["drive"] == "any" and summary["band_hz"] == [5.0, 200.0]
+    # the harmonic report is a steady drive's: refused in one line, nothing written
+    capsys.readouterr()
+    assert main(["report", str(tmp_path / "rig.toml"), str(tmp_path / "scan.npz"),
+                 str(tmp_path / "random.csv"), "-o", str(tmp_path / "report")]) == 2
+    said = capsys.readouterr().err.strip().splitlines()
+    assert len(said) == 1 and "'report' draws a steady drive's harmonic report" in said[0]
+    assert not (tmp_path / "report").exists()
 
 
 def test_campaign_row_takes_its_frequency_from_the_manifest(beam, bb_model, tmp_path):

@@ -471,6 +471,12 @@ def _cmd_report(args) -> int:
         raise _ArgumentError(f"{PROG} report: argument --truth: {args.truth!r} is not a folder")
     _check_distinct_names(args.runs)
     rig = _load_rig(args)
+    if rig.band is not None:
+        raise InputError(f"rig '{rig.source}': 'report' draws a steady drive's harmonic report "
+                         "from a harmonic model, and this rig's 'acquisition.band' makes its "
+                         "scan a broadband one; its runs' forces come from 'reconstruct' (their "
+                         "summary JSON and series), a stepped-sine campaign's report from "
+                         "'calibrate'")
     if str(args.scan).endswith(".json"):
         from .spatial import load_model
 
