@@ -90,7 +90,7 @@ def frfs_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: str |
     frequencies = common_lines(rows, path, ("FRF", "coherence"))
     factor = length_factor(sets, path)
     values = np.array([record_values(v, n, "FRF", path, factor, True) for n, _, v, _ in rows])
-    coherence = np.array([record_values(c, n, "coherence", path, 1.0, False)
+    coherence = np.array([record_values(_real(c), n, "coherence", path, 1.0, False)
                           for n, _, _, c in rows])
     for (node, *_), coh in zip(rows, coherence, strict=True):
         if coh.min() < 0.0 or coh.max() > 1.0 + 1e-6:
@@ -117,6 +117,14 @@ def _is(record: dict, function_type: int) -> bool:
         return set_type(record) == 58 and int(record.get("func_type", -1)) == function_type
     except (TypeError, ValueError):
         return False
+
+
+def _real(record: dict) -> dict:
+    """A coherence record written as complex numbers with no imaginary part, made real."""
+    data = np.asarray(record.get("data", []))
+    if np.iscomplexobj(data) and np.all(np.abs(np.imag(data)) <= 1e-12):
+        return {**record, "data": np.real(data)}
+    return record
 
 
 def _all_one(record: dict) -> bool:
