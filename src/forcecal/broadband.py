@@ -53,13 +53,14 @@ from .frf import scan_response
 from .inertia import mass_coupling
 from .records import Scan, ScanFRF, ScanSpectra
 from .rig import Rig
-from .screening import record_weights
+from .screening import MAX_SET_ASIDE, record_weights
 from .spatial import (
     MIN_SNR,
     SpatialModel,
     check_rig_keys,
     read_model_document,
     rig_keys,
+    set_aside_notes,
     shape_from_json,
     shape_to_json,
 )
@@ -312,7 +313,9 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     ------
     InputError
         No band in the rig, a body, spectra of a drive not periodic in their record, FRFs
-        without the rig's number of averages, or a drive that leaves no line coherent.
+        without the rig's number of averages, more than ``MAX_SET_ASIDE`` of the points dead
+        (no response on any line; fewer are set aside, noted), or a drive that leaves no line
+        coherent.
     """
     if rig.band is None:
         raise InputError(f"rig '{rig.source}': a broadband scan needs 'acquisition.band'")
@@ -325,7 +328,10 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
                          "follows from their coherence and the number of averages behind them; "
                          "a Universal File does not record that number: give it as "
                          "'acquisition.scan_averages'")
-    resp = scan_response(scan, rig.band, rig.scan_averages)
+    resp, dead = scan_response(scan, rig.band, rig.scan_averages).without_dead()
+    if len(dead) > MAX_SET_ASIDE * len(scan.points):
+        raise InputError(f"scan '{scan.source}': {len(dead)} of its {len(scan.points)} points "
+                         "hold no response on any line of the band (dead channels?)")
     good = np.median(resp.coherence, axis=0) >= MIN_COHERENCE
     if np.count_nonzero(good) < 3:
         raise InputError(f"scan '{scan.source}': {np.count_nonzero(good)} line(s) of the band "
@@ -342,7 +348,8 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     chi2 = np.array([_chi2(a, s_noise, u[:, :d]) for d in range(1, n_try + 1)])
     d, note = _span_size(sv, chi2, a.shape)
     notes = [f"scan '{scan.source}': {note}"] if note else []
-    points = st.coordinates(scan.points, source=f"scan '{scan.source}'")
+    notes += set_aside_notes(scan, dead)
+    points = st.coordinates(resp.points, source=f"scan '{scan.source}'")
     weights = record_weights(np.median(s_noise, axis=1))
     # the span scaled by its singular values: every column carries the data's own noise; one
     # order serves them all, the highest the smooth ones make plausible (an Akaike weight not

@@ -22,7 +22,7 @@ is not a noise statement).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.ndimage
@@ -75,6 +75,20 @@ class ScanResponse:
     coherence: np.ndarray
     source: str = "<scan>"
     periods: int = 0
+
+    def without_dead(self) -> tuple[ScanResponse, dict[int, str]]:
+        """The response without its points that hold no response on any line (a dead
+        channel: its zeros would read as a motion known exactly, with no noise), and why each
+        of them (by its index) was set aside."""
+        dead = np.flatnonzero(~np.any(np.abs(self.values) > 0, axis=1))
+        if not dead.size:
+            return self, {}
+        keep = np.ones(len(self.points), bool)
+        keep[dead] = False
+        why = "no response on any line of the band (a dead channel?)"
+        return (replace(self, points=self.points[keep], values=self.values[keep],
+                        std=self.std[keep], coherence=self.coherence[keep]),
+                {int(k): why for k in dead})
 
 
 def periods_in_record(reference: np.ndarray, fs: float, band: tuple[float, float]) -> int:

@@ -41,6 +41,7 @@ __all__ = [
     "load_model",
     "read_model_document",
     "rig_keys",
+    "set_aside_notes",
     "shape_from_json",
     "shape_to_json",
 ]
@@ -396,7 +397,7 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF
     couplings = np.stack([mass_coupling(rig, f.evaluate) for f in chosen])
     vals = [f.evaluate(points[keep]) for f in chosen]
     mac = np.array([[shape_similarity(a, b) for b in vals] for a in vals])
-    notes = st.model_notes(chosen) + _set_aside_notes(scan, screening.reasons)
+    notes = st.model_notes(chosen) + set_aside_notes(scan, screening.reasons)
     if screening.note:
         notes += (f"scan '{scan.source}': {screening.note}",)
     return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(chosen),
@@ -473,7 +474,8 @@ def _screened_fits(rig: Rig, scan: Scan | ScanSpectra, hs: HarmonicShapes, point
     return fits, screening, snr, dropped
 
 
-def _set_aside_notes(scan: Scan | ScanSpectra, reasons: dict[int, str]) -> tuple[str, ...]:
+def set_aside_notes(scan: Scan | ScanSpectra | ScanFRF, reasons: dict[int, str]
+                    ) -> tuple[str, ...]:
     """One note per record set aside, naming it by its number and position."""
     notes = []
     for k, why in sorted(reasons.items()):

@@ -78,9 +78,8 @@ def frfs_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: str |
         for kind, by_node in (("FRF of a vibration", vibrations), ("coherence", cohs)):
             n = len(by_node.get(node, []))
             if n != 1:
-                raise DataError(f"scan '{path}': node {node} has {n} {kind} record"
-                                f"{'' if n == 1 else 's'}; expected one FRF and its coherence "
-                                "per point")
+                raise DataError(f"scan '{path}': node {node} has {n} {kind} records; "
+                                "expected one FRF and its coherence per point")
         if node not in geometry:
             raise DataError(f"scan '{path}': node {node} has FRFs but no coordinates "
                             "(dataset 2411 or 15)")

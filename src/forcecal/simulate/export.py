@@ -199,9 +199,10 @@ def _rig_document(preset: Preset, averages: int | None = None) -> dict:
 def _write_scan(preset: Preset, scan: Scan, path: Path, binary: bool, export: str
                 ) -> int | None:
     """One scan written as time records, or as FRFs (returning their averages)."""
-    if export == "time" or preset.band is None:
+    if export == "time":
         write_scan_uff(scan, path, binary=binary)
         return None
+    assert preset.band is not None, "check_scan_export refuses FRFs of a steady drive's scan"
     frfs, averages = frf_export(scan, preset.band, scan.fs / BANDWIDTH)
     write_frf_uff(frfs, path, binary=binary)
     return averages
