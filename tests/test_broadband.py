@@ -1380,8 +1380,9 @@ def test_a_dead_scan_point_is_set_aside_and_noted(beam, chirp):
     and its coherence 0) is set aside with a note naming it, in the time records' path and
     the FRFs' alike: the first shape's mass coupling over its value at a probe stays within
     1e-3 of the whole scan's (achieved 6e-5 and 1e-4; its zeros read as a motion known
-    exactly had made the ratios' spline fail). More than a fifth of the points dead is
-    refused."""
+    exactly had made the ratios' spline fail). A point without response on part of the band
+    only (a dropout: no noise is stated for its zeros), or more than a fifth of the points
+    dead, is refused."""
     from forcecal.simulate.sldv_frf import frf_export
 
     rig = beam[3]
@@ -1405,6 +1406,10 @@ def test_a_dead_scan_point_is_set_aside_and_noted(beam, chirp):
         assert any("record 11 at (0.15) m set aside: no response on any line" in note
                    for note in got.notes), got.notes
         np.testing.assert_allclose(lead(got), lead(want), rtol=1e-3)
+    values[5, 3:40] = 0.0                                 # a dropout over part of the band
+    with pytest.raises(InputError, match=r"record 6 at \(0.075\) m holds no response on 37 "
+                                         r"of the band's 49 lines but holds one on the others"):
+        build_broadband_model(frf_rig, dataclasses.replace(frfs, values=values))
     response[:9] = 0.0
     with pytest.raises(InputError, match="10 of its 41 points hold no response"):
         build_broadband_model(rig, dataclasses.replace(scan, response=response))

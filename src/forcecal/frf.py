@@ -79,8 +79,24 @@ class ScanResponse:
     def without_dead(self) -> tuple[ScanResponse, dict[int, str]]:
         """The response without its points that hold no response on any line (a dead
         channel: its zeros would read as a motion known exactly, with no noise), and why each
-        of them (by its index) was set aside."""
-        dead = np.flatnonzero(~np.any(np.abs(self.values) > 0, axis=1))
+        of them (by its index) was set aside.
+
+        Raises
+        ------
+        InputError
+            A point with no response on some lines of the band but not on all (a dropout
+            within its record): no noise is stated for those zeros.
+        """
+        zero = np.abs(self.values) == 0
+        partial = np.flatnonzero(np.any(zero, axis=1) & ~np.all(zero, axis=1))
+        if partial.size:
+            k = int(partial[0])
+            where = ", ".join(f"{c:.4g}" for c in self.points[k, :3])
+            raise InputError(f"scan '{self.source}': record {k + 1} at ({where}) m holds no "
+                             f"response on {int(zero[k].sum())} of the band's "
+                             f"{zero.shape[1]} lines but holds one on the others (a dropout "
+                             "within its record?); measure it again, or leave it out")
+        dead = np.flatnonzero(np.all(zero, axis=1))
         if not dead.size:
             return self, {}
         keep = np.ones(len(self.points), bool)
