@@ -23,8 +23,9 @@ from pathlib import Path
 
 import numpy as np
 
-from forcecal.forces import reconstruct
-from forcecal.harmonics import fit_harmonics
+from forcecal.forces.steady import reconstruct
+from forcecal.model.spatial import build_spatial_model
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import (
     build_model,
@@ -35,7 +36,6 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
 
 CASES = (("paper", "paper", 0.1), ("resonance", "resonance", 0.5),
          ("campaign", "g1000_dc06_ac02", None), ("plate", "plate", 0.2), ("body", "body", 1.0))

@@ -46,10 +46,10 @@ import pandas as pd
 import scipy.ndimage
 import scipy.signal
 
-from forcecal.broadband import load_any_model
-from forcecal.cli import main
+from forcecal.cli.main import main
 from forcecal.io.run_files import read_run
-from forcecal.relaxation import force_matrix
+from forcecal.model.broadband import load_any_model
+from forcecal.model.relaxation import force_matrix
 from forcecal.rig import load_rig
 from forcecal.simulate.export import write_simulation
 
@@ -85,9 +85,9 @@ def _claimed(folder: Path, model: Path, run: str, truth: pd.DataFrame) -> np.nda
     setup (1 within the band, falling beyond its top as the gauges' own smoother does; content
     above the band is the gauges' and the transfer's, not the scan's), carried past the
     record's ends and with its mean passed whole, as the estimate's reactions are."""
-    from forcecal.kalman import smooth_states
-    from forcecal.record_ends import extend
-    from forcecal.transient import any_drive_setup, run_channels
+    from forcecal.forces.transient import any_drive_setup, run_channels
+    from forcecal.signals.kalman import smooth_states
+    from forcecal.signals.record_ends import extend
 
     rig = load_rig(folder / "rig.toml")
     record = read_run(folder / "runs" / f"{run}.csv", rig)
@@ -114,7 +114,7 @@ def _oracle(folder: Path, model: Path, run: str, truth: pd.DataFrame, claimed: n
     """Each 0.5 s window's error, against the truth as claimed, of the estimate before
     its short-time Wiener gains when the gains are the oracle's, S / (S + N) bin by bin: S
     the truth's power, N the estimate's own error's (averaged over 5 bins by 5 frames)."""
-    from forcecal.transient import reconstruct_any
+    from forcecal.forces.transient import reconstruct_any
 
     rig = load_rig(folder / "rig.toml")
     broadband = load_any_model(model)

@@ -49,6 +49,7 @@ from forcecal.campaign import CampaignResult, calibrate_campaign, calibrate_runs
 from forcecal.io.manifest import write_manifest
 from forcecal.io.run_files import write_run_csv
 from forcecal.io.uff import read_scan_uff
+from forcecal.model.spatial import build_spatial_model
 from forcecal.rig import TypeB, load_rig
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.magnet import Drive
@@ -62,7 +63,6 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
 
 HELD_OUT_GAPS = (0.9e-3, 1.1e-3)  # [m]
 HELD_OUT_DC = (0.5, 0.7)  # [A]

@@ -29,10 +29,11 @@ from pathlib import Path
 
 import numpy as np
 
-from forcecal.cluster import _client, run_jobs
+from forcecal.cluster.jobs import calibrate_job as _calibrate_job
+from forcecal.cluster.pool import _client, run_jobs
 from forcecal.io.manifest import write_manifest
 from forcecal.io.run_files import write_run_csv
-from forcecal.jobs import calibrate_job as _calibrate_job
+from forcecal.model.spatial import build_spatial_model
 from forcecal.simulate.magnet import Drive
 from forcecal.simulate.presets import RunSpec, get_preset
 from forcecal.simulate.virtual_rig import (
@@ -42,7 +43,6 @@ from forcecal.simulate.virtual_rig import (
     record_scan,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
 
 RESULTS = Path(__file__).resolve().parent / "results" / "cluster.json"
 BATCH = 10_000

@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 from any_drive import _claimed, _drive_run
 
-from forcecal.broadband import load_any_model
+from forcecal.model.broadband import load_any_model
 from forcecal.simulate.export import write_simulation
 
 RESULTS = Path(__file__).parent / "results"

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from forcecal.harmonics import fit_harmonics
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.beam import hermite_row, natural_frequencies, pinned_pinned_frequencies
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.integrate import integrate

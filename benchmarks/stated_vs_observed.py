@@ -32,7 +32,7 @@ against a direct simulation at seed 0's drawn drives.
 
 The estimate is what a user gets: the public rig file (its declared type-B uncertainties; a
 campaign run's static gap) as a lab would declare it, its geometry and masses drawn about the
-true ones from their declared uncertainties (:func:`forcecal.budget.drawn_rig`, from a second
+true ones from their declared uncertainties (:func:`forcecal.forces.budget.drawn_rig`, from a second
 generator per seed, ``default_rng([BASE_SEED + seed, 1])``, so that the draws above stay those
 of the simulator), then ``build_spatial_model(rig, scan)`` and ``reconstruct(rig, model, run,
 tare=tare)``.
@@ -88,10 +88,11 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from forcecal.budget import SOURCES, drawn_rig
-from forcecal.forces import reconstruct
-from forcecal.harmonics import fit_harmonics
+from forcecal.forces.budget import SOURCES, drawn_rig
+from forcecal.forces.steady import reconstruct
+from forcecal.model.spatial import build_spatial_model
 from forcecal.records import Run, Scan
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.lab import (
     MAX_HARMONICS,
     LabErrors,
@@ -119,7 +120,6 @@ from forcecal.simulate.virtual_rig import (
     scan_points,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
 
 CASES = (("paper", "paper"), ("resonance", "resonance"), ("campaign", "g1000_dc06_ac02"),
          ("plate", "plate"), ("body", "body"))

@@ -9,11 +9,11 @@ import pytest
 
 from forcecal.io.run_files import read_run
 from forcecal.io.uff import read_scan_uff
+from forcecal.model.spatial import build_spatial_model
 from forcecal.rig import load_rig
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.presets import NoiseSpec, get_preset
 from forcecal.simulate.virtual_rig import build_model, record_run
-from forcecal.spatial import build_spatial_model
 
 
 @pytest.fixture(scope="session")

@@ -69,7 +69,7 @@ class Lab:
 
 
 def _quiet_main(argv: list[str]) -> int:
-    from forcecal.cli import main
+    from forcecal.cli.main import main
 
     with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
         return main(argv)
@@ -832,7 +832,7 @@ def _check_calibration(path: Path, lab: Lab) -> str | None:
 
 
 def _check_model(path: Path) -> str | None:
-    from forcecal.broadband import BroadbandModel, load_any_model
+    from forcecal.model.broadband import BroadbandModel, load_any_model
 
     try:
         model = load_any_model(path)
@@ -885,7 +885,7 @@ def _leftovers(case: Case) -> list[Path]:
 
 def run_case(case: Case, lab: Lab) -> Outcome:
     """Run the case's command in process and classify the outcome."""
-    from forcecal.cli import main
+    from forcecal.cli.main import main
 
     raw = io.BytesIO()
     out: io.TextIOBase

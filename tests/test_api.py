@@ -11,9 +11,10 @@ import numpy as np
 import pytest
 
 import forcecal
-from forcecal import forces, spatial
 from forcecal.actuator import predict
 from forcecal.campaign import calibrate_campaign
+from forcecal.forces import steady as forces
+from forcecal.model import spatial
 
 STEPS = ("load_rig", "read_scan", "read_run", "build_spatial_model", "load_model",
          "reconstruct", "calibrate", "write_calibration", "load_calibration", "predict",

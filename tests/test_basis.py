@@ -1,4 +1,4 @@
-"""Tests of forcecal.basis: orthonormal polynomial bases and shape fits over scan points."""
+"""Tests of forcecal.model.basis: orthonormal polynomial bases and shape fits over scan points."""
 
 from __future__ import annotations
 
@@ -9,14 +9,14 @@ from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 from numpy.polynomial import legendre
 
-from forcecal.basis import (
+from forcecal.errors import ConditioningError, DataError
+from forcecal.model.basis import (
     fit_shape,
     n_functions,
     orthonormal_basis,
     project,
     shape_similarity,
 )
-from forcecal.errors import ConditioningError, DataError
 
 L = 0.8  # beam length [m]
 

@@ -11,14 +11,15 @@ import dataclasses
 import numpy as np
 import pytest
 
-from forcecal.basis import fit_shape, orthonormal_basis
-from forcecal.cli import main
+from forcecal.cli.main import main
 from forcecal.errors import ConditioningError, RigError
-from forcecal.forces import reconstruct
-from forcecal.inertia import mass_weights
+from forcecal.forces.steady import reconstruct
 from forcecal.io.scan_files import read_scan, write_scan_npz
 from forcecal.io.uff import write_scan_uff
-from forcecal.relaxation import force_matrix, relaxation_shapes
+from forcecal.model.basis import fit_shape, orthonormal_basis
+from forcecal.model.inertia import mass_weights
+from forcecal.model.relaxation import force_matrix, relaxation_shapes
+from forcecal.model.spatial import build_spatial_model
 from forcecal.rig import parse_rig, rig_to_dict
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import (
@@ -31,7 +32,6 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
 
 BODY_TOL_PCT = 1.0          # total force, % of the true AC RMS (the benchmark: ~0.5 %)
 

@@ -12,14 +12,14 @@ import dataclasses
 import numpy as np
 import pytest
 
-from forcecal.broadband import BroadbandModel, build_broadband_model, steady_model
 from forcecal.errors import InputError
-from forcecal.kalman import band_model, filter_states, smooth_states
+from forcecal.forces.transient import reconstruct_any
+from forcecal.model.broadband import BroadbandModel, build_broadband_model, steady_model
+from forcecal.model.relaxation import force_matrix
 from forcecal.records import Run, Scan
-from forcecal.relaxation import force_matrix
+from forcecal.signals.kalman import band_model, filter_states, smooth_states
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import _gauge_forces, _points, build_model, public_rig
-from forcecal.transient import reconstruct_any
 
 FS = 10_000.0
 
@@ -234,7 +234,7 @@ def test_cli_scan_and_reconstruct_any_drive(beam, scan, tmp_path, capsys):
     import pandas as pd
     import tomli_w
 
-    from forcecal.cli import main
+    from forcecal.cli.main import main
     from forcecal.io.run_files import write_run_csv
     from forcecal.io.scan_files import write_scan_npz
     from forcecal.rig import rig_to_dict
@@ -307,8 +307,8 @@ def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
     or left out with the reason, never a NaN."""
     import json
 
-    from forcecal.broadband import load_any_model
     from forcecal.errors import DataError
+    from forcecal.model.broadband import load_any_model
 
     rig = beam[3]
     run, _, _ = _run(beam, np.random.default_rng(8), 40.0, seconds=2.0)
@@ -367,8 +367,8 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     so a window's edges matter little); from its own first two seconds (its own transfer), to 0.5
     RMS (achieved 0.088, its gauges' smoothers set in every window; test 0.25) and within 0.17 %
     of the true total's AC RMS (achieved 0.058 %, the batch 0.056 %)."""
+    from forcecal.forces.transient import any_drive_setup, run_channels
     from forcecal.stream.any_drive import stream_arrays
-    from forcecal.transient import any_drive_setup, run_channels
 
     rig = beam[3]
     run, u, _ = random_run
@@ -403,10 +403,10 @@ def test_cli_streams_a_run_under_any_drive(beam, scan, random_run, tmp_path, cap
     import pandas as pd
     import tomli_w
 
-    from forcecal.broadband import load_any_model
-    from forcecal.cli import main
+    from forcecal.cli.main import main
     from forcecal.io.run_files import read_run, write_run_csv
     from forcecal.io.scan_files import write_scan_npz
+    from forcecal.model.broadband import load_any_model
     from forcecal.rig import rig_to_dict
 
     rig = beam[3]
@@ -490,7 +490,7 @@ def test_the_dc_deflection_takes_the_scans_quasi_static_shape(beam, bb_model):
     against the FE beam's static deflection: within 1 % (achieved 0.46 %) at 10, 36 and 100 Hz;
     the fundamental's own shape, which stands in for it after a steady scan, errs 3.7 % at
     100 Hz, above the first mode."""
-    from forcecal.gaps import quasi_static_shape
+    from forcecal.actuator.gaps import quasi_static_shape
 
     _preset, model, phi, rig, modal = beam
     probe, poles = np.array([0.1]), np.array([0.25, 0.35])
@@ -512,7 +512,7 @@ def test_a_scans_quasi_static_shape_is_not_moved_by_the_fundamentals_errors(beam
     shape when that shape stands in for the quasi-static one; a broadband model's own
     quasi-static shape is not the fundamental's, so none of them moves the DC."""
     from forcecal.campaign.noise import run_noise
-    from forcecal.forces import reconstruct
+    from forcecal.forces.steady import reconstruct
 
     wave = np.sin(2 * np.pi * 36.0 * np.arange(int(2.0 * FS)) / FS)
     run, _ = _record(beam, np.random.default_rng(3), 6.0 + 1.5 * wave, 0.6 + 0.1 * wave,
@@ -543,7 +543,7 @@ def test_the_reactions_carry_the_inertia_where_the_probes_are_noisy(beam, bb_mod
     (achieved 0.18-0.28 %), each force within 0.35 % of it (achieved 0.11-0.12 %); from the
     probes alone (no transfer) the windows err 1.2-1.7 % (test > 1 %). The transfer leaves
     chi-square 1.02 per degree of freedom (test 0.8-1.25), and the note says so."""
-    import forcecal.transient_setup as transient_setup
+    import forcecal.forces.transient as transient_setup
 
     rng = np.random.default_rng(21)
     n = int(4.0 * FS)
@@ -573,8 +573,8 @@ def test_what_the_transfer_misses_is_left_to_the_probes(beam, bb_model, monkeypa
     in every 0.5 s window inside the record (achieved 1.09-1.62 %, the probes alone's 1.2-1.7 %);
     without the residual (every line of it taken for noise) the windows err 10-22 % (test
     > 5 %)."""
-    import forcecal.transient_setup as transient_setup
-    from forcecal.reaction_transfer import fit_reaction_transfer
+    import forcecal.forces.transient as transient_setup
+    from forcecal.forces.reaction_transfer import fit_reaction_transfer
 
     rng = np.random.default_rng(22)
     n = int(4.0 * FS)
@@ -606,8 +606,8 @@ def test_forces_off_the_scans_load_pattern_are_noted_and_bounded(beam, bb_model)
     from the first 2 s, the same note and 0.22. The same forces in the scan's pattern leave
     chi-square 0.83 (test 0.7-1.3) and no note; with one probe read 2 % high, 26 (test > 4:
     its coordinate, and so the inertia, is 1 % off)."""
-    from forcecal.transient import any_drive_setup, run_channels
-    from forcecal.unseen_motion import MISFIT_LIMIT
+    from forcecal.forces.transient import any_drive_setup, run_channels
+    from forcecal.forces.unseen_motion import MISFIT_LIMIT
 
     rng = np.random.default_rng(23)
     n = int(4.0 * FS)
@@ -648,10 +648,10 @@ def test_each_declared_type_b_uncertainty_moves_the_forces_as_stated(beam, bb_mo
     a probe's and a gauge's position and the distributed mass; with the couplings' or the
     probes' part dropped, 1e147). A rig that declares none is estimated with the defaults, and
     a note says so."""
-    import forcecal.transient as transient
-    from forcecal.inertia import mass_coupling
+    import forcecal.forces.transient as transient
+    from forcecal.forces.budget import TypeBMoves, series_type_b_variance, type_b_moves
+    from forcecal.model.inertia import mass_coupling
     from forcecal.rig import TypeB
-    from forcecal.transient_budget import TypeBMoves, type_b_moves, type_b_variance
 
     rig = dataclasses.replace(beam[3], type_b=TypeB.none())
     run = random_run[0]
@@ -659,9 +659,9 @@ def test_each_declared_type_b_uncertainty_moves_the_forces_as_stated(beam, bb_mo
 
     def spy(*args):
         seen["args"] = args
-        return type_b_variance(*args)
+        return series_type_b_variance(*args)
 
-    monkeypatch.setattr(transient, "type_b_variance", spy)
+    monkeypatch.setattr(transient, "series_type_b_variance", spy)
     monkeypatch.setattr(transient, "check_rig_keys", lambda *a, **k: None)
     base = reconstruct_any(rig, bb_model, run)
     args = seen["args"]
@@ -685,7 +685,7 @@ def test_each_declared_type_b_uncertainty_moves_the_forces_as_stated(beam, bb_mo
         k = moves.names.index(name)
         one = TypeBMoves(names=(name,), **{f: getattr(moves, f)[k:k + 1] for f in
                                            ("pinv", "couplings", "probes", "gauge", "scale")})
-        stated = np.sqrt(type_b_variance(one, *args[1:]))[:, inner]
+        stated = np.sqrt(series_type_b_variance(one, *args[1:]))[:, inner]
         if channel is not None:
             est = reconstruct_any(rig, bb_model, dataclasses.replace(
                 run, channels={**run.channels, channel: run.channels[channel] * 1.01}))
@@ -776,15 +776,15 @@ def test_the_ratios_stated_uncertainty_covers_their_error(beam, bb_model):
 
 
 def test_the_shapes_errors_reach_the_inertia_as_stated(beam, bb_model):
-    """:func:`forcecal.inertia_errors.shape_error_weights` (400 draws) against 4000 draws of
+    """:func:`forcecal.forces.inertia_errors.shape_error_weights` (400 draws) against 4000 draws of
     the shapes' coefficients from their covariance, the scan's operating shape projected back
     on every drawn span: every row's variance within 25 % at 20, 70 and 150 Hz (achieved
     0.79-1.15, the 400 draws' own scatter; a first-order propagation states 1.8-6 times it at
     20 and 70 Hz, the span's weakest shapes being known to a few times their size); and
-    :func:`~forcecal.inertia_errors.correction_sensitivities` against finite differences of
+    :func:`~forcecal.forces.inertia_errors.correction_sensitivities` against finite differences of
     the correction (within 1e-5 of its scale)."""
-    from forcecal.inertia import mass_coupling
-    from forcecal.inertia_errors import correction_sensitivities, shape_error_weights
+    from forcecal.forces.inertia_errors import correction_sensitivities, shape_error_weights
+    from forcecal.model.inertia import mass_coupling
 
     rig = beam[3]
     probes = rig.structure.coordinates(rig.sensor_points, source="test")
@@ -830,13 +830,13 @@ def test_the_shapes_errors_reach_the_inertia_as_stated(beam, bb_model):
 def test_the_records_ends_are_carried_past_by_a_prediction(beam, bb_model, monkeypatch):
     """A force sweeping 10 -> 150 Hz over 2 s on the FE beam, the record ending mid-drive: each
     sample's inertia takes the reactions of about a millisecond after it, which the record
-    carries past its end by every channel's prediction (:mod:`forcecal.record_ends`). The last
+    carries past its end by every channel's prediction (:mod:`forcecal.signals.record_ends`). The last
     0.5 s within 0.6 % of its AC RMS (achieved 0.24 %; with the odd reflection that the
     smoothers would take instead 0.54 %), its last 10 ms within 0.025 N RMS (achieved 0.0084 N;
     reflected 0.070 N) and inside the stated uncertainty (RMS error / stated 0.11, a statement
     on the safe side; test <= 1)."""
-    import forcecal.transient as transient
-    from forcecal.record_ends import Extension
+    import forcecal.forces.transient as transient
+    from forcecal.signals.record_ends import Extension
 
     n = int(2.0 * FS)
     t = np.arange(n) / FS
@@ -869,7 +869,7 @@ def test_cli_stream_takes_a_tare(beam, scan, random_run, tmp_path, capsys):
     import pandas as pd
     import tomli_w
 
-    from forcecal.cli import main
+    from forcecal.cli.main import main
     from forcecal.io.run_files import write_run_csv
     from forcecal.io.scan_files import write_scan_npz
     from forcecal.rig import rig_to_dict
@@ -926,7 +926,7 @@ def test_the_streams_smoothers_follow_a_sweep(beam, bb_model, monkeypatch):
     0.18; with the first seconds' smoothers kept, 2.67) and its error over its own stated
     uncertainty there is below 1.6 RMS (achieved 1.32, a halved variance 1.87; kept, 3.45)."""
     import forcecal.stream.any_drive as live
-    from forcecal.transient import run_channels
+    from forcecal.forces.transient import run_channels
 
     n = int(4.0 * FS)
     t = np.arange(n) / FS
@@ -958,8 +958,8 @@ def test_the_scans_noise_is_its_part_of_the_stated_variance_and_noted(beam, scan
     largest value); where it makes most of the stated variance in some half second (a scan 8
     times noisier) the run is noted, in batch and in the stream, and on the fixture's scan it
     is not."""
-    from forcecal.transient import any_drive_setup, run_channels, window_forces
-    from forcecal.wiener import stft_frame
+    from forcecal.forces.transient import any_drive_setup, run_channels, window_forces
+    from forcecal.signals.wiener import stft_frame
 
     rig = beam[3]
     run = random_run[0]
@@ -993,8 +993,8 @@ def test_the_probes_hum_is_stated_from_the_tare(beam, bb_model, monkeypatch):
     error over its stated uncertainty inside the record 1.23 and each force's 1.23 (test
     0.7-1.6); with the gauges' tones alone 10.5-10.7 (test > 4), the estimate's error 14.4 %
     of the AC RMS against 9.8 % (1.3 % without hum)."""
-    import forcecal.transient_setup as transient_setup
-    from forcecal.reaction_transfer import fit_reaction_transfer
+    import forcecal.forces.transient as transient_setup
+    from forcecal.forces.reaction_transfer import fit_reaction_transfer
 
     rig = dataclasses.replace(beam[3], mains=50.0)
     rng = np.random.default_rng(32)
@@ -1067,7 +1067,7 @@ def test_rough_patterns_stay_in_the_span_but_do_not_choose_its_order(beam):
     weak smooth one of norm 30 and a pattern of noise alone. The smooth ones are told from
     the rough and the noise (F 1.2e8 and 154 against 0.32 and 2.4; the 1e-3 quantiles
     4.3-12.6), whatever their place among the columns."""
-    from forcecal.broadband import _smooth_patterns
+    from forcecal.model.broadband import _smooth_patterns
 
     rig = beam[3]
     rng = np.random.default_rng(3)
@@ -1097,8 +1097,8 @@ def test_the_scans_noise_moves_the_forces_as_stated(beam, chirp):
     (the largest within the noise, Morozov's discrepancy principle) the same study over 8
     draws at the fixture's noise gave 4.4: the smoothing's bias at the band's bottom, the
     same in every draw, was not stated."""
-    from forcecal.transient import any_drive_setup, run_channels, window_forces
-    from forcecal.wiener import stft_frame
+    from forcecal.forces.transient import any_drive_setup, run_channels, window_forces
+    from forcecal.signals.wiener import stft_frame
 
     rig = beam[3]
     run = _run(beam, np.random.default_rng(5), 40.0, seconds=2.0)[0]
@@ -1163,7 +1163,7 @@ def test_a_broadband_scan_exported_as_spectra_gives_the_time_records_model(beam,
 
     import tomli_w
 
-    from forcecal.cli import main
+    from forcecal.cli.main import main
     from forcecal.rig import rig_to_dict
 
     rig = beam[3]
@@ -1282,7 +1282,7 @@ def test_a_broadband_scan_exported_as_frfs_gives_its_model_with_stated_noise(bea
     and half of them, 0.74, fail)."""
     import json
 
-    from forcecal.cli import main
+    from forcecal.cli.main import main
 
     _preset, model, phi, rig, modal = beam
     n = random_scan.response.shape[1]
@@ -1329,7 +1329,7 @@ def test_frf_exports_that_cannot_state_their_noise_are_refused(beam, random_scan
     """FRFs without the rig's number of averages, without their coherence, with a coherence
     beyond 1 or a point missing it, and FRFs on a steady drive's rig: each refused in one line
     naming the file, key or node, exit 2, nothing written."""
-    from forcecal.cli import main
+    from forcecal.cli.main import main
 
     rig = beam[3]
     segment = random_scan.response.shape[1] // 8
@@ -1427,7 +1427,7 @@ def test_the_random_preset_scanned_as_frfs_gives_each_force_sample_by_sample(tmp
 
     import pandas as pd
 
-    from forcecal.cli import main
+    from forcecal.cli.main import main
 
     out = tmp_path / "random"
     assert main(["simulate", "-q", str(out), "--preset", "random", "--scan-export", "frfs"]) == 0
@@ -1454,14 +1454,14 @@ def test_the_random_preset_scanned_as_frfs_gives_each_force_sample_by_sample(tmp
 
 
 def test_the_spline_family_is_scipys_smoothing_spline():
-    """:class:`forcecal.spline_smoother.SplineFamily`'s map at any penalty gives the values of
+    """:class:`forcecal.signals.spline_smoother.SplineFamily`'s map at any penalty gives the values of
     :func:`scipy.interpolate.make_smoothing_spline` (achieved 1e-15 of their size, 8e-13 at
     the largest penalty; test 1e-9), its limit the weighted straight line, and the penalty of
     least C_p is none for values with no smooth part and, for a line, within the noise (1e-3;
     achieved 4e-4) of the straight line."""
     import scipy.interpolate
 
-    from forcecal.spline_smoother import SplineFamily
+    from forcecal.signals.spline_smoother import SplineFamily
 
     rng = np.random.default_rng(41)
     x = np.arange(8.0, 201.0, 4.0)                         # a chirp's lines, a few dropped
@@ -1483,11 +1483,11 @@ def test_the_spline_family_is_scipys_smoothing_spline():
 
 
 def test_a_line_whose_noise_reads_zero_does_not_take_the_ratios():
-    """:func:`forcecal.broadband.smooth_ratios` with one line's covariance zero, one line's
+    """:func:`forcecal.model.broadband.smooth_ratios` with one line's covariance zero, one line's
     1e200 and every line's 1e-300 times its size: the smoothed ratio stays within 1e-2 of the
     lines (achieved 1.0e-3, their noise's size; a zero-variance line had taken the spline to
     1e132), with finite uncertainties."""
-    from forcecal.broadband import smooth_ratios
+    from forcecal.model.broadband import smooth_ratios
 
     rng = np.random.default_rng(43)
     f = np.arange(8.0, 201.0, 4.0)

@@ -1,4 +1,4 @@
-"""The type-B part of the uncertainty budget (forcecal.budget): the rig's [uncertainty] table,
+"""The type-B part of the uncertainty budget (forcecal.forces.budget): the rig's [uncertainty] table,
 linear propagation against a Monte Carlo of the same parameters, and coverage when the sensors'
 true sensitivities differ from the rig's by draws of the declared uncertainties."""
 
@@ -9,14 +9,20 @@ import dataclasses
 import numpy as np
 import pytest
 
-from forcecal.budget import SOURCES, SolveInputs, combination_phasors, monte_carlo, parameters
 from forcecal.errors import RigError
-from forcecal.forces import channels_si, reconstruct
-from forcecal.harmonics import fit_harmonics
+from forcecal.forces.budget import (
+    SOURCES,
+    SolveInputs,
+    combination_phasors,
+    monte_carlo,
+    parameters,
+)
+from forcecal.forces.steady import channels_si, reconstruct
+from forcecal.model.spatial import build_spatial_model
 from forcecal.rig import TypeB, parse_rig, rig_to_dict
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import build_model, public_rig, record_run, record_scan
-from forcecal.spatial import build_spatial_model
 
 
 @pytest.fixture(scope="module")

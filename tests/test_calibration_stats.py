@@ -21,6 +21,7 @@ import numpy as np
 import pytest
 
 from forcecal.actuator import K_I2_SFE2, ACOnlyLaw, Calibration, fit_law
+from forcecal.actuator.gaps import PoleMotion, fourier_series
 from forcecal.actuator.propagation import NoiseColumns, column_effects, covariance_of
 from forcecal.campaign import (
     CalibrationSamples,
@@ -34,7 +35,6 @@ from forcecal.campaign import (
 )
 from forcecal.campaign.noise import CoordinateNoise, SharedEffect
 from forcecal.errors import DimensionError, InputError
-from forcecal.gaps import PoleMotion, fourier_series
 from forcecal.io.manifest import ManifestEntry
 from forcecal.rig import TypeB
 from forcecal.simulate.presets import get_preset

@@ -17,14 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcecal.actuator import (
-    K_I0_SFE2,
-    K_I2_SFE2,
-    Calibration,
-    CalibrationData,
-    fit_law,
-    predict,
-)
+from forcecal.actuator import K_I0_SFE2, K_I2_SFE2, Calibration, CalibrationData, fit_law, predict
 from forcecal.campaign import (
     ACOnlyLaw,
     CampaignResult,
@@ -37,15 +30,15 @@ from forcecal.campaign import (
     rig_for_entry,
     write_calibration,
 )
-from forcecal.cluster import pool_map
+from forcecal.cluster.pool import pool_map
 from forcecal.errors import FitError, InputError
 from forcecal.io.manifest import ManifestEntry, write_manifest
 from forcecal.io.run_files import write_run_csv
+from forcecal.model.spatial import SpatialModel, build_spatial_model
 from forcecal.rig import Rig
 from forcecal.simulate.magnet import Drive
 from forcecal.simulate.presets import Preset, RunSpec, get_preset
 from forcecal.simulate.virtual_rig import Truth, build_model, public_rig, record_run, record_scan
-from forcecal.spatial import SpatialModel, build_spatial_model
 
 GAPS = (0.8e-3, 1.0e-3, 1.2e-3)  # [m]
 DCS = (0.4, 0.8)  # [A]

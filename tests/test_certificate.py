@@ -31,6 +31,7 @@ from forcecal.campaign import (
 from forcecal.errors import RigError
 from forcecal.io.manifest import write_manifest
 from forcecal.io.run_files import write_run_csv
+from forcecal.model.spatial import SpatialModel, build_spatial_model
 from forcecal.provenance import provenance
 from forcecal.report.certificate import calibration_certificate
 from forcecal.report.pipeline import calibration_report
@@ -38,7 +39,6 @@ from forcecal.rig import Rig, load_rig, rig_to_dict
 from forcecal.simulate.magnet import Drive
 from forcecal.simulate.presets import Preset, RunSpec, get_preset
 from forcecal.simulate.virtual_rig import build_model, public_rig, record_run, record_scan
-from forcecal.spatial import SpatialModel, build_spatial_model
 
 GAPS = (0.8e-3, 1.0e-3, 1.2e-3)  # [m]
 DC = 0.6  # [A]

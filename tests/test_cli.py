@@ -20,7 +20,7 @@ import pytest
 import tomli_w
 
 import forcecal
-from forcecal.cli import main
+from forcecal.cli.main import main
 from forcecal.io.run_files import (
     read_run,
     read_table_csv,
@@ -585,7 +585,7 @@ def test_outputs_say_where_they_come_from(paper_dir, tmp_path):
     import hashlib
 
     from forcecal import __version__
-    from forcecal.spatial import load_model
+    from forcecal.model.spatial import load_model
 
     model = tmp_path / "model.json"
     run = paper_dir / "runs" / "paper.csv"

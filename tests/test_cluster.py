@@ -14,9 +14,9 @@ from pathlib import Path
 import pytest
 import tomli_w
 
-from forcecal import cluster
-from forcecal.cli import main
-from forcecal.cluster import run_jobs
+from forcecal.cli.main import main
+from forcecal.cluster import pool as cluster
+from forcecal.cluster.pool import run_jobs
 from forcecal.errors import InputError
 from forcecal.io.manifest import write_manifest
 from forcecal.simulate.export import rig_to_dict
@@ -116,9 +116,9 @@ def campaign_files(tmp_path_factory) -> tuple[str, str, Path]:
     import numpy as np
 
     from forcecal.io.run_files import write_run_csv
+    from forcecal.model.spatial import build_spatial_model
     from forcecal.simulate.presets import Drive, RunSpec, get_preset
     from forcecal.simulate.virtual_rig import build_model, public_rig, record_run, record_scan
-    from forcecal.spatial import build_spatial_model
 
     folder = tmp_path_factory.mktemp("campaign-files")
     base = get_preset("campaign")

@@ -1,4 +1,4 @@
-"""Self-checks (forcecal.diagnostics): each fires when the mistake is made on purpose on the
+"""Self-checks (forcecal.forces.diagnostics): each fires when the mistake is made on purpose on the
 virtual rig, and none fires on the clean presets."""
 
 from __future__ import annotations
@@ -8,12 +8,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from forcecal.diagnostics import mains_notes
 from forcecal.errors import DataError, RigError
-from forcecal.forces import implied_phasors, reconstruct, solve_inputs
-from forcecal.mains_hum import hum_variance, on_mains
+from forcecal.forces.diagnostics import mains_notes
+from forcecal.forces.steady import implied_phasors, reconstruct, solve_inputs
+from forcecal.model.spatial import build_spatial_model
 from forcecal.records import Run
 from forcecal.rig import parse_rig, rig_to_dict
+from forcecal.signals.mains import hum_variance, on_mains
 from forcecal.simulate.magnet import Drive, Magnet, Pole
 from forcecal.simulate.presets import RunSpec, ScanSpec, get_preset
 from forcecal.simulate.virtual_rig import (
@@ -24,7 +25,6 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
 
 CHECKS = ("disagree with the scan model's shape", "pushes", "far from the",
           "drifts within the record")

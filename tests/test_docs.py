@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from forcecal.cli import main
+from forcecal.cli.main import main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 FAILS = re.compile(r"#\s*exits\s+(\d+)\s*$")

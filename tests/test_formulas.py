@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from forcecal.coordinates import coordinate_map
-from forcecal.forces import force_solve, kept_harmonics, significant_reactions
-from forcecal.inertia import acceleration, inertia_term, mass_weights
-from forcecal.relaxation import force_matrix, relaxation_shapes
+from forcecal.forces.coordinates import coordinate_map
+from forcecal.forces.steady import force_solve, kept_harmonics, significant_reactions
+from forcecal.model.inertia import acceleration, inertia_term, mass_weights
+from forcecal.model.relaxation import force_matrix, relaxation_shapes
 from forcecal.rig import parse_rig
 from forcecal.structures import KINDS, Beam, Body, Plate, Structure
 

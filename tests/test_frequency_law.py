@@ -392,7 +392,7 @@ def test_cli_predict_at_a_frequency(law, tmp_path, capsys):
     far outside the calibrated frequencies, or without a frequency law, one line and exit 2."""
     import json
 
-    from forcecal.cli import main
+    from forcecal.cli.main import main
 
     with_law, without = tmp_path / "with.json", tmp_path / "without.json"
     calibration(law).save(with_law)

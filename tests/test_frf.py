@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from forcecal.frf import periods_in_record, scan_response
+from forcecal.model.frf import periods_in_record, scan_response
 from forcecal.records import Scan
 
 FS = 2_000.0

@@ -1,13 +1,13 @@
 """Each harmonic's stated noise against the scatter it causes, for white and coloured noise,
-mains hum and tones leaking in (forcecal.harmonic_noise, forcecal.line_noise)."""
+mains hum and tones leaking in (forcecal.signals.noise, forcecal.signals.noise)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from forcecal.harmonics import fit_harmonics
-from forcecal.line_noise import line_power, strong_lines
+from forcecal.signals.harmonics import fit_harmonics
+from forcecal.signals.noise import line_power, strong_lines
 
 FS = 10_000.0
 HUM = ((1, 3.0), (3, 1.0), (5, 0.5))     # mains harmonic, amplitude / white noise std

@@ -1,4 +1,4 @@
-"""Tests of forcecal.harmonics against synthetic signals of known Fourier series."""
+"""Tests of forcecal.signals.harmonics against synthetic signals of known Fourier series."""
 
 from __future__ import annotations
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from forcecal.errors import DataError
-from forcecal.harmonics import (
+from forcecal.signals.harmonics import (
     design_matrix,
     fit_harmonics,
     fundamental_uncertainty,

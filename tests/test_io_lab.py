@@ -21,7 +21,7 @@ import pyuff
 import tomli_w
 from nptdms import ChannelObject, TdmsWriter
 
-from forcecal.cli import main
+from forcecal.cli.main import main
 from forcecal.errors import DataError, InputError, RigError
 from forcecal.io.run_files import read_run, read_table_csv, run_paths
 from forcecal.rig import load_rig, node_channel, parse_node_channel, parse_rig, rig_to_dict

@@ -15,9 +15,9 @@ import pytest
 import pyuff
 import scipy.io
 
-from forcecal.cli import main
+from forcecal.cli.main import main
 from forcecal.errors import InputError
-from forcecal.forces import reconstruct
+from forcecal.forces.steady import reconstruct
 from forcecal.io import result_formats
 from forcecal.io.result_formats import (
     SERIES_FORMATS,
@@ -321,7 +321,7 @@ def test_the_command_offers_every_format():
     """The command line's choices are the writer's formats."""
     import argparse
 
-    from forcecal import cli_parser
+    from forcecal.cli import parser as cli_parser
 
     parser = argparse.ArgumentParser()
     cli_parser._reconstruct_parser(parser.add_subparsers(), argparse.HelpFormatter)

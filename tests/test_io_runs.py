@@ -11,7 +11,6 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from nptdms import ChannelObject, TdmsWriter
 
-from forcecal.checks import MIN_SAMPLES, check_clipping
 from forcecal.errors import DataError, InputError
 from forcecal.io.run_files import (
     read_run,
@@ -22,6 +21,7 @@ from forcecal.io.run_files import (
     write_table_csv,
 )
 from forcecal.records import Run
+from forcecal.signals.checks import MIN_SAMPLES, check_clipping
 
 WRITERS = {".csv": write_run_csv, ".tdms": write_run_tdms, ".h5": write_run_hdf5}
 

@@ -8,10 +8,10 @@ import tracemalloc
 import numpy as np
 import pytest
 
-import forcecal.fundamental as fundamental
+import forcecal.signals.fundamental as fundamental
 from forcecal.errors import DataError
-from forcecal.harmonic_sums import GridBasis, design_matrix, grid_series, series_at
-from forcecal.harmonics import fit_harmonics, fundamental_uncertainty, refine_fundamental
+from forcecal.signals.fourier_sums import GridBasis, design_matrix, grid_series, series_at
+from forcecal.signals.harmonics import fit_harmonics, fundamental_uncertainty, refine_fundamental
 
 FS = 2000.0  # [Hz]
 F0 = 40.0  # [Hz]
@@ -20,7 +20,7 @@ H = PHASORS.size - 1
 
 
 def synth(t: np.ndarray, f0: float = F0, phasors: np.ndarray = PHASORS) -> np.ndarray:
-    """x(t) = X_0 + sum Re(X_n exp(j n w0 t)), the convention of forcecal.harmonics."""
+    """x(t) = X_0 + sum Re(X_n exp(j n w0 t)), the convention of forcecal.signals.harmonics."""
     return (np.exp(1j * 2 * np.pi * f0 * np.multiply.outer(t, np.arange(phasors.size)))
             @ phasors).real
 

@@ -5,17 +5,17 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from forcecal.basis import fit_shape, shape_similarity
-from forcecal.coordinates import generalized_coordinates
 from forcecal.errors import ConditioningError
-from forcecal.forces import reconstruct
-from forcecal.harmonics import fit_harmonics
-from forcecal.inertia import mass_coupling
+from forcecal.forces.coordinates import generalized_coordinates
+from forcecal.forces.steady import reconstruct
+from forcecal.model.basis import fit_shape, shape_similarity
+from forcecal.model.inertia import mass_coupling
+from forcecal.model.relaxation import force_matrix, relaxation_shapes
+from forcecal.model.scan import harmonic_shapes
+from forcecal.model.spatial import build_spatial_model
 from forcecal.records import Run, Scan
-from forcecal.relaxation import force_matrix, relaxation_shapes
 from forcecal.rig import parse_rig
-from forcecal.scan import harmonic_shapes
-from forcecal.spatial import build_spatial_model
+from forcecal.signals.harmonics import fit_harmonics
 
 L = 0.6
 RHO = 3.0

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from forcecal.basis import fit_shape
 from forcecal.errors import ConditioningError, RigError
-from forcecal.forces import SPLIT_CONDITION, reconstruct
-from forcecal.inertia import mass_coupling
+from forcecal.forces.steady import SPLIT_CONDITION, reconstruct
+from forcecal.model.basis import fit_shape
+from forcecal.model.inertia import mass_coupling
+from forcecal.model.relaxation import force_matrix, relaxation_shapes
+from forcecal.model.spatial import build_spatial_model
 from forcecal.records import Run, Scan
-from forcecal.relaxation import force_matrix, relaxation_shapes
 from forcecal.rig import parse_rig
-from forcecal.spatial import build_spatial_model
 
 A, B = 0.5, 0.4
 RHO = 60.0                      # kg/m^2

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from forcecal.reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
+from forcecal.forces.reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
 
 FS = 5_000.0
 BAND = (5.0, 200.0)

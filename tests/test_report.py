@@ -20,10 +20,11 @@ from matplotlib.figure import Figure
 from forcecal.actuator import Calibration
 from forcecal.campaign import calibrate_campaign
 from forcecal.errors import DimensionError, InputError
-from forcecal.forces import channels_si, reconstruct
-from forcecal.harmonics import fit_harmonics
+from forcecal.forces.steady import channels_si, reconstruct
 from forcecal.io.run_files import read_run, read_table_csv
 from forcecal.io.uff import read_scan_uff
+from forcecal.model.scan import harmonic_shapes
+from forcecal.model.spatial import build_spatial_model
 from forcecal.report import (
     CalibrationPoints,
     Image,
@@ -44,9 +45,8 @@ from forcecal.report import (
 )
 from forcecal.report.figures.forces import force_sigma
 from forcecal.rig import load_rig
-from forcecal.scan import harmonic_shapes
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.export import write_simulation
-from forcecal.spatial import build_spatial_model
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PERIODS = 3.0

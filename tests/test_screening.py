@@ -1,4 +1,4 @@
-"""A robust scan (forcecal.screening): bad records are set aside with their reason, and the
+"""A robust scan (forcecal.model.screening): bad records are set aside with their reason, and the
 forces stay as accurate as with the clean scan."""
 
 from __future__ import annotations
@@ -8,10 +8,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from forcecal.forces import reconstruct
+from forcecal.forces.steady import reconstruct
 from forcecal.io.run_files import read_table_csv
-from forcecal.screening import record_weights
-from forcecal.spatial import SpatialModel, build_spatial_model
+from forcecal.model.screening import record_weights
+from forcecal.model.spatial import SpatialModel, build_spatial_model
 
 ACCURACY_RATIO = 1.5
 """Per-force error with a damaged scan / with the clean scan (achieved: 1.00-1.03; before the

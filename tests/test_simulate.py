@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from forcecal.harmonics import fit_harmonics
 from forcecal.io.manifest import read_manifest
 from forcecal.io.run_files import read_run, read_table_csv
 from forcecal.io.uff import read_scan_uff
 from forcecal.rig import load_rig
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate import presets
 from forcecal.simulate.beam import (
     assemble_beam,

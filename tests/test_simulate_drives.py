@@ -32,12 +32,7 @@ from forcecal.simulate.virtual_rig import (
     scan_offsets,
     scan_response,
 )
-from forcecal.simulate.waveforms import (
-    BandLimitedRandom,
-    MultiTone,
-    PeriodicChirp,
-    SweptSine,
-)
+from forcecal.simulate.waveforms import BandLimitedRandom, MultiTone, PeriodicChirp, SweptSine
 
 FS = 10_000.0
 SWEEP_FREQ_ATOL = 0.3      # Hz, Hilbert instantaneous frequency vs the linear law

@@ -17,14 +17,15 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from forcecal.cli import main
-from forcecal.diagnostics import DRIFT_TOLERANCE, drift_notes
-from forcecal.forces import reconstruct
-from forcecal.harmonics import fit_harmonics, refine_fundamental
+from forcecal.cli.main import main
+from forcecal.forces.diagnostics import DRIFT_TOLERANCE, drift_notes
+from forcecal.forces.steady import reconstruct
 from forcecal.io.manifest import read_manifest
 from forcecal.io.run_files import read_run
 from forcecal.io.uff import read_scan_uff
+from forcecal.model.spatial import build_spatial_model
 from forcecal.rig import load_rig
+from forcecal.signals.harmonics import fit_harmonics, refine_fundamental
 from forcecal.simulate import presets
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.lab import (
@@ -46,7 +47,6 @@ from forcecal.simulate.virtual_rig import (
     scan_points,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
 
 FS = 10_000.0
 LAB = Realism()

@@ -14,9 +14,9 @@ import json
 import numpy as np
 import pytest
 
-from forcecal.harmonics import fit_harmonics
 from forcecal.io.manifest import read_manifest
 from forcecal.io.uff import read_scan_uff
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate import presets
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.integrate import integrate

@@ -1,5 +1,5 @@
-"""Several scans under different loads: a span of shapes per harmonic (forcecal.span), the
-members each run needs (forcecal.coordinates.choose_members), against the virtual rig's truth.
+"""Several scans under different loads: a span of shapes per harmonic (forcecal.model.spatial), the
+members each run needs (forcecal.forces.coordinates.choose_members), against the virtual rig's truth.
 
 The `two-coil` preset: the paper beam pulled by two magnets on their own coils, scanned with
 coil A dominant and again with coil B dominant; its runs change coil B since the scans.
@@ -12,12 +12,14 @@ import json
 import numpy as np
 import pytest
 
-from forcecal.coordinates import choose_members, coordinate_map, member_fit, sensor_weights
 from forcecal.errors import InputError
-from forcecal.forces import channels_si, reconstruct
-from forcecal.harmonics import fit_harmonics
-from forcecal.inertia import inertia_term
-from forcecal.relaxation import force_matrix
+from forcecal.forces.coordinates import choose_members, coordinate_map, member_fit, sensor_weights
+from forcecal.forces.steady import channels_si, reconstruct
+from forcecal.forces.uncertainty import combinations, inertia_variance, shape_operators
+from forcecal.model.inertia import inertia_term
+from forcecal.model.relaxation import force_matrix
+from forcecal.model.spatial import SpatialModel, build_spatial_model, load_model
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import (
     build_model,
@@ -28,9 +30,7 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.spatial import SpatialModel, build_spatial_model, load_model
 from forcecal.stream.estimator import StreamEstimator
-from forcecal.uncertainty import combinations, inertia_variance, shape_operators
 
 
 def rms(x: np.ndarray) -> float:
@@ -248,7 +248,7 @@ def test_scans_at_different_frequencies_are_refused(two_coil):
     rig, scans, _, _, _ = two_coil
     other = build_spatial_model(rig, scans[1])
     shifted = dataclasses.replace(other, f0=other.f0 * 1.05)
-    from forcecal.span import merge_models
+    from forcecal.model.spatial import merge_models
 
     with pytest.raises(InputError, match="share the drive frequency"):
         merge_models(rig, [build_spatial_model(rig, scans[0]), shifted])
@@ -282,7 +282,7 @@ def test_one_scan_models_have_no_span_in_json(two_coil):
 def test_the_commands_take_several_scans(tmp_path, capsys):
     """`forcecal scan RIG SCAN1 SCAN2 -o MODEL.json`, then `reconstruct` with that model:
     the notes name the scans whose shapes a changed load combines."""
-    from forcecal.cli import main
+    from forcecal.cli.main import main
 
     lab = tmp_path / "lab"
     assert main(["simulate", str(lab), "--preset", "two-coil", "--seed", "3"]) == 0
@@ -305,9 +305,9 @@ def test_the_commands_take_several_scans(tmp_path, capsys):
 def test_the_report_takes_a_multi_scan_model(two_coil, tmp_path):
     """`report` with a MODEL.json built from two scans: the model section says so and counts
     each harmonic's shapes; fig. 3 draws the other scan's shape beside the first's."""
+    from forcecal.model.scan import harmonic_shapes
     from forcecal.report.figures import fig_shapes
     from forcecal.report.pipeline import run_report
-    from forcecal.scan import harmonic_shapes
 
     rig, scans, _, two, runs = two_coil
     path = run_report(rig, two, [runs["b_changed"][0]], tmp_path)

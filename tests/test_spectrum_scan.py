@@ -19,13 +19,12 @@ import pytest
 import pyuff
 from uff_files import retype, write_uff
 
-from forcecal.cli import main
+from forcecal.cli.main import main
 from forcecal.errors import DataError, InputError
 from forcecal.io.scan_files import read_scan
 from forcecal.io.uff import read_uff_geometry
+from forcecal.model.scan import GUARD, LINE_TOLERANCE, harmonic_shapes
 from forcecal.records import ScanSpectra
-from forcecal.scan import harmonic_shapes
-from forcecal.scan_spectra import GUARD, LINE_TOLERANCE
 
 H = 6
 """Harmonics asked for: the CLI's default."""

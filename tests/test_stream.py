@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from forcecal.errors import DataError, DimensionError, InputError
-from forcecal.forces import channels_si, force_solve, implied_phasors, reconstruct
-from forcecal.harmonics import design_matrix, fit_harmonics
-from forcecal.inertia import inertia_term
+from forcecal.forces.steady import channels_si, force_solve, implied_phasors, reconstruct
 from forcecal.io.run_files import read_run, read_table_csv
+from forcecal.model.inertia import inertia_term
+from forcecal.model.relaxation import force_matrix
 from forcecal.records import Run
-from forcecal.relaxation import force_matrix
+from forcecal.signals.harmonics import design_matrix, fit_harmonics
 from forcecal.simulate.presets import NoiseSpec
 from forcecal.stream import (
     StreamEstimator,
@@ -501,7 +501,7 @@ def test_stream_writes_csv_to_stdout_and_nothing_on_error(paper, paper_dir, tmp_
                                                           capsysbinary, monkeypatch):
     """``-o -`` writes the CSV table to stdout; an error in the middle of a stream to a file
     leaves no file and no temporary beside it."""
-    from forcecal.cli import main
+    from forcecal.cli.main import main
     from forcecal.io.blocks import check_run_blocks, open_run_blocks
     from forcecal.stream.replay import stream_table
 
@@ -577,7 +577,7 @@ def test_the_streamed_std_describes_the_streamed_error(paper, paper_dir):
 def test_memory_and_steady_mode_options(paper, paper_dir, tmp_path):
     """--memory PERIODS sets the estimator's memory; --steady is 100 periods; nonsense is
     refused with exit status 2 and nothing written."""
-    from forcecal.cli import STEADY_MEMORY_PERIODS, _forgetting, main
+    from forcecal.cli.main import STEADY_MEMORY_PERIODS, _forgetting, main
 
     rig, _, model, run = paper
     args = [str(paper_dir / "rig.toml"), str(paper_dir / "scan.uff"),
@@ -606,7 +606,7 @@ def test_stream_takes_a_tare(paper, paper_dir, tmp_path, kind):
     settled, test within 1e-6 N)."""
     import pandas as pd
 
-    from forcecal.cli import main
+    from forcecal.cli.main import main
     from forcecal.io.run_files import write_run_csv, write_run_tdms
 
     rig, _, model, run = paper

@@ -11,7 +11,7 @@ when the stated std is right. Over the draws of one cell (combination of forces 
   sqrt(chi2.ppf([0.0005, 0.9995], n) / n) (99.9 % two-sided);
 - the fraction with |z| <= 2 is binomial(n, 95.45 %) / n, inside binom.ppf([0.0005, 0.9995]).
 
-Cases, each aimed at one term of the propagation (:mod:`forcecal.uncertainty`):
+Cases, each aimed at one term of the propagation (:mod:`forcecal.forces.uncertainty`):
 
 - "nominal": the preset's noise. Gauge noise dominates the DC and F1, F2 at n = 1; the
   coordinate's noise dominates the total at n = 2, 3.
@@ -37,13 +37,15 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from forcecal.coordinates import MISFIT_LEVEL, coordinate_map, sensor_weights
-from forcecal.forces import ForceEstimate, channels_si, force_solve, reconstruct
-from forcecal.harmonics import fit_harmonics
-from forcecal.inertia import inertia_term
+from forcecal.forces.coordinates import MISFIT_LEVEL, coordinate_map, sensor_weights
+from forcecal.forces.steady import ForceEstimate, channels_si, force_solve, reconstruct
+from forcecal.forces.uncertainty import combinations, shape_operators
+from forcecal.model.inertia import inertia_term
+from forcecal.model.relaxation import force_matrix
+from forcecal.model.spatial import SpatialModel, build_spatial_model
 from forcecal.records import Run
-from forcecal.relaxation import force_matrix
 from forcecal.rig import Rig
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.presets import Preset, get_preset
 from forcecal.simulate.virtual_rig import (
     build_model,
@@ -54,8 +56,6 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.spatial import SpatialModel, build_spatial_model
-from forcecal.uncertainty import combinations, shape_operators
 
 SEEDS = 40
 """Noise draws of the nominal and noisy-scan cases (80 draws per cell, 40 for the DC)."""

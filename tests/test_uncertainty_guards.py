@@ -20,8 +20,10 @@ import dataclasses
 import numpy as np
 import pytest
 
-from forcecal.forces import reconstruct
-from forcecal.harmonics import fit_harmonics
+from forcecal.forces.steady import reconstruct
+from forcecal.forces.uncertainty import combinations
+from forcecal.model.spatial import build_spatial_model
+from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import (
     build_model,
@@ -32,8 +34,6 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.spatial import build_spatial_model
-from forcecal.uncertainty import combinations
 
 UNRESOLVED = 3          # the resonance rig's scan resolves n = 1, 2; the reactions show n = 3
 RUN_SEEDS = 20          # run-noise draws on one scan (40 Re/Im values per combination)

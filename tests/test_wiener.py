@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from forcecal.wiener import stft_frame, wiener_smooth
+from forcecal.signals.wiener import stft_frame, wiener_smooth
 
 FS = 10_000.0
 
@@ -42,7 +42,7 @@ def test_wiener_keeps_a_sweep_and_sets_its_noise_aside():
 
 def test_combinations_of_the_smoothed_signals():
     """Three noisy sweeps (noise 1, 2.5 and 0.5 times sigma) smoothed in an orthonormal basis
-    whose first row is their sum's (as the forces are, :mod:`forcecal.transient`) and
+    whose first row is their sum's (as the forces are, :mod:`forcecal.forces.transient`) and
     combined back: each signal and their sum within 0.3 of its own noise (achieved 0.14-0.21;
     with the sum's row taken from the basis's columns instead of its rows, 29); every
     combination's error over its stated uncertainty 0.6-1.05 (achieved 0.68-0.88), each

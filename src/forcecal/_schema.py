@@ -13,8 +13,8 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from ._orthonormal_basis import FAMILIES, n_functions
 from .errors import InputError
+from .model._orthonormal_basis import FAMILIES, n_functions
 
 __all__ = [
     "CALIBRATION_FORMAT",

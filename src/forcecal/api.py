@@ -29,12 +29,12 @@ from .actuator import Calibration, Law, predict, predict_flux
 from .campaign import CampaignResult, calibrate_campaign, write_calibration
 from .campaign import load_calibration as _load_calibration
 from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
-from .forces import reconstruct
+from .forces.steady import reconstruct
 from .io.run_files import read_run
 from .io.scan_files import read_scan as _read_scan
+from .model.spatial import SpatialModel, build_spatial_model, load_model
 from .records import Scan, ScanFRF, ScanSpectra
 from .rig import Rig, load_rig
-from .spatial import SpatialModel, build_spatial_model, load_model
 
 # load_rig, read_run, build_spatial_model, load_model and reconstruct are re-exported unchanged.
 __all__ = [
@@ -104,7 +104,7 @@ def calibrate(
     """Reconstruct every run of a campaign and calibrate the actuator law on them.
 
     A thin wrapper over :func:`forcecal.campaign.calibrate_campaign` that also takes a scan,
-    from which the spatial model is built first (:func:`forcecal.spatial.build_spatial_model`
+    from which the spatial model is built first (:func:`forcecal.model.spatial.build_spatial_model`
     with its defaults). Write the result with :func:`forcecal.campaign.write_calibration`.
 
     Parameters

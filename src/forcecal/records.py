@@ -110,7 +110,7 @@ class ScanSpectra(_ScanPoints):
     a sinusoid A cos(2 pi f t + phi) lying on the line at f gives that line the value
     A exp(j phi) when ``amplitude`` is "peak", (A / sqrt 2) exp(j phi) when it is "rms", with
     the phase phi referred to the record's first sample. The values are kept in the file's
-    convention; :mod:`forcecal.scan_spectra` applies it.
+    convention; :mod:`forcecal.model.scan` applies it.
 
     Attributes
     ----------
@@ -187,7 +187,7 @@ class ScanFRF(_ScanPoints):
     to the reference (the coil current) and its ordinary coherence, over common lines.
 
     An FRF states its noise only with its coherence and the number of averages it was
-    estimated from (:func:`forcecal.frf.scan_response`), which a Universal File does not hold:
+    estimated from (:func:`forcecal.model.frf.scan_response`), which a Universal File does not hold:
     the rig gives it (``acquisition.scan_averages``).
 
     Attributes

@@ -170,7 +170,7 @@ class SteadyRecord:
             force_std = _noise_std(noise)
         shared: tuple[tuple[str, np.ndarray, np.ndarray], ...] = ()
         if noise is not None:
-            from ..gaps import fourier_series
+            from .gaps import fourier_series
 
             shared = tuple(
                 (e.name, fourier_series(e.total, f0, t),

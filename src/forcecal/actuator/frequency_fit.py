@@ -12,7 +12,7 @@ current (its instants cover exactly one period) gives I_n, the lag gives I_m,n, 
 evaluated at the instants, and the DFT of the modelled force is compared with the measured
 force's phasors F_0..F_H: Re and Im of every harmonic n >= 1 and the DC, each divided by its
 standard uncertainty (``force_std``: Re and Im each, the DC real, as
-:class:`forcecal.estimate.ForceEstimate`'s ``total_std``). K, s_fe and tau are fitted over all
+:class:`forcecal.forces.estimate.ForceEstimate`'s ``total_std``). K, s_fe and tau are fitted over all
 runs at once by nonlinear least squares (start: a grid over s_fe, then over tau, K solved
 linearly).
 

@@ -10,7 +10,7 @@ reconstruct`, in parallel when there are many), and each run contributes *calibr
   displacement at the pole comes from the spatial model and the run's generalized coordinates,
   ``w(x_p, t) = w_dc(x_p) + sum_n Re(phi_n(x_p) Q_n exp(j n w0 t))`` (not the mean gap; the DC
   deflection and the limits of its quasi-static approximation are described in
-  :mod:`forcecal.gaps`);
+  :mod:`forcecal.actuator.gaps`);
 - the reconstructed total actuator force (reactions plus inertia) [N], and beside it the
   reactions-only total, both evaluated from their phasors;
 - the flux through a pole [Wb], when the rig names a flux channel.
@@ -46,17 +46,11 @@ Shapes: ``n_poles`` force points of the actuator, ``n`` samples. SI units throug
 from __future__ import annotations
 
 from ..actuator import ACOnlyLaw
-from ..gaps import PoleMotion, pole_motion, quasi_static_shape
+from ..actuator.gaps import PoleMotion, pole_motion, quasi_static_shape
 from .calibrate import CURRENT_GAP_LAWS, calibrate_campaign, calibrate_runs
 from .noise import RunNoise, run_noise
 from .repeatability import Repeatability
-from .result import (
-    CampaignResult,
-    ReactionsOnly,
-    load_calibration,
-    report_text,
-    write_calibration,
-)
+from .result import CampaignResult, ReactionsOnly, load_calibration, report_text, write_calibration
 from .runs import PARALLEL_MIN_RUNS, RunResult, reconstruct_campaign, rig_for_entry
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, calibration_data, run_samples
 from .statistics import ParameterUncertainty, noise_columns, parameter_uncertainty

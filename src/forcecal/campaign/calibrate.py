@@ -38,11 +38,11 @@ from ..actuator import (
 from ..actuator.frequency import SteadyRecord
 from ..actuator.frequency_fit import STEP_TOLERANCE, fit_frequency_law
 from ..actuator.propagation import NoiseColumns, column_effects, covariance_of
-from ..broadband import BroadbandModel
 from ..errors import FitError, InputError
 from ..io.manifest import read_manifest
+from ..model.broadband import BroadbandModel
+from ..model.spatial import SpatialModel
 from ..rig import Rig
-from ..spatial import SpatialModel
 from .repeatability import repeatability
 from .result import CampaignResult, ReactionsOnly, k_total_of
 from .runs import RunResult, reconstruct_campaign

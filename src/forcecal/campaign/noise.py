@@ -19,9 +19,9 @@ standard uncertainty:
   their covariance, Re and Im) moves the mass couplings, the coordinates fitted to the probes,
   the shape at the poles and the quasi-static shape of every run at once; each run's resulting
   change of its total force and pole displacement is computed with the estimate's formulas;
-- the rig's type-B parameters (:func:`forcecal.budget.parameters`), each as its signed change of
+- the rig's type-B parameters (:func:`forcecal.forces.budget.parameters`), each as its signed change of
   the total force's phasors and of the pole displacement per standard uncertainty, with the
-  estimate's own force solve and the displacement computed as :func:`forcecal.gaps.pole_motion`
+  estimate's own force solve and the displacement computed as :func:`forcecal.actuator.gaps.pole_motion`
   does.
 
 :mod:`forcecal.campaign.statistics` turns these into noise columns and systematic effects for
@@ -37,17 +37,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..budget import Parameter, SolveInputs, combination_phasors, model_couplings, parameters
-from ..coordinates import coordinate_map, sensor_weights
-from ..forces import ForceEstimate, channels_si, solve_inputs
-from ..gaps import quasi_static_shape
-from ..harmonics import HarmonicFit, fit_harmonics
-from ..inertia import inertia_term
+from ..actuator.gaps import quasi_static_shape
+from ..forces.budget import Parameter, SolveInputs, combination_phasors, model_couplings, parameters
+from ..forces.coordinates import coordinate_map, sensor_weights
+from ..forces.steady import ForceEstimate, channels_si, solve_inputs
+from ..forces.uncertainty import ShapeOperators, shape_operators
+from ..model.inertia import inertia_term
+from ..model.relaxation import force_matrix
+from ..model.spatial import SpatialModel
 from ..records import Run
-from ..relaxation import force_matrix
 from ..rig import Rig
-from ..spatial import SpatialModel
-from ..uncertainty import ShapeOperators, shape_operators
+from ..signals.harmonics import HarmonicFit, fit_harmonics
 
 __all__ = ["CoordinateNoise", "RunNoise", "SharedEffect", "pole_phasors", "run_noise"]
 
@@ -90,10 +90,10 @@ class SharedEffect:
     Attributes
     ----------
     name : str
-        The error (for a type-B parameter its rig key, as :func:`forcecal.budget.parameters`
+        The error (for a type-B parameter its rig key, as :func:`forcecal.forces.budget.parameters`
         names it).
     source : str
-        Its budget source (``tare record``, ``scan shapes``, :data:`forcecal.budget.SOURCES`).
+        Its budget source (``tare record``, ``scan shapes``, :data:`forcecal.forces.budget.SOURCES`).
     total : (H+1,) complex array [N]
         Change of the total force's phasors.
     motion : (n_poles, H+1) complex array [m]
@@ -176,7 +176,7 @@ def _coordinate_noise(rig: Rig, model: SpatialModel, estimate: ForceEstimate
 
 def _probe_dc(rig: Rig, inputs: SolveInputs, tare: Run | None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The probes' DC minus the tare's mean, as :func:`forcecal.gaps.pole_motion` takes it
+    """The probes' DC minus the tare's mean, as :func:`forcecal.actuator.gaps.pole_motion` takes it
     (the DC of the probes' harmonic fit, ``inputs.sensors``).
 
     Returns
@@ -200,7 +200,7 @@ def _probe_dc(rig: Rig, inputs: SolveInputs, tare: Run | None
 def _dc_amplitude(rig: Rig, model: SpatialModel, dc: np.ndarray, var: np.ndarray
                   ) -> tuple[float, np.ndarray, np.ndarray]:
     """The quasi-static amplitude fitted to the probes' DC, its gain on every probe's DC and
-    the shape at the poles (the weights of :func:`forcecal.gaps.pole_motion`)."""
+    the shape at the poles (the weights of :func:`forcecal.actuator.gaps.pole_motion`)."""
     shape = quasi_static_shape(model, rig)
     at_probes = shape(rig.sensor_points)
     w = 1.0 / np.maximum(var, np.finfo(float).tiny)
@@ -212,7 +212,7 @@ def _dc_amplitude(rig: Rig, model: SpatialModel, dc: np.ndarray, var: np.ndarray
 def pole_phasors(rig: Rig, model: SpatialModel, inputs: SolveInputs, dc: np.ndarray,
                  dc_var: np.ndarray) -> np.ndarray:
     """The displacement phasors at the poles from fixed probe phasors, as
-    :func:`forcecal.gaps.pole_motion` computes them (the coordinates by the weighted least
+    :func:`forcecal.actuator.gaps.pole_motion` computes them (the coordinates by the weighted least
     squares of the estimate over the members it used, the DC on the quasi-static shape).
 
     Parameters
@@ -275,7 +275,7 @@ def _moved(rig: Rig, model: SpatialModel, p: Parameter, d: float, dc: np.ndarray
 
 
 def _rotor(model: SpatialModel, rig: Rig, n1: int) -> complex:
-    """The unit rotor of :func:`forcecal.gaps.quasi_static_shape` (its shape is
+    """The unit rotor of :func:`forcecal.actuator.gaps.quasi_static_shape` (its shape is
     ``Re(phi_n1 rotor)``), recovered by least squares at the probes and the poles."""
     shape = quasi_static_shape(model, rig)
     points = np.concatenate([rig.sensor_points, rig.force_points])
@@ -291,7 +291,7 @@ class _ShapeRun:
     estimate's inputs, the total's gain on the gauges, the probes' DC and its variances, the
     quasi-static shape (the harmonic whose shape stands in for it, None when the model has its
     own, its rotor and values at the probes and the poles), and the basis functions' couplings
-    and values at the probes (:func:`forcecal.uncertainty.shape_operators`)."""
+    and values at the probes (:func:`forcecal.forces.uncertainty.shape_operators`)."""
 
     rig: Rig
     model: SpatialModel

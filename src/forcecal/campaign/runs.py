@@ -16,16 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..broadband import STEADY_HARMONICS, BroadbandModel, steady_model
-from ..checks import check_run_for_rig
-from ..cluster import pool_map
+from ..actuator.gaps import static_gaps
+from ..cluster.pool import pool_map
 from ..errors import InputError
-from ..forces import ForceEstimate, reconstruct
-from ..gaps import static_gaps
+from ..forces.steady import ForceEstimate, reconstruct
 from ..io.manifest import GAP_RATIO, ManifestEntry, read_manifest
 from ..io.run_files import read_run
+from ..model.broadband import STEADY_HARMONICS, BroadbandModel, steady_model
+from ..model.spatial import SpatialModel
 from ..rig import Rig
-from ..spatial import SpatialModel
+from ..signals.checks import check_run_for_rig
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, run_samples
 
 __all__ = ["PARALLEL_MIN_RUNS", "RunResult", "reconstruct_campaign", "rig_for_entry"]

@@ -2,7 +2,7 @@
 
 Each run contributes ``samples_per_period`` instants spread over one period of its fitted
 Fourier series, holding the coil current [A], the instantaneous air gap of every pole [m] (see
-:mod:`forcecal.gaps`), the reconstructed total actuator force (reactions plus inertia) [N] and
+:mod:`forcecal.actuator.gaps`), the reconstructed total actuator force (reactions plus inertia) [N] and
 beside it the reactions-only total, and the flux through a pole [Wb] when the rig names a flux
 channel. :func:`calibration_data` pools the samples of the runs for :mod:`forcecal.actuator`.
 
@@ -19,13 +19,13 @@ import numpy as np
 
 from ..actuator import CalibrationData
 from ..actuator.ac_only import DEFAULT_SAMPLES_PER_PERIOD
+from ..actuator.gaps import PoleMotion, fourier_series, pole_motion
 from ..errors import FitError, InputError
-from ..forces import ForceEstimate, channels_si
-from ..gaps import PoleMotion, fourier_series, pole_motion
-from ..harmonics import fit_harmonics
+from ..forces.steady import ForceEstimate, channels_si
+from ..model.spatial import SpatialModel
 from ..records import Run
 from ..rig import Rig
-from ..spatial import SpatialModel
+from ..signals.harmonics import fit_harmonics
 from .noise import RunNoise, run_noise
 
 if TYPE_CHECKING:
@@ -95,7 +95,7 @@ def run_samples(
     rig : Rig
         With the run's static gaps (see :func:`forcecal.campaign.rig_for_entry`).
     model : SpatialModel
-        The harmonic shapes, as for :func:`forcecal.gaps.pole_motion`.
+        The harmonic shapes, as for :func:`forcecal.actuator.gaps.pole_motion`.
     run : Run
         The recording.
     estimate : ForceEstimate

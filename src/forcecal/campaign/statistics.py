@@ -23,7 +23,7 @@ number of runs). Each effect is applied to every run at once by +-1 standard unc
 law refitted from the fitted parameters, and the central difference taken: the current sensor's
 scale (``rig.type_b.current_scale``, relative), every static gap shifted together
 (``rig.type_b.gap``), and each of the force estimate's type-B parameters (each gauge's and each
-probe's sensitivity, every position, every mass: :func:`forcecal.budget.parameters`) as its
+probe's sensitivity, every position, every mass: :func:`forcecal.forces.budget.parameters`) as its
 signed change of every run's force and pole displacement. Their covariances add to the
 statistical one (the effects are independent); the budget groups them by source.
 
@@ -52,7 +52,7 @@ from ..actuator.propagation import (
     run_scatter,
     systematic_effect,
 )
-from ..budget import SOURCES as FORCE_TYPE_B_SOURCES
+from ..forces.budget import SOURCES as FORCE_TYPE_B_SOURCES
 from ..rig import Rig, TypeB
 from .noise import SharedEffect
 

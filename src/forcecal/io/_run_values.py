@@ -12,9 +12,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-from ..checks import check_equal_lengths, check_finite, check_plausible, check_sample_count
 from ..errors import DataError, InputError
 from ..records import Run
+from ..signals.checks import check_equal_lengths, check_finite, check_plausible, check_sample_count
 
 __all__ = [
     "RunFile",

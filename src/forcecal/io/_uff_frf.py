@@ -5,7 +5,7 @@ common set of evenly spaced lines [Hz].
 
 An FRF's phase is relative to the reference at each line, so a steady drive's harmonics cannot be
 read from it (:data:`forcecal.records.FRF_PHASE`); a broadband scan can, its noise stated by the
-coherence and the number of averages the rig gives (:func:`forcecal.frf.scan_response`).
+coherence and the number of averages the rig gives (:func:`forcecal.model.frf.scan_response`).
 """
 
 from __future__ import annotations
@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import FRF_LIMITS
 from ..errors import DataError, InputError
 from ..records import ScanFRF
+from ..signals.checks import FRF_LIMITS
 from ._uff_pairs import (
     Row,
     check_no_missing_points,
@@ -59,7 +59,7 @@ def frfs_from_sets(sets: Sequence[dict], geometry: dict[int, tuple], path: str |
     DataError
         A node with no, or more than one, FRF or coherence; records that disagree in lines or
         quantity; a coherence outside 0-1; FRFs of real values; non-finite or implausible
-        values (:data:`forcecal.checks.FRF_LIMITS`).
+        values (:data:`forcecal.signals.checks.FRF_LIMITS`).
     """
     if locations:
         raise InputError(f"scan '{path}': a body's scan is read from its time records or "

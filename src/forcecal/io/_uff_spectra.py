@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..checks import SCAN_FLOORS, SCAN_LIMITS
 from ..errors import DataError
 from ..records import ScanSpectra
+from ..signals.checks import SCAN_FLOORS, SCAN_LIMITS
 from ._uff_pairs import Row, record_values, scan_quantity, scan_rows, split_records
 from ._uff_sets import SPECTRUM, TIME_ABSCISSA, length_factor, set_type
 
@@ -142,7 +142,7 @@ def _amplitude_convention(rows: list[Row], path: str | Path) -> str:
 
 def _check_plausible(scan: ScanSpectra) -> None:
     """DataError when a spectrum's lines exceed a plausible amplitude or none holds a signal
-    (the limits of :data:`forcecal.checks.SCAN_LIMITS` and ``SCAN_FLOORS``)."""
+    (the limits of :data:`forcecal.signals.checks.SCAN_LIMITS` and ``SCAN_FLOORS``)."""
     where = f"scan '{scan.source}'"
     scale = np.sqrt(2.0) if scan.amplitude == "rms" else 1.0
     for key, lines in (("response", scan.response), ("reference", scan.reference)):

@@ -13,7 +13,7 @@
 
 The channels are named as :func:`~forcecal.io.run_files.read_run` names them given the rig
 (its ``[channels]`` map applied). :func:`check_run_blocks` applies the checks of a read run and
-of :func:`forcecal.checks.check_run_for_rig` in a first pass: on the whole record up to
+of :func:`forcecal.signals.checks.check_run_for_rig` in a first pass: on the whole record up to
 :data:`CHECK_WINDOW` samples (so exactly as for a run read whole), and beyond that on windows
 of one to two :data:`CHECK_WINDOW` (the robust span of the spike check, the clipping share and
 "every channel constant" are then taken per window), so that nothing is streamed from a file
@@ -33,10 +33,10 @@ from typing import Any
 import h5py
 import numpy as np
 
-from ..checks import MIN_SAMPLES, check_record_length, check_run_for_rig
 from ..errors import DataError, InputError
 from ..records import Run
 from ..rig import Rig
+from ..signals.checks import MIN_SAMPLES, check_record_length, check_run_for_rig
 from ._run_values import RunFile, finish_run, first_line
 
 __all__ = ["CHECK_WINDOW", "READ_BLOCK", "RunBlocks", "check_run_blocks", "open_run_blocks"]
@@ -168,7 +168,7 @@ def open_run_blocks(path: str | Path, rig: Rig | None = None, *,
 
 
 def check_run_blocks(rig: Rig, blocks: RunBlocks) -> RunBlocks:
-    """The checks of a run read whole and of :func:`~forcecal.checks.check_run_for_rig`, over
+    """The checks of a run read whole and of :func:`~forcecal.signals.checks.check_run_for_rig`, over
     the record in windows (see the module docstring).
 
     Parameters
@@ -187,7 +187,7 @@ def check_run_blocks(rig: Rig, blocks: RunBlocks) -> RunBlocks:
     ------
     InputError, DataError
         As :func:`~forcecal.io.run_files.read_run` and
-        :func:`~forcecal.checks.check_run_for_rig`.
+        :func:`~forcecal.signals.checks.check_run_for_rig`.
     """
     if blocks.run is not None:                         # read whole: checked as before
         check_run_for_rig(rig, blocks.run)

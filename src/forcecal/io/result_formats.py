@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..forces import ForceEstimate
-from ..harmonic_sums import series_at
+from ..forces.steady import ForceEstimate
+from ..signals.fourier_sums import series_at
 from .run_files import write_table_csv
 
 __all__ = [
@@ -203,7 +203,7 @@ def write_forces_hdf5(est: ForceEstimate, path: str | Path,
     datasets. Root attributes: ``format``, ``run``, ``fundamental_hz``, ``fundamental_std_hz``,
     ``waveform_std_n``, ``dc_observed``, ``notes``. The group ``harmonics`` holds ``harmonic``,
     ``frequency_hz``, ``kept``, ``with_inertia`` (H+1,) and per force and ``total`` the
-    phasors (complex [N], the convention of :mod:`forcecal.harmonics`) and, suffixed
+    phasors (complex [N], the convention of :mod:`forcecal.signals.harmonics`) and, suffixed
     ``_std``, their standard uncertainties (of Re and of Im) [N].
 
     Parameters

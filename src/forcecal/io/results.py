@@ -8,9 +8,9 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
-from ..budget import MONTE_CARLO_SOURCES
 from ..errors import DataError, InputError
-from ..forces import SPLIT_CONDITION, ForceEstimate
+from ..forces.budget import MONTE_CARLO_SOURCES
+from ..forces.steady import SPLIT_CONDITION, ForceEstimate
 from .result_formats import (
     SERIES_FORMATS,
     SERIES_SUFFIXES,

@@ -18,9 +18,9 @@ for the run files in it (:func:`run_paths`).
 
 Reading checks what would silently spoil an estimate and says where, in one line: no samples,
 a non-numeric cell, NaN or infinite samples, non-uniform time stamps, fewer than
-:data:`forcecal.checks.MIN_SAMPLES` samples. The checks on the data themselves (sample count,
-equal lengths, finite samples, and :func:`forcecal.checks.check_clipping` for saturated
-channels) live in :mod:`forcecal.checks`; the ones on the file's layout and time stamps live here.
+:data:`forcecal.signals.checks.MIN_SAMPLES` samples. The checks on the data themselves (sample count,
+equal lengths, finite samples, and :func:`forcecal.signals.checks.check_clipping` for saturated
+channels) live in :mod:`forcecal.signals.checks`; the ones on the file's layout and time stamps live here.
 """
 
 from __future__ import annotations
@@ -34,9 +34,9 @@ import numpy as np
 from nptdms import ChannelObject, TdmsFile, TdmsWriter
 
 from .._atomic import atomic_path
-from ..checks import check_sample_count
 from ..errors import DataError, InputError
 from ..records import Run
+from ..signals.checks import check_sample_count
 from ._run_values import (
     RunFile,
     check_finite_time,

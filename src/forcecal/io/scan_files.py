@@ -22,9 +22,9 @@ import h5py
 import numpy as np
 
 from .._atomic import atomic_path
-from ..checks import check_scan_values
 from ..errors import DataError, InputError
 from ..records import Scan, ScanFRF, ScanSpectra
+from ..signals.checks import check_scan_values
 from .uff import read_scan_uff
 
 __all__ = ["SCAN_SUFFIXES", "read_scan", "write_scan_hdf5", "write_scan_npz"]

@@ -1,4 +1,4 @@
-"""What ``reconstruct`` writes for a run under any drive (:mod:`forcecal.transient`).
+"""What ``reconstruct`` writes for a run under any drive (:mod:`forcecal.forces.transient`).
 
 ``OUT/NAME.forces.csv``: ``time`` [s], every force and ``total``, the same with suffix
 ``_static`` (reactions only) and with suffix ``_std`` (the standard uncertainty of one sample),
@@ -15,11 +15,11 @@ from pathlib import Path
 import numpy as np
 
 from .._atomic import atomic_path
-from ..broadband import BroadbandModel
 from ..errors import DataError, InputError
+from ..forces.transient import TransientEstimate, reconstruct_any
+from ..model.broadband import BroadbandModel
 from ..records import Run
 from ..rig import Rig
-from ..transient import TransientEstimate, reconstruct_any
 from .results import MAX_FORCE_N
 from .run_files import write_table_csv
 from .staging import staged_folder
@@ -98,7 +98,7 @@ def write_transient(est: TransientEstimate, out_dir: str | Path,
 def reconstruct_any_runs(rig: Rig, model: object, runs: list[Run], tare: Run | None,
                          output: str | Path, provenance: dict) -> list[str]:
     """``reconstruct`` under any drive (``acquisition.drive = "any"``): every run's forces
-    sample by sample (:func:`forcecal.transient.reconstruct_any`), written together into
+    sample by sample (:func:`forcecal.forces.transient.reconstruct_any`), written together into
     ``output``; the lines to print."""
     if not isinstance(model, BroadbandModel):
         raise InputError(f"rig '{rig.source}': acquisition.drive = 'any' needs a broadband "

@@ -20,15 +20,7 @@ from .figures import (
     png_bytes,
     save_png,
 )
-from .html import (
-    Image,
-    Preformatted,
-    Section,
-    Table,
-    build_report,
-    estimate_table,
-    write_report,
-)
+from .html import Image, Preformatted, Section, Table, build_report, estimate_table, write_report
 
 __all__ = [
     "CalibrationPoints",

@@ -40,7 +40,7 @@ from .cells import NONE, Grid, math_text, num, pct, rel, unc, value
 
 if TYPE_CHECKING:
     from ..campaign import CampaignResult
-    from ..spatial import SpatialModel
+    from ..model.spatial import SpatialModel
 
 __all__ = ["calibration_certificate"]
 

@@ -34,7 +34,7 @@ from matplotlib.figure import Figure
 
 from .._atomic import write_text_atomic
 from ..errors import InputError
-from ..forces import ForceEstimate
+from ..forces.steady import ForceEstimate
 from ._templates import render
 from .figures import png_bytes
 
@@ -277,7 +277,7 @@ def estimate_table(estimate: ForceEstimate) -> list[list[str]]:
     """The forces of a run as text rows, header first.
 
     One row per force (and "total") per harmonic the estimate kept: harmonic n, its frequency,
-    the amplitude |F_n|, the phase arg F_n (convention of :mod:`forcecal.harmonics`), the
+    the amplitude |F_n|, the phase arg F_n (convention of :mod:`forcecal.signals.harmonics`), the
     standard uncertainty of Re and of Im of F_n, and the reactions-only amplitude. For n = 0 the
     amplitude column holds the signed mean force and the phase is empty; without DC-capable
     gauges (``dc_observed`` false) the DC row says "not observed". Amplitudes carry 5

@@ -15,13 +15,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from matplotlib.figure import Figure
 
-from ..forces import ForceEstimate, reconstruct
+from ..forces.steady import ForceEstimate, reconstruct
 from ..io.results import write_estimate
 from ..io.run_files import read_table_csv
+from ..model.scan import HarmonicShapes, harmonic_shapes
+from ..model.spatial import SpatialModel, build_spatial_model, check_model_rig
 from ..records import Run, Scan, ScanFRF, ScanSpectra
 from ..rig import Rig
-from ..scan import HarmonicShapes, harmonic_shapes
-from ..spatial import SpatialModel, build_spatial_model, check_model_rig
 from .figures import (
     CalibrationPoints,
     fig_calibration,
@@ -218,11 +218,11 @@ def run_report(rig: Rig, scan: Scan | ScanSpectra | ScanFRF | SpatialModel, runs
     truth_dir : str or pathlib.Path, optional
         A folder of ground truth ``NAME.forces.csv`` per run, overlaid where present.
     n_harmonics : int
-        As for :func:`forcecal.spatial.build_spatial_model`.
+        As for :func:`forcecal.model.spatial.build_spatial_model`.
     criterion : str
-        As for :func:`forcecal.spatial.build_spatial_model`.
+        As for :func:`forcecal.model.spatial.build_spatial_model`.
     basis : str
-        As for :func:`forcecal.spatial.build_spatial_model`.
+        As for :func:`forcecal.model.spatial.build_spatial_model`.
     provenance : dict, optional
         :func:`forcecal.provenance.provenance` of the inputs (default: of the model's scans and
         the runs' files, as far as they are files).

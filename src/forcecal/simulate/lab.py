@@ -21,8 +21,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..harmonics import fit_harmonics
 from ..records import Run, Scan
+from ..signals.harmonics import fit_harmonics
 from .integrate import Response
 from .presets import Preset, RunSpec
 from .realism import Realism, coloured

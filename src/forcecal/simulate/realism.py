@@ -131,7 +131,7 @@ class Realism:
       drive); within each run the level drifts linearly by ``drift`` [1/s] and the frequency by
       ``chirp`` [1/s] (:class:`.magnet.Drive`), drawn per run with standard deviations
       ``run_level_drift`` and ``run_frequency_drift``, far below what
-      :func:`forcecal.diagnostics.drift_notes` flags (1e-3 of the frequency within a record).
+      :func:`forcecal.forces.diagnostics.drift_notes` flags (1e-3 of the frequency within a record).
 
     Attributes
     ----------

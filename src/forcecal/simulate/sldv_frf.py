@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.signal
 
-from ..frf import periods_in_record
+from ..model.frf import periods_in_record
 from ..records import Scan, ScanFRF
 
 __all__ = ["SEGMENT", "frf_export"]

@@ -1,4 +1,4 @@
-"""Forces under any drive in real time: the batch estimate of :mod:`forcecal.transient` over a
+"""Forces under any drive in real time: the batch estimate of :mod:`forcecal.forces.transient` over a
 window that slides with the stream.
 
 A smoother needs the future a causal filter lacks: the best causal estimate of an acceleration
@@ -8,10 +8,10 @@ fixed ``latency`` after it have arrived, computed over a window that also keeps 
 before the samples it gives:
 
 - the first ``warmup`` seconds set what the batch estimate takes from the whole record: every
-  channel's noise, the probes' weights, the band models (:func:`forcecal.transient
+  channel's noise, the probes' weights, the band models (:func:`forcecal.forces.transient
   .any_drive_setup`); nothing is given before they have arrived;
 - then, whenever ``step`` seconds can be given, the window from ``history`` before them to
-  the newest sample goes through :func:`forcecal.transient.window_forces` (the smoothers, the
+  the newest sample goes through :func:`forcecal.forces.transient.window_forces` (the smoothers, the
   inertia's correction to the operating shapes, the short-time Wiener gains) and the samples
   at least ``latency`` old are given. The window starts on the Wiener frames' hop, as the
   batch's frames do, so that inside the record the two use the same frames;
@@ -21,7 +21,7 @@ Memory and work per sample stay flat in the record's length. With the batch's se
 stream matches the batch estimate inside the record to a small part of its uncertainty (the
 windows' edges are ``history`` and ``latency`` away); with its own, from the first seconds,
 to what those seconds tell of the noise, its gauges' smoothers set again in every window from
-the window's own gauges (:func:`forcecal.transient_setup.with_reaction_priors`: a sweep's first
+the window's own gauges (:func:`forcecal.forces.transient.with_reaction_priors`: a sweep's first
 seconds hold only its bottom).
 """
 
@@ -36,16 +36,10 @@ from typing import IO
 
 import numpy as np
 
-from ..broadband import BroadbandModel
-from ..channel_checks import NOISE_BLOCK, AboveBand, check_channel_noise
 from ..errors import InputError
-from ..inertia_errors import ScanNoiseShare
-from ..io.blocks import RunBlocks
-from ..io.table_writer import CSV_DIGITS, table_writer
-from ..records import Run
-from ..rig import Rig
-from ..spatial import check_rig_keys
-from ..transient import (
+from ..forces.budget import type_b_notes
+from ..forces.inertia_errors import ScanNoiseShare
+from ..forces.transient import (
     TRANSFER_MISFIT,
     AnyDriveSetup,
     TransientEstimate,
@@ -56,11 +50,17 @@ from ..transient import (
     run_channels,
     transfer_note,
     window_forces,
+    with_reaction_priors,
 )
-from ..transient_budget import type_b_notes
-from ..transient_setup import with_reaction_priors
-from ..unseen_motion import unseen_notes
-from ..wiener import stft_frame
+from ..forces.unseen_motion import unseen_notes
+from ..io.blocks import RunBlocks
+from ..io.table_writer import CSV_DIGITS, table_writer
+from ..model.broadband import BroadbandModel
+from ..model.spatial import check_rig_keys
+from ..records import Run
+from ..rig import Rig
+from ..signals.checks import NOISE_BLOCK, AboveBand, check_channel_noise
+from ..signals.wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
 
 __all__ = ["HISTORY", "LATENCY", "STEP", "WARMUP", "AnyDriveStream", "StreamChunk",
@@ -110,13 +110,13 @@ class AnyDriveStream:
         The run, named in messages.
     tare, tare_fs : (n_gauges + n_probes, n) array [N and m] and float [Hz], optional
         A zero-current record's gauges, then its probes: with ``acquisition.mains``, their hum
-        tones join the noise (:func:`forcecal.transient_setup.any_drive_setup`).
+        tones join the noise (:func:`forcecal.forces.transient.any_drive_setup`).
 
     Attributes
     ----------
     scan_share : ScanNoiseShare
         The share of the total's stated variance the scan's noise makes, over the samples
-        given so far (:class:`forcecal.inertia_errors.ScanNoiseShare`).
+        given so far (:class:`forcecal.forces.inertia_errors.ScanNoiseShare`).
 
     Raises
     ------
@@ -124,7 +124,7 @@ class AnyDriveStream:
         A model of another rig.
     DataError
         From :meth:`process` and :meth:`finish`: a gauge or probe constant over the first
-        seconds, or whose noise changes later (:func:`forcecal.channel_checks.check_channel_noise`).
+        seconds, or whose noise changes later (:func:`forcecal.signals.checks.check_channel_noise`).
     """
 
     def __init__(self, rig: Rig, model: BroadbandModel, fs: float, t0: float = 0.0,
@@ -222,7 +222,7 @@ class AnyDriveStream:
 
     def _check(self) -> None:
         """Every complete stretch of ``NOISE_BLOCK`` not yet checked, against the setup's
-        noise (:func:`forcecal.channel_checks.check_channel_noise`): a sensor that dies after the
+        noise (:func:`forcecal.signals.checks.check_channel_noise`): a sensor that dies after the
         first seconds is refused where it dies."""
         assert self._setup is not None
         n = (self._received - self._checked) // self._block * self._block
@@ -318,7 +318,7 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     note : callable, optional
         Called once the table is written with the note of the half second in which the
         drive's force held the most above the scan's band, when it held more than
-        :data:`forcecal.channel_checks.ABOVE_BAND` (:class:`forcecal.channel_checks.AboveBand`: a
+        :data:`forcecal.signals.checks.ABOVE_BAND` (:class:`forcecal.signals.checks.AboveBand`: a
         stream cannot see ahead, but it can say so at the end), and with the warnings of its
         setup (a transfer that misfits, probes that contradict the operating shapes).
     tare : Run, optional

@@ -2,7 +2,7 @@
 
 The recursive least-squares kernel it runs is :mod:`forcecal.stream.rls`; its readout from
 the tracked phasors to the forces is built from the same formulas as the batch estimate
-(:func:`forcecal.coordinates.coordinate_map`, :func:`forcecal.inertia.inertia_term`,
+(:func:`forcecal.forces.coordinates.coordinate_map`, :func:`forcecal.model.inertia.inertia_term`,
 :func:`forcecal.forces.force_solve`, :func:`forcecal.forces.kept_harmonics`).
 
 Latency and noise
@@ -31,9 +31,9 @@ estimate is then the RLS estimate with the window's regressors taken at the curr
 
 Several shapes per harmonic
 ---------------------------
-With a model built from several scans (:mod:`forcecal.span`) each harmonic's readout starts on
+With a model built from several scans (:mod:`forcecal.model.spatial`) each harmonic's readout starts on
 its first shape; once the window is engaged, every grid step the probes' phasors choose the
-members of the span as the batch estimate does (:func:`forcecal.coordinates.choose_members`),
+members of the span as the batch estimate does (:func:`forcecal.forces.coordinates.choose_members`),
 and the readout switches when another set's information criterion is lower by more than
 ``SPAN_SWITCH`` (no flicker between two sets that explain the probes equally well).
 """
@@ -47,13 +47,13 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..coordinates import check_sensor_gain, choose_members, coordinate_map, member_fit
 from ..errors import DataError, DimensionError, InputError
-from ..forces import FREQUENCY_MISMATCH, force_solve, kept_harmonics, significant_reactions
-from ..inertia import inertia_term
-from ..relaxation import force_matrix
+from ..forces.coordinates import check_sensor_gain, choose_members, coordinate_map, member_fit
+from ..forces.steady import FREQUENCY_MISMATCH, force_solve, kept_harmonics, significant_reactions
+from ..model.inertia import inertia_term
+from ..model.relaxation import force_matrix
+from ..model.spatial import SpatialModel, check_model_rig
 from ..rig import Rig
-from ..spatial import SpatialModel, check_model_rig
 from .rls import (
     PRIOR,
     HarmonicState,

@@ -19,9 +19,9 @@ import numpy as np
 from ..errors import DataError, InputError
 from ..io.blocks import RunBlocks
 from ..io.table_writer import CSV_DIGITS, table_writer
+from ..model.spatial import SpatialModel
 from ..records import Run
 from ..rig import Rig
-from ..spatial import SpatialModel
 from .estimator import StreamEstimator
 
 __all__ = ["bounded_forces", "replay", "stream_columns", "stream_forces", "stream_rows",

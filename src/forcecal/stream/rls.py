@@ -9,7 +9,7 @@ drift slowly,
     y_c(t_k) = X_{c,0}(k) + sum_{n=1..H} Re( X_{c,n}(k) exp(j n theta_k) ),
 
 with the regressor [1, cos(theta_k), -sin(theta_k), cos(2 theta_k), ...] of
-:func:`forcecal.harmonics.design_matrix` and theta_k the phase of the drive. The phasors of
+:func:`forcecal.signals.harmonics.design_matrix` and theta_k the phase of the drive. The phasors of
 sample k minimize the exponentially weighted squared error
 
     sum_{i <= k} lambda^(k-i) (y_i - phi_i^T x)^2  +  lambda^k r0 |x|^2,
@@ -130,7 +130,7 @@ def harmonic_start(n_channels: int, n_harmonics: int, f0: float, fs: float,
     """The state before the first sample, taken at absolute time t0 [s].
 
     With the phase started at f0 * t0 the phasors follow the absolute-time convention of
-    :mod:`forcecal.harmonics` for as long as the frequency is not changed.
+    :mod:`forcecal.signals.harmonics` for as long as the frequency is not changed.
 
     Parameters
     ----------
@@ -405,7 +405,7 @@ def harmonic_update(state: HarmonicState, y: np.ndarray, lam: float,
     state : after the last sample
     out : without ``readout``, (n_channels, H+1, n) complex phasors X_n(k), referred to the
         phase theta_k (the RLS estimate x_k, as :func:`rls_update` with the regressor of
-        :func:`forcecal.harmonics.design_matrix`); with it, (n_out, n) sum_c readout_c . u_c
+        :func:`forcecal.signals.harmonics.design_matrix`); with it, (n_out, n) sum_c readout_c . u_c
     """
     y = np.atleast_2d(np.asarray(y, dtype=float))
     if y.shape[0] != state.demod.shape[0]:

@@ -30,8 +30,8 @@ from ..errors import InputError
 
 if TYPE_CHECKING:
     from .._toml import TableReader
-    from ..basis import ShapeFit
-    from ..vector_basis import VectorShapeFit
+    from ..model.basis import ShapeFit
+    from ..model.vector_basis import VectorShapeFit
 
 __all__ = ["UP", "Frame", "Located", "LumpedMass", "OutOfPlane", "Structure", "locations"]
 
@@ -294,7 +294,7 @@ class OutOfPlane(Structure, ABC):
 
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
                   weights: np.ndarray, basis: str, min_order: int = 1) -> ShapeFit:
-        from ..basis import fit_shape
+        from ..model.basis import fit_shape
 
         return fit_shape(coordinates, values, self.extent(), criterion=criterion,
                          weights=weights, family="modes" if basis == "modes" else "legendre",

@@ -5,7 +5,7 @@ gauge's reaction, a pole's force, a probe's or a scan record's displacement) is 
 of a vector along it: shapes and relaxation shapes are evaluated at *locations*
 (x, y, z, dx, dy, dz). The rigid motions are u = t + theta x (x - c), three translations and
 three rotations; the shapes are vector fields, one polynomial field per axis
-(:mod:`forcecal.vector_basis`); the mass quadrature is a tensor Gauss rule in each block, each
+(:mod:`forcecal.model.vector_basis`); the mass quadrature is a tensor Gauss rule in each block, each
 node entering once per axis.
 """
 
@@ -22,8 +22,8 @@ from .base import Frame, Located, LumpedMass, Structure, locations
 
 if TYPE_CHECKING:
     from .._toml import TableReader
-    from ..basis import ShapeFit
-    from ..vector_basis import VectorShapeFit
+    from ..model.basis import ShapeFit
+    from ..model.vector_basis import VectorShapeFit
 
 __all__ = ["Block", "Body", "block_quadrature"]
 
@@ -112,13 +112,13 @@ class Body(Structure):
 
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
                   weights: np.ndarray, basis: str, min_order: int = 1) -> VectorShapeFit:
-        from ..vector_basis import fit_vector_shape
+        from ..model.vector_basis import fit_vector_shape
 
         return fit_vector_shape(coordinates, values, self.extent(), criterion, weights,
                                 min_order)
 
     def model_notes(self, fits: Sequence[ShapeFit | VectorShapeFit]) -> tuple[str, ...]:
-        from ..vector_basis import AXES, VectorShapeFit
+        from ..model.vector_basis import AXES, VectorShapeFit
 
         first = fits[0]
         measured = first.axes if isinstance(first, VectorShapeFit) else (0, 1, 2)

@@ -16,10 +16,10 @@ from matplotlib.axes import Axes
 
 from ...actuator import Calibration, ExtrapolationWarning, predict
 from ...errors import DimensionError, InputError
-from ...forces import ForceEstimate, channels_si
-from ...harmonics import HarmonicFit, fit_harmonics
+from ...forces.steady import ForceEstimate, channels_si
 from ...records import Run
 from ...rig import Rig
+from ...signals.harmonics import HarmonicFit, fit_harmonics
 
 __all__ = [
     "DEFAULT_PERIODS",
@@ -104,7 +104,7 @@ def fourier_series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
     Parameters
     ----------
     phasors : numpy.ndarray
-        ``(..., H+1)`` complex phasors X_0..X_H (convention of :mod:`forcecal.harmonics`).
+        ``(..., H+1)`` complex phasors X_0..X_H (convention of :mod:`forcecal.signals.harmonics`).
     f0 : float
         The fundamental [Hz].
     t : numpy.ndarray

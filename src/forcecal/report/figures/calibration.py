@@ -19,10 +19,10 @@ from matplotlib.lines import Line2D
 
 from ...actuator import Calibration, ExtrapolationWarning, Selection, predict
 from ...errors import DimensionError, InputError
-from ...forces import ForceEstimate, channels_si
-from ...harmonics import fit_harmonics
+from ...forces.steady import ForceEstimate, channels_si
 from ...records import Run
 from ...rig import Rig
+from ...signals.harmonics import fit_harmonics
 from ._common import MARKERS, law_argument, law_cycle, law_harmonics, panel_title, running_max
 
 if TYPE_CHECKING:

@@ -16,7 +16,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from ...errors import DimensionError
-from ...forces import ForceEstimate
+from ...forces.steady import ForceEstimate
 from ._common import (
     DEFAULT_PERIODS,
     MARKERS,

@@ -8,10 +8,10 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from ...errors import InputError
-from ...forces import ForceEstimate, channels_si
-from ...harmonics import fit_harmonics
+from ...forces.steady import ForceEstimate, channels_si
 from ...records import Run
 from ...rig import Rig
+from ...signals.harmonics import fit_harmonics
 from ._common import check_run, panel_title, quantity
 
 __all__ = ["fig_residuals"]

@@ -16,10 +16,10 @@ from matplotlib.contour import QuadContourSet
 from matplotlib.figure import Figure
 from matplotlib.gridspec import GridSpec
 
-from ...basis import ShapeFit
 from ...errors import DimensionError, InputError
-from ...scan import HarmonicShapes
-from ...spatial import ONE_SHAPE_MAC, SpatialModel
+from ...model.basis import ShapeFit
+from ...model.scan import HarmonicShapes
+from ...model.spatial import ONE_SHAPE_MAC, SpatialModel
 from ._common import MARKERS, panel_title, prefixed_unit
 
 __all__ = ["fig_shapes", "fig_shapes_2d", "fig_shapes_body"]
@@ -166,7 +166,7 @@ def _draw_normalized(ax: Axes, shapes: HarmonicShapes, model: SpatialModel,
 
 
 def _set_aside(model: SpatialModel, n_records: int) -> np.ndarray:
-    """Indices of the scan records the model set aside (:mod:`forcecal.screening`)."""
+    """Indices of the scan records the model set aside (:mod:`forcecal.model.screening`)."""
     return np.array([k for k in sorted(model.set_aside) if k < n_records], dtype=int)
 
 

@@ -11,10 +11,10 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from ...forces import ForceEstimate
-from ...harmonics import HarmonicFit, fit_harmonics
+from ...forces.steady import ForceEstimate
 from ...records import Run
 from ...rig import Rig
+from ...signals.harmonics import HarmonicFit, fit_harmonics
 from ._common import (
     DEFAULT_PERIODS,
     MARKERS,
@@ -40,7 +40,7 @@ def fig_signals(run: Run, rig: Rig, estimate: ForceEstimate,
                 periods: float = DEFAULT_PERIODS) -> Figure:
     """Measured current and probe displacements with their fitted Fourier series (fig. 6).
 
-    The series are fitted over the whole record with :func:`forcecal.harmonics.fit_harmonics`
+    The series are fitted over the whole record with :func:`forcecal.signals.harmonics.fit_harmonics`
     at the estimate's fundamental and harmonic count, with the run's t0, and drawn over the
     first ``periods`` periods.
 

@@ -1,0 +1,593 @@
+"""The ``forcecal`` command line (INTERFACES.md section 5).
+
+``main(argv=None) -> int``: 0 on success, 2 for bad input or arguments (one line on stderr that
+names the file, key or channel), 130 when interrupted. Output files are written atomically.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import os
+import sys
+import time
+import warnings
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from ..cluster.jobs import calibrate_job, campaign_folders, reconstruct_job
+from ..cluster.pool import run_jobs
+from ..errors import ForcecalError, InputError
+from .parser import PROG, build_parser, check_arguments
+from .parser import ArgumentError as _ArgumentError
+
+__all__ = ["main"]
+
+def _say(msg: str) -> None:
+    """A line on stderr: errors and warnings, whatever the verbosity."""
+    print(msg, file=sys.stderr, flush=True)
+
+
+_VERBOSITY = [1]
+"""0 with -q (errors and warnings only), 1 by default (progress on a terminal), 2 with -v
+(progress everywhere and details)."""
+
+
+def _info(msg: str, level: int = 1) -> None:
+    """A progress or detail line on stderr, shown at verbosity ``level`` and above.
+
+    Progress (level 1) is shown on a terminal, or everywhere with ``-v``: a script or a pipe
+    reading stderr sees only errors and warnings, one line each."""
+    if _VERBOSITY[0] < level:
+        return
+    if level == 1 and _VERBOSITY[0] == 1 and not _interactive():
+        return
+    _say(msg)
+
+
+def _interactive() -> bool:
+    """Whether stderr is a terminal."""
+    isatty = getattr(sys.stderr, "isatty", None)
+    try:
+        return bool(isatty and isatty())
+    except (ValueError, OSError):
+        return False
+
+
+def _print(msg: object) -> None:
+    """A line on stdout; characters it cannot encode (a file name's undecodable bytes) are
+    replaced, never an error after the outputs are written."""
+    text = str(msg)
+    encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
+    text = text.encode(encoding, "replace").decode(encoding, "replace")
+    print(text, flush=True)
+
+
+STREAM_SUFFIXES = (".csv", ".h5", ".hdf5")
+"""What ``stream -o`` writes: CSV, or HDF5 in the run layout."""
+MAX_FORCE_N = 1e8
+"""Largest force an output may hold [N]; beyond, the inputs were not what they claimed."""
+EXTRAPOLATION = 10.0
+"""``predict`` extrapolates (with a warning) up to this factor beyond the calibrated currents
+and gaps, and refuses beyond."""
+MAX_HARMONICS = 100
+"""Most harmonics ``--harmonics`` may ask for."""
+MANY_JOBS = 4
+"""Campaigns from which ``calibrate`` starts a local cluster when ``--workers`` is not given
+(fewer are done serially: the cluster's start would cost more)."""
+
+
+_STARTED = [time.perf_counter()]
+
+
+def _progress(done: int, total: int, name: str) -> None:
+    """A progress bar line with the time spent and, from the pace so far, the time left."""
+    width = 24
+    filled = int(width * done / max(total, 1))
+    spent = time.perf_counter() - _STARTED[0]
+    left = spent / max(done, 1) * (total - done)
+    _info(f"  [{'#' * filled}{'.' * (width - filled)}] {done}/{total} {name}  "
+          f"({spent:.0f} s, about {left:.0f} s left)")
+
+
+# --------------------------------------------------------------------------------- commands
+
+
+def _cmd_simulate(args) -> int:
+    from ..io.staging import staged_folder
+    from ..simulate.export import check_scan_export, write_simulation
+    from ..simulate.presets import get_preset
+
+    realism = getattr(args, "realism", "ideal")
+    export = getattr(args, "scan_export", "time")
+    # an unknown preset, or an export it cannot give, is refused before any folder is made
+    check_scan_export(get_preset(args.preset, realism), export)
+    with staged_folder(args.out) as stage:
+        write_simulation(stage, args.preset, seed=args.seed,
+                         progress=lambda m: _info(f"  simulating {m}"),
+                         binary_uff=args.binary_uff, realism=realism, scan_export=export)
+    _print(args.out)
+    return 0
+
+
+def _read_scan(args, rig, path=None):
+    from ..io.scan_files import read_scan
+
+    return read_scan(args.scan if path is None else path,
+                     reference_label=args.reference_label, locations=rig.structure.directed)
+
+
+def _build_model(rig, scan, args):
+    """The spatial model of one scan, or of several (a span of shapes per harmonic)."""
+    from ..model.spatial import build_spatial_model, merge_models
+
+    if isinstance(scan, list):
+        if rig.band is not None:
+            raise InputError(f"rig '{rig.source}': a broadband model is built from one scan")
+        return merge_models(rig, [_build_model(rig, s, args) for s in scan])
+    try:
+        if rig.band is not None:
+            from ..model.broadband import build_broadband_model
+
+            return build_broadband_model(rig, scan, criterion=args.criterion)
+        return build_spatial_model(rig, scan, n_harmonics=args.harmonics,
+                                   criterion=args.criterion, basis=args.basis)
+    except ForcecalError as exc:
+        if str(scan.source) in str(exc) or str(rig.source) in str(exc):
+            raise
+        raise type(exc)(f"scan '{scan.source}' on rig '{rig.source}': {exc}") from None
+
+
+def _model_for(args, rig):
+    """The spatial model: from a saved MODEL.json, or built from the scan."""
+    from ..model.broadband import load_any_model
+
+    if str(args.scan).endswith(".json"):
+        return load_any_model(args.scan)
+    return _build_model(rig, _read_scan(args, rig), args)
+
+
+def _inputs(args) -> list[str]:
+    """The input files a command read: the rig, the scans or model, the runs, the tare, the
+    manifest (for the provenance of what it writes)."""
+    files = [args.rig, *getattr(args, "scans", []), getattr(args, "scan", None),
+             *getattr(args, "runs", []), getattr(args, "run", None), getattr(args, "tare", None),
+             *(getattr(args, "manifest", None) or [])]
+    return [str(f) for f in files if f]
+
+
+def _provenance(args) -> dict:
+    from ..provenance import provenance
+
+    return provenance(_inputs(args), argv=[PROG, *args.argv])
+
+
+def _save_model(model, path: str, scan: str, provenance: dict | None = None) -> None:
+    """Write MODEL.json atomically, strict JSON: a model with NaN or Infinity is refused."""
+    from .._atomic import write_text_atomic
+
+    try:
+        doc = model.to_json()
+        if provenance is not None:
+            doc["provenance"] = provenance
+        text = json.dumps(doc, indent=1, allow_nan=False)
+    except ValueError:
+        raise InputError(f"scan '{scan}': the spatial model holds non-finite values (the scan's "
+                         "records do not determine it); nothing written") from None
+    write_text_atomic(path, text)
+
+
+def _cmd_scan(args) -> int:
+    from ..io.staging import clean_stale
+    from ..rig import load_rig
+
+    rig = load_rig(args.rig)
+    _info(f"  reading {len(args.scans)} scan{'s' if len(args.scans) > 1 else ''}")
+    scans = [_read_scan(args, rig, path) for path in args.scans]
+    _info("  fitting the harmonic shapes and their mass couplings")
+    model = _build_model(rig, scans if len(scans) > 1 else scans[0], args)
+    clean_stale(Path(args.output).parent)
+    _save_model(model, args.output, ", ".join(args.scans), _provenance(args))
+    if rig.band is not None:
+        _print(f"{args.output}: band {model.band[0]:g}-{model.band[1]:g} Hz, {model.n_shapes} "
+               f"shape(s) span the deflections (order {model.shapes[0].order})")
+        return 0
+    mac = model.similarity.min()
+    _print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
+          f"{', '.join(str(n) for n in model.harmonics)} (orders "
+          f"{', '.join(str(s.order) for s in model.shapes)}); lowest MAC between harmonics "
+          f"{mac:.5f}: {'one shape serves all' if model.one_shape else 'shapes differ'}")
+    if len(scans) > 1:
+        _print(f"{len(scans)} scans: shapes per harmonic "
+              + ", ".join(f"{int(n)}: {len(model.members(k))}"
+                          for k, n in enumerate(model.harmonics)))
+    for note in model.notes:
+        _print(f"note: {note}")
+    return 0
+
+
+def _read_runs(paths, rig=None, check=True):
+    """The run files, under the rig's channel names when a rig is given (its ``[channels]``
+    and group); each checked against the rig's channels unless ``check`` is false."""
+    from ..io.run_files import read_run
+    from ..signals.checks import check_run_for_rig
+
+    runs = [read_run(p, rig) for p in paths]
+    if rig is not None and check:
+        for run in runs:
+            check_run_for_rig(rig, run)
+    return runs
+
+
+def _load_rig(args):
+    """The rig file, with the TDMS group of ``--group`` when given."""
+    from dataclasses import replace
+
+    from ..rig import load_rig
+
+    rig = load_rig(args.rig)
+    group = getattr(args, "group", None)
+    return replace(rig, run_group=group) if group is not None else rig
+
+
+def _check_distinct_names(paths) -> None:
+    """Runs are written as OUT/NAME.*: two run files with one NAME would overwrite each other."""
+    seen: dict[str, str] = {}
+    for path in paths:
+        name = Path(path).stem
+        if name in seen:
+            raise InputError(f"run '{path}': its outputs {name}.forces.csv and {name}.json would "
+                             f"overwrite those of run '{seen[name]}'; rename one of them")
+        seen[name] = str(path)
+
+
+def _cmd_reconstruct(args) -> int:
+    from ..io.results import write_estimate
+    from ..io.staging import staged_folder
+
+    if args.monte_carlo != 0 and not 10 <= args.monte_carlo <= 100_000:
+        raise _ArgumentError(f"{PROG} reconstruct: argument --monte-carlo: {args.monte_carlo} "
+                             "draws; give 0 (none) or 10 to 100000")
+    _check_distinct_names(args.runs)
+    rig = _load_rig(args)
+    model = _model_for(args, rig)
+    runs = _read_runs(args.runs, rig)
+    tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
+    if rig.drive == "any":
+        from ..io.transient_results import reconstruct_any_runs
+
+        for line in reconstruct_any_runs(rig, model, runs, tare, args.output, _provenance(args)):
+            _print(line)
+        return 0
+    estimates = run_jobs(reconstruct_job,
+                         [(rig, model, run, tare, args.ac_coupled, args.monte_carlo)
+                          for run in runs],
+                         names=[run.name for run in runs],
+                         workers=1 if args.workers is None else _workers(args, len(runs)),
+                         scheduler=args.scheduler,
+                         progress=_progress if len(runs) > 1 else None)
+    lines = []
+    origin = _provenance(args)
+    with staged_folder(args.output) as stage:
+        for est, run in zip(estimates, runs, strict=True):
+            series, _ = write_estimate(est, stage, source=run.source, fmt=args.format,
+                                       provenance=origin)
+            lines.append(f"{Path(args.output) / series.name}: f0 {est.f0:.6g} Hz, total AC "
+                         f"uncertainty {est.waveform_std:.3g} N (k = 2: "
+                         f"{2 * est.waveform_std:.3g} N; largest source {_largest(est)}), "
+                         f"inertia share {est.inertia_share:.1%}")
+            lines += [f"note: {note}" for note in est.notes]
+            if _VERBOSITY[0] >= 2:
+                lines += _budget_lines(est)
+    for line in lines:
+        _print(line)
+    return 0
+
+
+def _workers(args, n_jobs: int) -> int:
+    """Local workers for ``n_jobs`` jobs: ``--workers``, else one per core when there are
+    several jobs (and a local cluster is worth its start, about a second, and its overhead,
+    about 0.75 s per job), else 1. ``reconstruct`` runs serially unless given ``--workers``
+    (a run of a few seconds' record costs less than a job's overhead)."""
+    if args.workers is not None:
+        if args.workers < 1:
+            raise _ArgumentError(f"{PROG} {args.command}: argument --workers: {args.workers} is "
+                                 "not a positive number of processes")
+        return int(args.workers)
+    if n_jobs < MANY_JOBS:
+        return 1
+    return max(1, min(n_jobs, os.cpu_count() or 1))
+
+
+def _budget_lines(est) -> list[str]:
+    """-v: every force's and the total's standard uncertainty at the DC and the fundamental,
+    source by source."""
+    names = [*est.force_names, "total"]
+    lines = ["  uncertainty budget [N] " + "  ".join(f"{n} DC, n=1" for n in names)]
+    rows = [*est.budget.items(), ("combined", est.combination_std),
+            ("expanded k = 2", est.expanded())]
+    for src, std in rows:
+        cells = "  ".join(f"{std[est.combination_names.index(n), 0]:.3g}, "
+                          f"{std[est.combination_names.index(n), 1]:.3g}" for n in names)
+        lines.append(f"    {src:<22} {cells}")
+    return lines
+
+
+def _largest(est) -> str:
+    """The budget source with the largest part in the total's AC harmonics."""
+    k = est.combination_names.index("total")
+    return max(est.budget, key=lambda src: float(np.sum(est.budget[src][k, 1:] ** 2)))
+
+
+def _cmd_calibrate(args) -> int:
+    from ..campaign import calibrate_campaign, write_calibration
+    from ..io.staging import staged_folder
+
+    rig = _load_rig(args)
+    model = _model_for(args, rig)
+    manifests = [str(m) for m in args.manifest]
+    if len(manifests) == 1:
+        result = calibrate_campaign(rig, model, manifests[0], progress=_progress,
+                                    ac_only=args.ac_coupled,
+                                    workers=None if args.workers is None else args.workers)
+        results, folders = [result], [Path(args.output)]
+    else:
+        folders = campaign_folders(args.output, manifests)
+        results = run_jobs(calibrate_job, [(rig, model, m, args.ac_coupled) for m in manifests],
+                           names=[f.name for f in folders],
+                           workers=_workers(args, len(manifests)),
+                           scheduler=args.scheduler, progress=_progress)
+    origin = _provenance(args)
+    with staged_folder(args.output) as stage:
+        for result, folder in zip(results, folders, strict=True):
+            where = stage / folder.relative_to(args.output)
+            where.mkdir(parents=True, exist_ok=True)
+            path = write_calibration(result, where)
+            if not args.no_report:
+                from ..model.broadband import STEADY_HARMONICS, BroadbandModel, steady_model
+                from ..report.pipeline import calibration_report
+
+                shown = (steady_model(model, rig, result.runs[0].estimate.f0, STEADY_HARMONICS)
+                         if isinstance(model, BroadbandModel) else model)
+                calibration_report(rig, shown, result, where, provenance=origin)
+            _print(folder / path.name)
+    return 0
+
+
+def _cmd_predict(args) -> int:
+    from ..actuator import predict
+    from ..actuator.prediction import MAX_CURRENT_A, MAX_GAP_M
+    from ..campaign import load_calibration
+
+    if not (np.isfinite(args.current) and abs(args.current) <= MAX_CURRENT_A):
+        raise _ArgumentError(f"{PROG} predict: argument --current: {args.current!r} A is not a "
+                             f"finite current within {MAX_CURRENT_A:g} A")
+    if not (np.isfinite(args.gap) and 0 < args.gap <= MAX_GAP_M):
+        raise _ArgumentError(f"{PROG} predict: argument --gap: {args.gap!r} m is not an air gap "
+                             f"between 0 and {MAX_GAP_M:g} m (0.0008 for 0.8 mm)")
+    cal = load_calibration(args.calibration)
+    top = max(abs(v) for v in cal.current_range)
+    if abs(args.current) > EXTRAPOLATION * top:
+        raise _ArgumentError(f"{PROG} predict: argument --current: {args.current:g} A is more "
+                             f"than {EXTRAPOLATION:g} times the largest calibrated current "
+                             f"{top:.4g} A (calibration '{args.calibration}')")
+    lo, hi = cal.gap_range
+    if not lo / EXTRAPOLATION <= args.gap <= hi * EXTRAPOLATION:
+        raise _ArgumentError(f"{PROG} predict: argument --gap: {args.gap:g} m is more than "
+                             f"{EXTRAPOLATION:g} times outside the calibrated gaps {lo:.4g} to "
+                             f"{hi:.4g} m (calibration '{args.calibration}')")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        try:
+            pred = predict(cal, [args.current], args.gap, frequency=args.frequency)
+        except ForcecalError as exc:
+            raise InputError(f"calibration '{args.calibration}': {exc}") from None
+    values = [float(pred.total[0]), float(pred.std[0]), *map(float, pred.per_pole[0])]
+    if not all(np.isfinite(values)):
+        raise InputError(f"calibration '{args.calibration}': its law gives no finite force at "
+                         f"{args.current:g} A and {args.gap:g} m")
+    for w in caught:
+        _say(f"{PROG}: warning: {w.message}")
+    if args.json:
+        extra = {} if args.frequency is None else {
+            "frequency_hz": args.frequency,
+            **{key: float(np.ravel(getattr(pred, key))[0]) for key in (
+                "k_frequency", "k_frequency_std", "lag_deg", "lag_deg_std")}}
+        _print(json.dumps({"total_n": values[0], "std_n": values[1],
+                           "per_pole_n": values[2:], "law": cal.law, **extra},
+                          allow_nan=False))
+    else:
+        _print(f"{pred.total[0]:.6g}")
+    return 0
+
+
+def _cmd_stream(args) -> int:
+    """The run read, streamed and written block by block (memory flat in its length); a file
+    output appears whole or not at all, ``-o -`` writes CSV to stdout as it goes."""
+    from dataclasses import replace
+
+    from ..io.blocks import check_run_blocks, open_run_blocks
+    from ..io.staging import clean_stale
+    from ..model.broadband import BroadbandModel
+    from ..stream.any_drive import stream_any_table
+    from ..stream.replay import bounded_forces, stream_table
+
+    to_stdout = args.output == "-"
+    suffix = Path(args.output).suffix.lower()
+    if not to_stdout and suffix not in STREAM_SUFFIXES:
+        raise _ArgumentError(f"{PROG} stream: argument -o/--output: {args.output!r} ends in "
+                             f"{suffix or 'no suffix'!r}; expected {', '.join(STREAM_SUFFIXES)}"
+                             " or - (CSV on stdout)")
+    rig = _load_rig(args)
+    model = _model_for(args, rig)
+    broadband = isinstance(model, BroadbandModel)
+    if broadband and (args.steady or args.memory is not None):
+        raise _ArgumentError(f"{PROG} stream: argument {'--steady' if args.steady else '--memory'}"
+                             f": the model '{args.scan}' is a broadband one (any drive); its "
+                             "stream has a fixed latency and no memory to set")
+    tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
+    blocks = check_run_blocks(rig, open_run_blocks(args.run, rig))
+    if tare is not None:             # as reconstruct: the gauges' zero (the probes' too under
+        zeroed = [*rig.gauge_names, *(rig.sensor_names if broadband else ())]    # any drive)
+        blocks = replace(blocks, offsets={c: float(np.mean(tare.channel(c))) for c in zeroed})
+    check = bounded_forces(blocks.source, MAX_FORCE_N)
+    with blocks:
+        if not to_stdout:
+            clean_stale(Path(args.output).parent)
+        if broadband:
+            stream_any_table(rig, model, blocks, args.output, check=check,
+                             note=lambda text: _say(f"note: {text}"), tare=tare)
+        else:
+            stream_table(rig, model, blocks, args.output, block=args.block, check=check,
+                         forgetting=_forgetting(args, model, blocks.fs))
+    if not to_stdout:
+        _print(args.output)
+    return 0
+
+
+STEADY_MEMORY_PERIODS = 100.0
+"""``stream --steady``: the memory, in drive periods, of the steady mode."""
+
+
+def _forgetting(args, model, fs: float) -> float | None:
+    """The forgetting factor of ``--memory PERIODS`` or ``--steady`` (None: the default)."""
+    periods = STEADY_MEMORY_PERIODS if args.steady else args.memory
+    if periods is None:
+        return None
+    if not 1.0 <= periods <= 1e5:
+        raise _ArgumentError(f"{PROG} stream: argument --memory: {periods:g} periods; give 1 "
+                             "to 100000")
+    return 1.0 - model.f0 / (fs * periods)
+
+
+def _cmd_report(args) -> int:
+    from ..io.staging import staged_folder
+    from ..report.pipeline import run_report
+
+    if args.truth is not None and not Path(args.truth).is_dir():
+        raise _ArgumentError(f"{PROG} report: argument --truth: {args.truth!r} is not a folder")
+    _check_distinct_names(args.runs)
+    rig = _load_rig(args)
+    if rig.band is not None:
+        raise InputError(f"rig '{rig.source}': 'report' draws a steady drive's harmonic report "
+                         "from a harmonic model, and this rig's 'acquisition.band' makes its "
+                         "scan a broadband one; its runs' forces come from 'reconstruct' (their "
+                         "summary JSON and series), a stepped-sine campaign's report from "
+                         "'calibrate'")
+    if str(args.scan).endswith(".json"):
+        from ..model.spatial import load_model
+
+        scan = load_model(args.scan)
+    else:
+        scan = _read_scan(args, rig)
+    runs = _read_runs(args.runs, rig)
+    with staged_folder(args.output) as stage:
+        path = run_report(rig, scan, runs, stage, truth_dir=args.truth,
+                          n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis,
+                          provenance=_provenance(args), progress=_info)
+    _print(Path(args.output) / Path(path).relative_to(stage))
+    return 0
+
+
+def _cmd_demo(args) -> int:
+    from .demo import run_demo
+
+    start = time.perf_counter()
+    report = run_demo(Path(args.out), progress=_info)
+    _info(f"  done in {time.perf_counter() - start:.1f} s")
+    print(f"report: {report}")
+    calibration = Path(args.out) / "calibration" / "report.html"
+    if calibration.is_file():
+        print(f"calibration report (the actuator law, its uncertainty, the campaign): "
+              f"{calibration}")
+    return 0
+
+
+COMMANDS = {"demo": _cmd_demo, "simulate": _cmd_simulate, "scan": _cmd_scan,
+            "reconstruct": _cmd_reconstruct, "calibrate": _cmd_calibrate,
+            "predict": _cmd_predict, "stream": _cmd_stream, "report": _cmd_report}
+"""Each command's handler, by the name the parser (:mod:`forcecal.cli.parser`) gives it."""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Run the command line; returns the exit status."""
+    parser = build_parser()
+    try:
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help, --version: printed; return instead of exiting
+            return exc.code if isinstance(exc.code, int) else 0
+        if not args.command:
+            parser.error("a command is required")
+        args.argv = list(sys.argv[1:] if argv is None else argv)
+        _VERBOSITY[0] = 0 if getattr(args, "quiet", False) else (
+            2 if getattr(args, "verbose", False) else 1)
+        _STARTED[0] = time.perf_counter()
+        check_arguments(args, MAX_HARMONICS)
+        _expand_run_folders(args)
+        for stream in (sys.stdout, sys.stderr):  # a file name's undecodable bytes: replaced
+            reconfigure = getattr(stream, "reconfigure", None)
+            if reconfigure is not None:
+                try:
+                    reconfigure(errors="replace")
+                except (ValueError, OSError, io.UnsupportedOperation):
+                    pass
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            warnings.showwarning = _show_warning
+            return COMMANDS[args.command](args)
+    except _ArgumentError as exc:
+        _say(str(exc))
+        return 2
+    except ForcecalError as exc:
+        _say(f"{PROG}: {exc}")
+        return 2
+    except RecursionError:
+        _say(f"{PROG}: an input is nested too deeply to be read")
+        return 2
+    except KeyboardInterrupt:
+        _say(f"{PROG}: interrupted; no output file was left half-written")
+        return 130
+    except BrokenPipeError:                # `forcecal stream ... -o - | head`
+        _say(f"{PROG}: stdout: its reader closed the pipe; the table written there is cut short")
+        return 2
+    except OSError as exc:                 # a file's name when the error has one
+        where = [str(x) for x in (exc.filename, exc.strerror or exc) if x]
+        _say(f"{PROG}: {': '.join(where)}".replace("\n", " "))
+        return 2
+    except Exception as exc:  # a bug: say so in one line; the traceback on demand
+        if os.environ.get("FORCECAL_DEBUG"):
+            raise
+        _say(f"{PROG}: internal error ({type(exc).__name__}: {exc}); "
+             "set FORCECAL_DEBUG=1 for the traceback and please report it")
+        return 1
+
+
+def _expand_run_folders(args) -> None:
+    """A folder given as RUN stands for the run files in it (sorted); what is skipped is noted
+    on stdout. ``stream`` replays one run: its folder must hold exactly one."""
+    from ..io.run_files import run_paths
+
+    if isinstance(getattr(args, "runs", None), list):
+        args.runs, notes = run_paths(args.runs)
+    elif isinstance(getattr(args, "run", None), str) and Path(args.run).is_dir():
+        runs, notes = run_paths([args.run])
+        if len(runs) != 1:
+            raise InputError(f"run folder '{args.run}': {len(runs)} run files; "
+                             f"'{PROG} {args.command}' replays one run, name its file")
+        args.run = runs[0]
+    else:
+        return
+    for note in notes:
+        _print(f"note: {note}")
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    _say(f"{PROG}: warning: {message}")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
+

@@ -1,0 +1,214 @@
+"""Many jobs at once: a process pool on this machine, or a Dask cluster.
+
+forcecal's jobs (one run's reconstruction, one campaign's calibration) are pure functions of
+their inputs, so where they run changes nothing in their results: :func:`run_jobs` gives the
+serial path's results, in the order of the jobs, whichever way it spreads them.
+
+- :func:`pool_map`: a ``spawn`` process pool, the campaign's runs on the cores of this machine.
+- :func:`run_jobs`: serially when there is one job or one worker; otherwise over Dask
+  (``distributed``): a local cluster of ``workers`` processes started for the command and
+  closed with it, or an existing cluster given by its scheduler's address (``tcp://host:8786``),
+  whose workers must have forcecal installed. Inputs travel to the workers as pickled objects
+  (rig, model, records), outputs come back the same way and are written by the caller, so the
+  workers need no shared file system.
+
+Workers run their linear algebra on one thread each (:func:`single_threaded_workers` while they
+start): the workers are the parallelism. No worker outlives the command: the pool's workers
+watch their parent (:func:`_watch_parent`) and are terminated on an error or Ctrl-C; a local
+Dask cluster is closed when :func:`run_jobs` returns or fails, and its worker processes leave
+when their parent does.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import logging
+import multiprocessing
+import os
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any, TypeVar
+
+from ..errors import InputError
+
+__all__ = ["pool_map", "run_jobs", "single_threaded_workers"]
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+"""The variables that set the BLAS libraries' thread counts."""
+
+CONNECT_TIMEOUT_S = 20.0
+"""How long to wait for an existing Dask scheduler [s]."""
+
+_QUIET_WORKERS = {"distributed.worker.profile.enabled": False}
+"""Dask settings of a local cluster's workers: no statistical profiler sampling every task's
+stack (forcecal's jobs are many small NumPy calls, which it slows)."""
+
+_PARENT_POLL_S = 0.5
+"""How often a pool worker checks that its parent is alive [s]."""
+
+
+@contextlib.contextmanager
+def single_threaded_workers() -> Iterator[None]:
+    """Worker processes started inside run their linear algebra on one thread each.
+
+    The workers are the parallelism: BLAS threads in every worker would oversubscribe the
+    cores (on a busy machine by a factor of ten in time). The variables are set only where the
+    user has not set them, only while the workers start, and restored after.
+    """
+    added = [name for name in THREAD_VARIABLES if name not in os.environ]
+    for name in added:
+        os.environ[name] = "1"
+    try:
+        yield
+    finally:
+        for name in added:
+            os.environ.pop(name, None)
+
+
+def pool_map(work: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[Any]:
+    """``work(item)`` for every item in a ``spawn`` pool of at most ``workers`` processes,
+    yielded as they complete.
+
+    The pool starts its processes as the tasks are submitted, so the tasks are submitted under
+    :func:`single_threaded_workers`; the workers leave when the parent dies
+    (:func:`_watch_parent`) and are terminated when the caller stops early or fails.
+    """
+    pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(items))),
+                               mp_context=multiprocessing.get_context("spawn"),
+                               initializer=_watch_parent, initargs=(os.getpid(),))
+    try:
+        with single_threaded_workers():
+            futures = [pool.submit(work, item) for item in items]
+        for future in as_completed(futures):
+            yield future.result()
+    except BaseException:  # an error, Ctrl-C or the caller closing the generator early
+        _stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def _stop_pool(pool: ProcessPoolExecutor) -> None:
+    """End a pool now: pending tasks cancelled, running workers terminated (an error or
+    Ctrl-C in the parent must not leave them computing)."""
+    processes = list(getattr(pool, "_processes", {}).values())  # before shutdown clears it
+    pool.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.terminate()
+    for process in processes:
+        with contextlib.suppress(Exception):
+            process.join(timeout=5)
+
+
+def _watch_parent(parent: int) -> None:
+    """Pool worker initializer: exit when the parent process is gone (killed with SIGKILL,
+    say, when nothing could terminate the workers); a daemon thread polls the parent's pid."""
+
+    def watch() -> None:
+        while True:
+            time.sleep(_PARENT_POLL_S)
+            if os.getppid() != parent:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="forcecal-parent-watch", daemon=True).start()
+
+
+def run_jobs(
+    work: Callable[[T], R],
+    jobs: Sequence[T],
+    names: Sequence[str] | None = None,
+    workers: int = 1,
+    scheduler: str | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+) -> list[R]:
+    """``[work(job) for job in jobs]``, spread over Dask when asked to.
+
+    Parameters
+    ----------
+    work : callable
+        A module-level function (the workers import it by name), pure in its argument.
+    jobs : sequence
+        Its arguments, one per job; picklable.
+    names : sequence of str, optional
+        A name per job for the progress (default its index).
+    workers : int
+        Processes of the local cluster; 1 runs the jobs serially in this process (unless
+        ``scheduler`` is given).
+    scheduler : str, optional
+        The address of an existing Dask scheduler (``tcp://host:8786``); its workers run the
+        jobs and ``workers`` is not used.
+    progress : callable, optional
+        ``progress(done, total, name)`` after each job, in the order they complete.
+
+    Returns
+    -------
+    list
+        The results, in the order of ``jobs``.
+
+    Raises
+    ------
+    InputError
+        The scheduler cannot be reached, or Dask is not installed.
+    Exception
+        The first job's failure, as the job raised it; the other jobs are cancelled.
+    """
+    total = len(jobs)
+    labels = list(names) if names is not None else [str(k) for k in range(total)]
+    if scheduler is None and (workers <= 1 or total <= 1):
+        results = []
+        for k, job in enumerate(jobs):
+            results.append(work(job))
+            if progress is not None:
+                progress(k + 1, total, labels[k])
+        return results
+    with _client(workers, scheduler) as client:
+        futures = client.map(work, list(jobs), key=[f"forcecal-{k}-{labels[k]}"
+                                                    for k in range(total)], pure=False)
+        index = {future.key: k for k, future in enumerate(futures)}
+        out: list[Any] = [None] * total
+        from distributed import as_completed as completed
+
+        try:
+            for done, future in enumerate(completed(futures), start=1):
+                k = index[future.key]
+                out[k] = future.result()
+                if progress is not None:
+                    progress(done, total, labels[k])
+        except BaseException:
+            client.cancel(futures)
+            raise
+    return out
+
+
+@contextlib.contextmanager
+def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
+    """A Dask client: to the scheduler at ``scheduler``, or to a local cluster of ``workers``
+    single-threaded processes that lives as long as the client (no dashboard, quiet logs)."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:  # pragma: no cover - a dependency; kept for a trimmed install
+        raise InputError("--scheduler/--workers: the Dask 'distributed' package is not "
+                         "installed (pip install distributed)") from None
+    if scheduler is not None:
+        try:
+            client = Client(scheduler, timeout=CONNECT_TIMEOUT_S)
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InputError(f"--scheduler {scheduler}: no Dask scheduler answers there "
+                             f"({exc})") from None
+        with client:
+            yield client
+        return
+    import dask
+
+    with single_threaded_workers(), dask.config.set(_QUIET_WORKERS):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=logging.ERROR)
+    with cluster, Client(cluster) as client:
+        client.run(importlib.import_module, "forcecal.cluster.jobs")  # imports paid at the start
+        yield client

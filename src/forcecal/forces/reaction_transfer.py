@@ -1,0 +1,177 @@
+"""The structure's transfer from its reactions to its motion, fitted over a record (METHOD.md
+section 7, "any drive").
+
+Under any drive the first shape's coordinate q_1 from the probes carries the inertia, and its
+second derivative carries the probes' noise times w^2: at the top of the band that is the
+estimate's largest error. The gauges are far quieter. The structure is linear and does not
+change while it runs, so its reactions-only force u(t) = -1^T Psi^+ R(t) (the forces the
+gauges alone would give) and the coordinate are tied, frequency by frequency, by a transfer
+that depends on the structure alone (its stiffness, mass and damping), not on the drive, the
+magnet or the gap:
+
+    Q_1(w) = G(w) U(w),   G(s) = b_0 / (1 + a_1 s + a_2 s^2),   s = i w / w_top.
+
+With one flexible mode in the band, u = F - J is the force less the inertia, J = T(w) F with
+T = m_c phi_F s^2 / (m_1 (w_1^2 + 2 zeta w_1 s + s^2)); so Q_1 = G U with G's poles where the
+reactions vanish for a force (T = 1). Such a pole may lie on either side of the imaginary axis:
+G ties two measured signals, not a cause to its effect, and is applied over a record, never
+as a causal filter.
+
+The transfer is fitted by least squares on the band's bins (Sanathanan-Koerner iterations
+towards the output error (Q - G U) / sigma, sigma the probes' noise in one bin, which is the
+only noise that counts: the gauges' is far below it). Three parameters average the probes'
+noise over every sample of the record. :mod:`forcecal.forces.transient` then takes q_1'' as the
+gauges' part, IFFT(s^2 G U), plus the smoothed second derivative of the residual q_1 - G u:
+the probes' own evidence of what the transfer misses (a load whose pattern changes, a second
+force, a structure that is not linear). Where the transfer holds, that residual is the
+probes' noise and the smoother takes almost nothing from it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..signals.mains import near_mains
+
+__all__ = ["DEN_ORDER", "NUM_ORDER", "ReactionTransfer", "filtered", "fit_reaction_transfer"]
+
+NUM_ORDER = 0
+"""Order of G's numerator in s."""
+DEN_ORDER = 2
+"""Order of G's denominator in s: one flexible mode (the reactions' zero for a force)."""
+ITERATIONS = 30
+"""Sanathanan-Koerner iterations at most (they settle within about ten)."""
+POLE_MARGIN = 1e-5
+"""A pole whose real part is less than this share of its magnitude lies on the axis of real
+frequencies (a damping ratio below 1e-5): no transfer, its response being unbounded there."""
+MIN_BINS = 32
+"""Fewest band bins a fit takes (fewer: no transfer)."""
+MAINS_WIDTH = 1.0
+"""[Hz] the lines left out of the fit on either side of a mains harmonic: a hum tone leaks into
+the record's neighbouring lines (on a 4 s record 4 lines a side)."""
+
+
+def filtered(x: np.ndarray, fs: float, response: Callable[[np.ndarray], np.ndarray]
+             ) -> np.ndarray:
+    """Signals ``x`` (n, N) through a response (a function of the frequencies [Hz] giving
+    (n, n_freq) or (n_freq,) complex factors), by the discrete Fourier transform of the record
+    extended at both ends by its odd reflection (no jump where it wraps)."""
+    n = x.shape[-1]
+    pad = min(n - 1, max(n // 4, 1))
+    ext = np.concatenate([2 * x[:, :1] - x[:, pad:0:-1], x,
+                          2 * x[:, -1:] - x[:, -2:-pad - 2:-1]], axis=-1)
+    f = np.fft.rfftfreq(ext.shape[-1], 1.0 / fs)
+    out = np.fft.irfft(np.fft.rfft(ext, axis=-1) * response(f), n=ext.shape[-1], axis=-1)
+    return out[:, pad:pad + n]
+
+
+@dataclass(frozen=True)
+class ReactionTransfer:
+    """G(s) = sum_k b_k s^k / (1 + sum_k a_k s^k), s = i w / ``scale``, from the
+    reactions-only force [N] to the first shape's coordinate [1].
+
+    Attributes
+    ----------
+    num : (NUM_ORDER + 1,) array
+        b_0 .. [1/N].
+    den : (DEN_ORDER + 1,) array
+        1, a_1, a_2 ...
+    scale : float [rad/s]
+        The band's top.
+    cov : (n_params, n_params) array
+        Covariance of (b_0 .., a_1 ..), scaled by the fit's chi-square per degree of freedom
+        where that exceeds 1.
+    chi2 : float [1]
+        The residual's chi-square per degree of freedom: 1 where the transfer explains the
+        coordinate to its noise.
+    """
+
+    num: np.ndarray
+    den: np.ndarray
+    scale: float
+    cov: np.ndarray
+    chi2: float
+
+    def _s(self, f: np.ndarray) -> np.ndarray:
+        return 2j * np.pi * np.asarray(f, dtype=float) / self.scale
+
+    def response(self, f: np.ndarray) -> np.ndarray:
+        """G at the frequencies ``f`` [Hz]."""
+        s = self._s(f)
+        return np.polyval(self.num[::-1], s) / np.polyval(self.den[::-1], s)
+
+    def sensitivities(self, f: np.ndarray) -> np.ndarray:
+        """(n_params, n_freq): dG / d(b_0 .., a_1 ..) at the frequencies ``f`` [Hz]."""
+        s = self._s(f)
+        a = np.polyval(self.den[::-1], s)
+        g = np.polyval(self.num[::-1], s) / a
+        return np.vstack([*(s**k / a for k in range(self.num.size)),
+                          *(-g * s**k / a for k in range(1, self.den.size))])
+
+
+def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[float, float],
+                          var_q: float, mains: float | None = None) -> ReactionTransfer | None:
+    """The transfer from the reactions-only force ``u`` (N,) [N] to the coordinate ``q`` (N,)
+    over the ``band`` [Hz], ``var_q`` the coordinate's noise variance per sample, the lines
+    within ``MAINS_WIDTH`` of a harmonic of the ``mains`` [Hz] left out (their hum is no
+    motion); None when the band holds fewer than ``MIN_BINS`` bins, the fit is not finite or
+    it puts a pole on the axis of real frequencies (the inertia is then the probes' alone, and
+    the note says so).
+
+    The record's transform ties Q = (B U + C) / A: C(s), a polynomial of order
+    ``DEN_ORDER + NUM_ORDER``, is the record's ends' share (the transient term of a finite
+    record: what the structure held at its first sample and still holds at its last), fitted
+    beside G and set aside (Pintelon and Schoukens, System Identification, ch. 2 and 6).
+    """
+    n = q.size
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    sel = (f >= band[0]) & (f <= band[1]) & ~near_mains(f, mains, MAINS_WIDTH)
+    if sel.sum() < MIN_BINS or not var_q > 0:
+        return None
+    scale = 2 * np.pi * band[1]
+    s = 2j * np.pi * f[sel] / scale
+    qf = np.fft.rfft(q - q.mean())[sel]
+    uf = np.fft.rfft(u - u.mean())[sel]
+    sigma = np.sqrt(var_q * n / 2.0)                  # noise of Re or Im of a bin
+    nb, na, nc = NUM_ORDER + 1, DEN_ORDER, DEN_ORDER + NUM_ORDER + 1
+    den = np.ones(s.size, dtype=complex)
+    p = np.zeros(nb + na + nc)
+    for _ in range(ITERATIONS):
+        # Q (1 + sum a_k s^k) = U sum b_k s^k + sum c_k s^k, weighted by the last denominator
+        cols = np.stack([*(uf * s**k for k in range(nb)),
+                         *(-qf * s**k for k in range(1, na + 1)),
+                         *(s**k for k in range(nc))], axis=1) / den[:, None]
+        rhs = qf / den
+        new = np.linalg.lstsq(np.vstack([cols.real, cols.imag]),
+                              np.concatenate([rhs.real, rhs.imag]), rcond=None)[0]
+        if not np.all(np.isfinite(new)):
+            return None
+        settled = np.allclose(new, p, rtol=1e-9, atol=0.0)
+        p = new
+        den = np.polyval(np.r_[1.0, p[nb:nb + na]][::-1], s)
+        if settled:
+            break
+    # a pole on the axis of real frequencies would make the response infinite there
+    poles = np.roots(np.r_[1.0, p[nb:nb + na]][::-1])
+    if np.any(np.abs(poles.real) < POLE_MARGIN * np.abs(poles)):
+        return None
+    fit = ReactionTransfer(num=p[:nb], den=np.r_[1.0, p[nb:nb + na]], scale=scale,
+                           cov=np.zeros((nb + na, nb + na)), chi2=1.0)
+    ends = np.polyval(p[nb + na:][::-1], s) / den
+    res = (qf - fit.response(f[sel]) * uf - ends) / sigma
+    jac = np.vstack([-(fit.sensitivities(f[sel]) * uf),         # d res / d params, times sigma
+                     *(-(s**k) / den for k in range(nc))]) / sigma
+    jac[nb:nb + na] += np.stack([ends * s**k / den for k in range(1, na + 1)]) / sigma
+    jr = np.hstack([jac.real, jac.imag]).T
+    dof = 2 * res.size - p.size
+    chi2 = float(np.sum(np.abs(res) ** 2) / dof)
+    try:
+        cov = np.linalg.inv(jr.T @ jr)[:nb + na, :nb + na] * max(chi2, 1.0)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)):
+        return None
+    return ReactionTransfer(num=fit.num, den=fit.den, scale=scale, cov=cov, chi2=chi2)

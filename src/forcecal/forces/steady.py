@@ -1,0 +1,591 @@
+"""Forces from reactions and inertia (METHOD.md sections 2 and 3, steps 5 and 6).
+
+Per harmonic n >= 1: F_n = Psi^+ (J_n - R_n) (:func:`force_solve`) with the inertia term J_n of
+:func:`forcecal.model.inertia.inertia_term`; the DC part has no inertia, F_0 = -Psi^+ (R_0 - R_0,tare).
+Which harmonics enter at all is one policy (:func:`kept_harmonics`), shared by the batch and the
+streaming estimators. The reactions-only (static) estimate, -Psi^+ R(t) sample by sample, is
+returned beside it as the baseline.
+
+:func:`reconstruct` is the batch estimate of one run, written as the method's steps. Standard
+uncertainties come from :mod:`forcecal.forces.uncertainty`: linear propagation from the noise of every
+channel and from the scan model's shape coefficients.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from collections.abc import Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import DataError, InputError
+from ..model.inertia import inertia_term
+from ..model.relaxation import force_matrix
+from ..model.spatial import SpatialModel, check_model_rig
+from ..records import Run
+from ..rig import Rig
+from ..signals.checks import check_clipping, check_record_length
+from ..signals.fourier_sums import grid_series
+from ..signals.harmonics import (
+    HarmonicFit,
+    fit_harmonics,
+    fundamental_uncertainty,
+    refine_fundamental,
+)
+from ..signals.mains import hum_variance, on_mains
+from .budget import SolveInputs, pooled_variance, type_b_variance
+from .coordinates import Coordinates, deflection, generalized_coordinates
+from .diagnostics import (
+    dc_vs_ac_notes,
+    drift_notes,
+    mains_notes,
+    probe_misfit_notes,
+    pull_only_notes,
+    span_notes,
+)
+from .estimate import ForceEstimate
+from .uncertainty import (
+    combinations,
+    gauge_variance,
+    inertia_variance_parts,
+    shape_operators,
+    unresolved_inertia,
+    unresolved_inertia_bound,
+)
+
+__all__ = [
+    "SIGNIFICANT_REACTION",
+    "ForceEstimate",
+    "channels_si",
+    "force_solve",
+    "implied_phasors",
+    "kept_harmonics",
+    "reconstruct",
+    "significant_reactions",
+    "solve_inputs",
+]
+
+SPLIT_CONDITION = 30.0
+"""cond(Psi) above which the split between the forces is flagged as poorly determined."""
+
+FREQUENCY_MISMATCH = 0.01
+"""Relative difference between a run's and the scan's fundamental that draws a warning."""
+SIGNIFICANT_REACTION = 5.0
+"""A harmonic without a shape is kept when a gauge shows it above this many noise stds."""
+
+
+def force_solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray) -> np.ndarray:
+    """F = Psi^+ (J - R) (eq. 8, 24 corrected): the forces from the inertia term and the
+    reactions, exact when there are as many forces as gauges, least squares otherwise.
+
+    Parameters
+    ----------
+    pinv : (n_forces, n_gauges) ndarray
+        [1] Psi^+.
+    inertia : (n_gauges, ...) ndarray
+        [N] J (phasors of any harmonics, or samples).
+    reactions : (n_gauges, ...) ndarray
+        [N] R, the forces the gauges exert on the structure.
+
+    Returns
+    -------
+    (n_forces, ...) ndarray [N]
+    """
+    forces: np.ndarray = pinv @ (inertia - reactions)
+    return forces
+
+
+def significant_reactions(reactions: np.ndarray, std: np.ndarray,
+                          factor: float = SIGNIFICANT_REACTION) -> np.ndarray:
+    """Harmonics that some gauge shows above ``factor`` times its noise.
+
+    Parameters
+    ----------
+    reactions : (n_gauges, H+1) complex ndarray
+        [N] reaction phasors.
+    std : (n_gauges, H+1) ndarray
+        [N] their standard uncertainties.
+    factor : float
+        The threshold in noise stds.
+
+    Returns
+    -------
+    (H+1,) bool ndarray
+    """
+    significant: np.ndarray = np.any(np.abs(reactions) > factor * std, axis=0)
+    return significant
+
+
+def kept_harmonics(n_harmonics: int, shaped: Iterable[int], significant: np.ndarray,
+                   dc: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """Which harmonics enter the forces, and which of them with their inertia.
+
+    The policy of both estimators: the DC (when the gauges measure it), every harmonic with a
+    shape in the scan model (inertia compensated), and every other harmonic that the reactions
+    show (``significant``: its inertia is not compensated and is counted in the uncertainty).
+
+    Parameters
+    ----------
+    n_harmonics : int
+        H.
+    shaped : iterable of int
+        The harmonics with a shape in the model.
+    significant : (H+1,) bool ndarray
+        Harmonics the data show (:func:`significant_reactions`).
+    dc : bool
+        Whether the DC is kept.
+
+    Returns
+    -------
+    with_inertia : (H+1,) bool ndarray
+    kept : (H+1,) bool ndarray
+    """
+    with_inertia = np.zeros(n_harmonics + 1, dtype=bool)
+    for n in shaped:
+        if 1 <= n <= n_harmonics:
+            with_inertia[n] = True
+    kept = with_inertia | np.asarray(significant, dtype=bool)
+    kept[0] = dc
+    return with_inertia, kept
+
+
+def channels_si(rig: Rig, run: Run) -> dict[str, np.ndarray]:
+    """Gauge, sensor, current and (if any) flux channels in SI with the rig's scales.
+
+    Parameters
+    ----------
+    rig : Rig
+    run : Run
+
+    Returns
+    -------
+    dict
+        Channel name -> (n_samples,) ndarray [N, m, A, Wb].
+    """
+    out = {g.name: g.scale * run.channel(g.name) for g in rig.gauges}
+    out.update({s.name: s.scale * run.channel(s.name) for s in rig.sensors})
+    act = rig.actuator
+    out[act.current] = act.current_scale * run.channel(act.current)
+    if act.flux and act.flux in run.channels:
+        out[act.flux] = act.flux_scale * run.channel(act.flux)
+    return out
+
+
+def _times(run: Run) -> np.ndarray:
+    """(n_samples,) [s] the run's sample times t0 + k / fs (:attr:`Run.time`), computed in
+    place: no temporaries of the record's length."""
+    t = np.arange(run.n_samples, dtype=float)
+    t /= run.fs
+    t += run.t0
+    return t
+
+
+def _series(phasors: np.ndarray, f0: float, run: Run) -> np.ndarray:
+    """Evaluate phasors (..., H+1) at the run's sample times -> (..., n_samples), chunk by
+    chunk (:func:`forcecal.signals.fourier_sums.grid_series`)."""
+    return grid_series(phasors, f0, run.fs, run.t0, run.n_samples)
+
+
+@dataclass(frozen=True)
+class _Records:
+    """A run's channels in SI, grouped as the method uses them."""
+
+    current: np.ndarray
+    sensors: np.ndarray
+    gauges: np.ndarray
+
+
+def _records(rig: Rig, run: Run) -> _Records:
+    """Step 0: the channels in SI, checked for clipping, at least one of them driven."""
+    sig = channels_si(rig, run)
+    for name, values in sig.items():
+        check_clipping(values, name, run.source, run.fs)
+    rec = _Records(current=sig[rig.actuator.current],
+                   sensors=_rows(sig, list(rig.sensor_names)),
+                   gauges=_rows(sig, list(rig.gauge_names)))
+    if not _driven(rec):
+        raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
+    return rec
+
+
+def _rows(sig: dict[str, np.ndarray], names: list[str]) -> np.ndarray:
+    """The channels ``names`` of ``sig`` stacked; each is dropped from ``sig`` once copied, so
+    that a long run's channels are not held twice."""
+    out = np.empty((len(names), len(sig[names[0]])))
+    for k, name in enumerate(names):
+        out[k] = sig[name] if name in names[k + 1:] else sig.pop(name)
+    return out
+
+
+def _driven(rec: _Records) -> list[np.ndarray]:
+    """The records that are not constant (constant ones say nothing of the fundamental)."""
+    return [r for r in (rec.current, *rec.sensors, *rec.gauges)
+            if np.std(r) > 1e-9 * (np.max(np.abs(r)) + 1e-300)]
+
+
+def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
+                 h: int) -> tuple[float, float, list[str]]:
+    """Step 1: the run's refined fundamental, its uncertainty, and a note when it differs from
+    the scan model's."""
+    check_record_length(run, rig.drive_frequency)
+    if rig.drive_frequency >= 0.5 * run.fs:
+        raise DataError(f"run '{run.source}': sampled at {run.fs:g} Hz, it cannot hold the "
+                        f"drive of rig '{rig.source}' (key 'acquisition.frequency' = "
+                        f"{rig.drive_frequency:g} Hz), which lies above its Nyquist frequency "
+                        f"{0.5 * run.fs:g} Hz")
+    records = _driven(rec)
+    try:
+        f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
+    except DataError:
+        # a drive that drifts within the record defeats one fundamental: say so, not that the
+        # nominal frequency is wrong
+        drift = drift_notes(rec.current, run.fs, rig.drive_frequency, f"run '{run.source}'",
+                            t0=run.t0)
+        if drift:
+            raise DataError(drift[0]) from None
+        raise
+    f0_std = fundamental_uncertainty(records, run.fs, f0, h, t0=run.t0)
+    notes = []
+    if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
+        msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
+               f"{model.f0:.4g} Hz; its shapes may not apply")
+        warnings.warn(msg, stacklevel=3)
+        notes.append(msg)
+    return f0, f0_std, notes
+
+
+def _tare_dc(rig: Rig, tare: dict[str, np.ndarray] | None) -> np.ndarray:
+    """(n_gauges,) [N] the gauges' DC in a zero-current record's SI channels (zero without)."""
+    if tare is None:
+        return np.zeros(len(rig.gauges))
+    return np.array([tare[g].mean() for g in rig.gauge_names])
+
+
+def _channel_fits(rig: Rig, run: Run, rec: _Records, f0: float, h: int,
+                  tare: Run | None, tare_sig: dict[str, np.ndarray] | None
+                  ) -> tuple[HarmonicFit, HarmonicFit, frozenset[int]]:
+    """Steps 1 and 1b: the gauges' and the probes' harmonic fits; on the drive harmonics that
+    lie on a mains harmonic, the hum the tare record shows added to their phasor variance
+    (:mod:`forcecal.signals.mains`); the harmonics it was added to."""
+    g_fit = fit_harmonics(rec.gauges, run.fs, f0, h, t0=run.t0)
+    s_fit = fit_harmonics(rec.sensors, run.fs, f0, h, t0=run.t0)
+    n_samples = rec.gauges.shape[-1]
+    if tare is None or tare_sig is None or rig.mains is None:
+        return g_fit, s_fit, frozenset()
+    pairs = on_mains(rig.mains, f0, range(1, h + 1), run.fs / n_samples)
+    if not pairs:
+        return g_fit, s_fit, frozenset()
+    fits: list[HarmonicFit] = []
+    read: set[int] = set()
+    for fit, names in ((g_fit, rig.gauge_names), (s_fit, rig.sensor_names)):
+        var, heard_at = hum_variance(np.stack([tare_sig[c] for c in names]), tare.fs,
+                                     rig.mains, pairs, h, n_samples, run.fs)
+        fits.append(dataclasses.replace(fit, phasor_std=np.sqrt(fit.phasor_std**2 + var)))
+        read |= heard_at
+    return fits[0], fits[1], frozenset(read)
+
+
+def _inertia(rig: Rig, model: SpatialModel, coords: Coordinates, s_fit: HarmonicFit,
+             a_r: np.ndarray, w0: float, h: int
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[int]]:
+    """Step 5: J_{r,n} of every shaped harmonic, with its variance in every combination from
+    the probes' noise and from the scan's shapes."""
+    n_c = a_r.shape[0]
+    inertia = np.zeros((len(rig.gauges), h + 1), dtype=complex)
+    var_probes = np.zeros((n_c, h + 1, 2))
+    var_shapes = np.zeros((n_c, h + 1, 2))
+    ops = shape_operators(model, rig)
+    shaped = []
+    for k, n in enumerate(model.harmonics):
+        n = int(n)
+        if n > h:
+            continue
+        members, q, _ = coords.span(k)
+        inertia[:, n] = inertia_term(model.member_couplings(k)[:, list(members)], q, n * w0)
+        var_probes[:, n, :], var_shapes[:, n, :] = inertia_variance_parts(
+            model, ops, k, s_fit, a_r, n * w0, coords)
+        shaped.append(n)
+    return inertia, var_probes, var_shapes, shaped
+
+
+def _unresolved(rig: Rig, model: SpatialModel, s_fit: HarmonicFit, a_r: np.ndarray,
+                with_inertia: np.ndarray, kept: np.ndarray, w0: float,
+                var: np.ndarray) -> list[str]:
+    """Harmonics kept without a shape: their uncompensated inertia enters the variance ``var``
+    (updated in place): the inertia that the nearest harmonic's shape would give it from the
+    probes, as the standard uncertainty of the complex phasor, and never below the whole mass
+    moving at the probes' noise; returns a note per harmonic."""
+    notes = []
+    n_g = len(rig.gauges)
+    for n in np.flatnonzero(kept & ~with_inertia):
+        if n == 0:
+            continue
+        bound = unresolved_inertia_bound(rig, s_fit, int(n), w0)
+        floor = bound**2 / (2 * n_g) * np.sum(a_r**2, axis=1)
+        # the proxy's magnitude is the complex phasor's standard uncertainty: half its
+        # square on each of Re and Im
+        proxy = np.abs(a_r @ unresolved_inertia(model, rig, s_fit, int(n), w0)) ** 2 / 2
+        var[:, n, :] += np.maximum(proxy, floor)[:, None]
+        notes.append(f"harmonic {n}: no shape in the scan model "
+                     f"({model.dropped.get(int(n), 'not scanned')}); its inertia, up to "
+                     f"{bound:.2g} N, is not compensated and is counted in the uncertainty")
+    return notes
+
+
+def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None = None,
+                tare: Run | None = None, ac_coupled: bool = False) -> ForceEstimate:
+    """External forces of one run from its reactions, sensors and the spatial model.
+
+    Parameters
+    ----------
+    rig : Rig
+        The rig.
+    model : SpatialModel
+        The spatial model from the scan.
+    run : Run
+        The recording (gauge, sensor and current channels named as in the rig).
+    n_harmonics : int, optional
+        H: harmonics 0..H are estimated (default: as many as the scan was fitted with).
+    tare : Run, optional
+        A zero-current record whose gauge DC is subtracted.
+    ac_coupled : bool
+        The gauges do not measure DC (piezoelectric): the DC force is not estimated.
+
+    Returns
+    -------
+    ForceEstimate
+    """
+    _check_arguments(rig, model, run, tare)
+    check_model_rig(model, rig)
+    h = n_harmonics or len(model.snr)
+    rec = _records(rig, run)
+    f0, f0_std, notes = _fundamental(rig, model, run, rec, h)
+    tare_sig = None if tare is None else channels_si(rig, tare)
+    g_fit, s_fit, hummed = _channel_fits(rig, run, rec, f0, h, tare, tare_sig)
+    coords = generalized_coordinates(model, rig, s_fit, run.source)
+    psi = force_matrix(rig)
+    pinv, cond = np.linalg.pinv(psi), float(np.linalg.cond(psi))
+    tare_dc = _tare_dc(rig, tare_sig)
+    reactions = g_fit.phasors.copy()                                 # (n_g, H+1)
+    reactions[:, 0] -= tare_dc
+    combo_names, combo = combinations(rig)
+    a_r = combo @ pinv                                               # (n_c, n_g)
+    w0 = 2 * np.pi * f0
+    inertia, var_probes, var_shapes, shaped = _inertia(rig, model, coords, s_fit, a_r, w0, h)
+    with_inertia, kept = kept_harmonics(
+        h, shaped, significant_reactions(reactions, g_fit.phasor_std), dc=True)
+    noise = {"gauge noise": np.repeat(gauge_variance(a_r, g_fit)[:, :, None], 2, axis=2),
+             "probe noise": var_probes, "scan shapes": var_shapes,
+             "unresolved harmonics": np.zeros_like(var_probes)}
+    notes += mains_notes(rig.mains, f0, kept, run.fs / rec.gauges.shape[-1],
+                         f"run '{run.source}'", hummed)
+    notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0,
+                         noise["unresolved harmonics"])
+    var = sum(noise.values(), start=np.zeros_like(var_probes))
+    for a in (reactions, inertia, var, *noise.values()):
+        a[:, ~kept] = 0.0
+    force, static, std = _solve(pinv, inertia, reactions, var, ac_coupled)
+    type_b = _type_b(rig, model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
+                     ac_coupled)
+    budget = {name: _pooled(v, ac_coupled) for name, v in {**noise, **type_b}.items()}
+    std = np.sqrt(sum((b**2 for b in budget.values()), start=np.zeros_like(std)))
+    std_re_im = np.sqrt(sum(type_b.values(), start=var))
+    if ac_coupled:
+        std_re_im[:, 0, :] = 0.0
+    if not rig.type_b.declared:
+        notes.append(f"run '{run.source}': {rig.type_b.describe()}")
+    notes += _split_note(rig, cond)
+    static_series = force_solve(pinv, tare_dc[:, None], rec.gauges)
+    if ac_coupled:
+        static_series = static_series - static_series.mean(axis=1, keepdims=True)
+    n_f = len(rig.forces)
+    series = _series(force, f0, run)
+    notes += span_notes(model, coords, len(rig.sensors), f"run '{run.source}'")
+    notes += _self_checks(rig, run, rec, coords, force, std[:n_f], series, f0, ac_coupled)
+    return ForceEstimate(
+        run_name=run.name, force_names=tuple(rig.force_names),
+        gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
+        force=force, force_std=std[:n_f], total=force.sum(axis=0), total_std=std[n_f],
+        combination_names=combo_names, combination=combo @ force, combination_std=std,
+        combination_std_re_im=std_re_im,
+        static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
+        kept=kept, coordinates=coords, time=_times(run), series=series,
+        static_series=static_series, psi_condition=cond,
+        consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
+        dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std, budget=budget,
+        type_b=rig.type_b,
+    )
+
+
+def _pooled(var: np.ndarray, ac_coupled: bool) -> np.ndarray:
+    """(n_c, H+1) standard uncertainty from the variances of Re and Im (n_c, H+1, 2): pooled
+    for n >= 1, the real DC's for n = 0 (zero when the gauges are AC-coupled)."""
+    std = np.sqrt(pooled_variance(var))
+    if ac_coupled:
+        std[:, 0] = 0.0
+    return std
+
+
+def _type_b(rig: Rig, model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFit,
+            tare_dc: np.ndarray, w0: float, coords: Coordinates, kept: np.ndarray,
+            with_inertia: np.ndarray, ac_coupled: bool) -> dict[str, np.ndarray]:
+    """Step 6b: each type-B source's variance of Re and of Im in every combination and
+    harmonic, (n_c, H+1, 2) (:mod:`forcecal.forces.budget`)."""
+    inputs = _solve_inputs(model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
+                           ac_coupled)
+    return type_b_variance(rig, model, inputs)
+
+
+def _solve_inputs(model: SpatialModel, g_fit: HarmonicFit, s_fit: HarmonicFit,
+                  tare_dc: np.ndarray, w0: float, coords: Coordinates, kept: np.ndarray,
+                  with_inertia: np.ndarray, ac_coupled: bool) -> SolveInputs:
+    return SolveInputs(
+        gauges=g_fit.phasors, tare=tare_dc, sensors=s_fit.phasors,
+        sensor_std=s_fit.phasor_std, gauge_std=g_fit.phasor_std, w0=w0,
+        members=tuple(coords.span(k)[0] for k in range(len(model.harmonics))),
+        kept=kept, with_inertia=with_inertia, ac_coupled=ac_coupled)
+
+
+def solve_inputs(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
+                 tare: Run | None = None) -> SolveInputs:
+    """What the force solve of an estimate used, for :func:`forcecal.forces.budget.monte_carlo`.
+
+    Parameters
+    ----------
+    rig, model, run : as for :func:`reconstruct`
+    estimate : ForceEstimate
+        ``reconstruct(rig, model, run, ...)``.
+    tare : Run, optional
+        The tare the estimate subtracted.
+
+    Returns
+    -------
+    SolveInputs
+    """
+    rec = _records(rig, run)
+    h = len(estimate.harmonics) - 1
+    tare_sig = None if tare is None else channels_si(rig, tare)
+    g_fit, s_fit, _ = _channel_fits(rig, run, rec, estimate.f0, h, tare, tare_sig)
+    return _solve_inputs(model, g_fit, s_fit, _tare_dc(rig, tare_sig), 2 * np.pi * estimate.f0,
+                         estimate.coordinates, estimate.kept, estimate.with_inertia,
+                         not estimate.dc_observed)
+
+
+def _check_arguments(rig: object, model: object, run: object, tare: object) -> None:
+    """InputError, not an AttributeError, when a library caller passes the wrong objects."""
+    for name, value, kind in (("rig", rig, Rig), ("model", model, SpatialModel),
+                              ("run", run, Run), ("tare", tare, (Run, type(None)))):
+        if not isinstance(value, kind):
+            raise InputError(f"reconstruct: '{name}' must be a {getattr(kind, '__name__', 'Run')}"
+                             f" (from forcecal.load_rig, build_spatial_model or read_run); got "
+                             f"{type(value).__name__}")
+
+
+def _self_checks(rig: Rig, run: Run, rec: _Records, coords: Coordinates, force: np.ndarray,
+                 force_std: np.ndarray, series: np.ndarray, f0: float,
+                 ac_coupled: bool) -> list[str]:
+    """Step 7: the estimate's self-checks (:mod:`forcecal.forces.diagnostics`)."""
+    what = f"run '{run.source}'"
+    notes = probe_misfit_notes(coords, rig.sensor_names, what)
+    notes += drift_notes(rec.current, run.fs, f0, what, t0=run.t0)
+    if not ac_coupled:
+        instant = np.sqrt(np.sum(force_std**2, axis=1))
+        notes += pull_only_notes(rig.force_names, series, force[:, 0].real, instant, what)
+        current = fit_harmonics(rec.current, run.fs, f0, force.shape[1] - 1, t0=run.t0)
+        notes += dc_vs_ac_notes(rig.force_names, force, force_std, current.phasors, what)
+    return notes
+
+
+def _solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray, var: np.ndarray,
+           ac_coupled: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Step 6: the forces, the reactions-only forces and the combinations' standard
+    uncertainties (Re and Im averaged; the DC is real); no DC when the gauges are AC-coupled."""
+    force = force_solve(pinv, inertia, reactions)
+    static = force_solve(pinv, np.zeros_like(reactions), reactions)
+    if ac_coupled:
+        force[:, 0] = 0.0
+        static[:, 0] = 0.0
+        var[:, 0, :] = 0.0
+    std = np.sqrt(var.mean(axis=2))
+    std[:, 0] = np.sqrt(var[:, 0, 0])
+    return force, static, std
+
+
+def _split_note(rig: Rig, cond: float) -> list[str]:
+    """A note when close force points make the split between the forces poorly determined."""
+    if cond <= SPLIT_CONDITION:
+        return []
+    return [f"cond(Psi) = {cond:.3g}: the force points are close together, so the split "
+            f"between {', '.join(rig.force_names)} is poorly determined (see their "
+            "uncertainties); the resultant (total and moments) is well determined"]
+
+
+def implied_phasors(rig: Rig, model: SpatialModel, run: Run,
+                    estimate: ForceEstimate) -> dict[str, np.ndarray]:
+    """The channel phasors (H+1,) [SI] that an estimate implies, by channel name.
+
+    Gauges: the reactions used by the estimate; sensors: their DC as measured and, per
+    harmonic, phi_n(l_j) Q_n (the model's view of the motion); the current: its own fit. A run
+    built from these phasors is one the estimate explains exactly (synthetic runs, checks).
+
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel
+    run : Run
+    estimate : ForceEstimate
+
+    Returns
+    -------
+    dict
+        Channel name -> (H+1,) complex ndarray.
+    """
+    h = len(estimate.harmonics) - 1
+    sig = channels_si(rig, run)
+    out = {g: estimate.reactions[k].copy() for k, g in enumerate(rig.gauge_names)}
+    probes = fit_harmonics(np.stack([sig[s] for s in rig.sensor_names]), run.fs, estimate.f0,
+                           h, t0=run.t0).phasors
+    at = rig.structure.coordinates(rig.sensor_points)
+    model_view = np.zeros((len(rig.sensor_names), h + 1), dtype=complex)
+    for k, n in enumerate(model.harmonics):
+        model_view[:, n] = deflection(model, estimate.coordinates, k, at)
+    for j, s in enumerate(rig.sensor_names):
+        x = model_view[j].copy()
+        x[0] = probes[j, 0]
+        out[s] = x
+    cur = rig.actuator.current
+    out[cur] = fit_harmonics(sig[cur], run.fs, estimate.f0, h, t0=run.t0).phasors
+    return out
+
+
+def refined_fundamental(records: list[np.ndarray], fs: float, rig: Rig, n_harmonics: int,
+                        what: str, t0: float = 0.0) -> float:
+    """:func:`refine_fundamental` with errors that name the file and the rig's key.
+
+    Parameters
+    ----------
+    records : list of ndarray
+        Driven records of the run.
+    fs : float
+        [Hz] sampling rate.
+    rig : Rig
+        Its ``frequency`` is the nominal drive frequency.
+    n_harmonics : int
+        H.
+    what : str
+        Named in messages.
+    t0 : float
+        [s] time of the first sample.
+
+    Returns
+    -------
+    float [Hz]
+    """
+    nominal = rig.drive_frequency
+    try:
+        return refine_fundamental(records, fs, nominal, n_harmonics, t0=t0)
+    except DataError as exc:
+        raise DataError(f"{what}: {exc} (rig '{rig.source}', key 'acquisition.frequency' = "
+                        f"{nominal:g} Hz)") from None

@@ -1,0 +1,717 @@
+"""Forces for any drive, sample by sample (METHOD.md section 7, "any drive").
+
+A swept, multi-tone or random drive has no harmonics to fit; eq. 15-16 hold at every instant
+instead. With the span of shapes of a broadband scan (:mod:`forcecal.model.broadband`):
+
+1. the first shape's coordinate at every sample from the probes,
+   q_1(t) = (g_1^T W s(t)) / (g_1^T W g_1), g_1 = phi_1 at the probes, W their inverse noise
+   variances (eq. 15-16);
+2. every gauge's reaction from a Kalman smoother of a band-limited signal
+   (:mod:`forcecal.signals.kalman`), and q_1'' from the reactions: the structure's transfer from the
+   reactions-only force to q_1, fitted over the record (:mod:`forcecal.forces.reaction_transfer`),
+   plus the smoothed second derivative of what it leaves of q_1 (the probes' evidence of what
+   the transfer misses; their noise alone where it holds);
+3. J_r = m_{r,1} q_1'' corrected frequency by frequency to the operating shape of every
+   frequency (:meth:`forcecal.model.broadband.BroadbandModel.inertia_correction`), and
+   f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the reactions-only estimate -Psi^+ R(t);
+4. short-time Wiener gains on every force (:mod:`forcecal.signals.wiener`), which keep the few hertz
+   a moving drive holds at any instant and set the rest of the band's noise aside, each
+   sample's uncertainty being the noise they let through, plus the errors of the scan's
+   shapes (:mod:`forcecal.forces.inertia_errors`), of the transfer's parameters and of the rig's
+   declared sensitivities, positions and masses (:mod:`forcecal.forces.budget`).
+
+What the estimate fixes before its first sample (the channels' noise, the band priors, the
+transfer, the checks of the probes, the type-B moves, the hum) is its setup
+(:mod:`forcecal.forces.transient`), from the whole run in batch. The smoothers and the
+reactions' transfer take samples on both sides of each one: the record is carried past its
+ends by a prediction of every channel (:mod:`forcecal.signals.record_ends`), and what that prediction
+misses is in the ends' uncertainty.
+
+In real time (``stream``, :mod:`forcecal.stream.any_drive`) the same estimate is computed
+over a window that slides with the stream: every sample is given once the samples a fixed
+latency after it have arrived (a smoother needs the future a causal filter lacks: the best
+causal estimate of an acceleration from displacements lags it).
+
+Force content above the scan's band (a drive's harmonics beyond it) has no measured operating
+shape: the gauges carry it as far as their smoother lets through, its inertia through the
+transfer with the band top's correction, whose slope there is counted in the uncertainty.
+
+The noise of every channel is read from its spectrum above the band (white beyond the drive's
+reach), so that a probe's noise sets its weight and the smoother's gain; a channel whose noise
+changes while the run goes on is refused, and force above the scan's band noted
+(:mod:`forcecal.signals.checks`). Probes that leave the scan's operating shapes (forces that
+do not keep the scan's load pattern, a probe's sign or scale wrong) are noted, and the
+inertia of the motion the scan did not see bounds every force's uncertainty
+(:mod:`forcecal.forces.unseen_motion`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, fields
+
+import numpy as np
+import scipy.signal
+
+from ..errors import DataError
+from ..model.broadband import BroadbandModel
+from ..model.inertia import mass_coupling
+from ..model.relaxation import force_matrix
+from ..model.spatial import check_rig_keys
+from ..records import Run
+from ..rig import Rig
+from ..signals.checks import AboveBand, channel_noise, check_channel_noise
+from ..signals.kalman import BandModel, band_model, smooth_states
+from ..signals.mains import hum_tones, near_mains
+from ..signals.record_ends import extend
+from ..signals.wiener import (
+    short_time_variance,
+    smoother_response,
+    stft_frame,
+    tone_density,
+    wiener_smooth,
+)
+from .budget import TypeBMoves, series_type_b_variance, type_b_moves, type_b_notes
+from .inertia_errors import ScanNoiseShare, inertia_error_weights
+from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
+from .steady import channels_si
+from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
+
+__all__ = [
+    "RESIDUAL_MARGIN",
+    "TOP_MARGIN",
+    "AnyDriveSetup",
+    "TransientEstimate",
+    "WindowEstimate",
+    "any_drive_setup",
+    "check_length",
+    "hum_notes",
+    "reconstruct_any",
+    "run_channels",
+    "transfer_note",
+    "window_forces",
+    "with_reaction_priors",
+]
+
+
+# --- from transient_setup ---
+TOP_MARGIN = 100.0
+"""The drive's reach: the highest line of the band whose density exceeds the noise's this many
+times."""
+
+
+RESIDUAL_MARGIN = 10.0
+"""What the reactions' transfer leaves of the coordinate counts as signal up to the highest
+line of the band whose density exceeds the noise's this many times (a noise-only line of a
+Welch estimate over a few seconds stays within 3 times); none: the band's bottom."""
+
+
+def _prior(x: np.ndarray, fs: float, band: tuple[float, float], noise_var: float,
+           margin: float = TOP_MARGIN, quiet: float | None = None,
+           mains: float | None = None) -> tuple[float, float]:
+    """The band-limited prior of a signal: its cutoff [Hz], 1.2 x the highest line of the band
+    the signal rises ``margin`` above its noise (at least the band's bottom, at most its top;
+    ``quiet`` [Hz] where no line does, by default the band's top; the lines of the ``mains``'
+    harmonics [Hz] are hum, not signal), and its mean one-sided density below that line
+    [unit^2 / Hz]."""
+    nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 2)))))
+    f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg)
+    sel = (f <= band[1]) & (f > 0) & ~near_mains(f, mains, 2.0 * f[1])
+    loud = np.flatnonzero(sel & (p > margin * 2 * noise_var / fs))
+    top = float(f[loud[-1]]) if len(loud) else (band[1] if quiet is None else quiet)
+    top = min(max(top, band[0], f[1]), band[1])
+    under = sel & (f <= top)
+    level = float(np.mean(p[under])) if np.any(under) else float(np.mean(p))
+    return 1.2 * top, level
+
+
+@dataclass(frozen=True)
+class AnyDriveSetup:
+    """What the estimate under any drive fixes before its first sample.
+
+    Attributes
+    ----------
+    band : (low, high) [Hz]
+    fs : float [Hz]
+    probe_shapes : (n_probes, n_shapes) array [m]
+        The span's shapes at the probes.
+    probe_weights : (n_probes,) array [1/m^2]
+        Their inverse noise variances.
+    coordinate_map : (n_probes,) array [1/m]
+        q_1 = coordinate_map @ probes (eq. 15-16 on the first shape).
+    var_q : float [1]
+        The noise variance of one sample of q_1.
+    coordinate_model : BandModel
+        The band model of q_1.
+    reaction_models : tuple of BandModel
+        Every gauge's reaction's.
+    var_g : (n_gauges,) array [N^2]
+        Every gauge's noise variance per sample.
+    couplings : (n_gauges,) array [kg]
+        m_{r,1}, every gauge's coupling with the first shape.
+    pinv : (n_forces, n_gauges) array
+        Psi^+.
+    transfer : ReactionTransfer or None
+        From the reactions-only force u = ``total_row`` @ gauges to q_1
+        (:mod:`forcecal.forces.reaction_transfer`); None where it could not be fitted.
+    residual_model : BandModel
+        The band model of what the transfer leaves of q_1, q_1 - G u (of q_1 itself without
+        a transfer).
+    total_row : (n_gauges,) array
+        -1^T Psi^+: the reactions-only total force from the gauges.
+    basis_couplings : (n_gauges, n_funcs) array
+        The mass couplings of the shapes' basis functions (their coefficients' errors move the
+        inertia through them).
+    basis_probes : (n_probes, n_funcs) array
+        The basis functions at the probes.
+    unseen : UnseenMotion or None
+        The probes' misfit to the scan's operating shapes (:mod:`forcecal.forces.unseen_motion`).
+    type_b : TypeBMoves or None
+        How the rig's declared type-B uncertainties move the estimate
+        (:mod:`forcecal.forces.budget`).
+    hum : tuple of (int, float, float)
+        (channel, frequency [Hz], |a|^2 [N^2 or m^2]): every gauge's and probe's mains hum
+        tones (channels: the gauges, then the probes), read from a zero-current record
+        (:func:`forcecal.signals.mains.hum_tones`); the Wiener gains take them for noise (a
+        probe's hum is no motion, yet the inertia takes it for one: 0.6 um at 50 Hz on both
+        probes of the beam moves the total by 0.06 N).
+    """
+
+    band: tuple[float, float]
+    fs: float
+    probe_shapes: np.ndarray
+    probe_weights: np.ndarray
+    coordinate_map: np.ndarray
+    var_q: float
+    coordinate_model: BandModel
+    reaction_models: tuple[BandModel, ...]
+    var_g: np.ndarray
+    couplings: np.ndarray
+    pinv: np.ndarray
+    transfer: ReactionTransfer | None
+    residual_model: BandModel
+    total_row: np.ndarray
+    basis_couplings: np.ndarray
+    basis_probes: np.ndarray
+    unseen: UnseenMotion | None = None
+    type_b: TypeBMoves | None = None
+    hum: tuple[tuple[int, float, float], ...] = ()
+    _weights: dict[int, tuple[np.ndarray, np.ndarray]] = dataclasses.field(
+        default_factory=dict, compare=False, repr=False)
+
+    def error_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
+        """(n_forces + 1, frame // 2 + 1) [kg^2]: the variance the scan's errors give each
+        force and the total per unit |q''_1|^2 at the frame's bins
+        (:func:`forcecal.forces.inertia_errors.inertia_error_weights`), with the bound on a motion
+        the scan did not see where the probes found one
+        (:func:`forcecal.forces.unseen_motion.unseen_weights`); computed once per frame length (a
+        stream's windows share it)."""
+        return self._scan_weights(model, frame)[0]
+
+    def noise_weights(self, model: BroadbandModel, frame: int) -> np.ndarray:
+        """(n_forces + 1, frame // 2 + 1) [kg^2]: the part of :meth:`error_weights` that the
+        scan's noise gives (:func:`forcecal.forces.inertia_errors.scan_noise_weights`)."""
+        return self._scan_weights(model, frame)[1]
+
+    def _scan_weights(self, model: BroadbandModel, frame: int
+                      ) -> tuple[np.ndarray, np.ndarray]:
+        if frame not in self._weights:
+            f = np.fft.rfftfreq(frame, 1.0 / self.fs)
+            rows = np.vstack([self.pinv, self.pinv.sum(axis=0)])
+            every, noise = inertia_error_weights(
+                model, f, self.probe_shapes, self.probe_weights, self.couplings,
+                self.basis_couplings, self.basis_probes, rows)
+            self._weights[frame] = every + unseen_weights(
+                self.unseen, f, self.couplings, self.probe_shapes, rows), noise
+        return self._weights[frame]
+
+
+def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
+                    fs: float, source: str = "<run>", tare: np.ndarray | None = None,
+                    tare_fs: float | None = None) -> AnyDriveSetup:
+    """What the estimate under any drive needs before its first sample, from a record of the
+    gauges and probes (the whole run in batch; the first seconds of a stream): every channel's
+    noise from its spectrum above the band, the probes' weights and the first shape's
+    coordinate map, the band models of the coordinate and of every reaction, the
+    structure's transfer from the reactions-only force to the coordinate with the band model
+    of what it leaves, the probes' misfit to the scan's operating shapes, the type-B moves
+    and the gauges' and probes' hum.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : BroadbandModel
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+    fs : float [Hz]
+    source : str
+        The run, named in messages.
+    tare : (n_gauges + n_probes, n) array [N and m], optional
+        A zero-current record's gauges, then its probes: with ``acquisition.mains``, each
+        channel's hum tones (:func:`forcecal.signals.mains.hum_tones`).
+    tare_fs : float, optional [Hz]
+        Its sampling rate.
+
+    Returns
+    -------
+    AnyDriveSetup
+
+    Raises
+    ------
+    DataError
+        A gauge or probe channel that is constant over the record: a dead sensor would take
+        the weight of a noiseless one.
+    """
+    for name, x in zip((*rig.gauge_names, *rig.sensor_names), (*gauges, *probes), strict=True):
+        if np.ptp(x) == 0:
+            raise DataError(f"run '{source}': channel '{name}' is constant over "
+                            f"{x.size / fs:.3g} s; a dead or disconnected sensor cannot follow "
+                            "any drive")
+    band = model.band
+    var_s = channel_noise(probes, fs, band)
+    var_g = channel_noise(gauges, fs, band)
+    at_probes = rig.structure.coordinates(rig.sensor_points, source=f"rig '{rig.source}'")
+    gam = model.values(at_probes).real
+    basis = model.shapes[0].basis
+    w = 1.0 / var_s
+    g1 = gam[:, 0]
+    var_q = 1.0 / float(g1 @ (w * g1))
+    q_map = var_q * (g1 * w)
+    q = q_map @ probes
+    hum = rig.mains
+    bm_q = band_model(fs, *_prior(q, fs, band, var_q, mains=hum), var_q)
+    bm_r = tuple(band_model(fs, *_prior(gauges[r], fs, band, var_g[r], mains=hum), var_g[r])
+                 for r in range(len(gauges)))
+    pinv = np.linalg.pinv(force_matrix(rig))
+    total_row = -np.ones(len(pinv)) @ pinv
+    u = total_row @ gauges
+    transfer = fit_reaction_transfer(q, u, fs, band, var_q, hum)
+    bm_res = bm_q
+    if transfer is not None:
+        rest = q - filtered(u[None, :], fs, transfer.response)[0]
+        bm_res = band_model(fs, *_prior(rest, fs, band, var_q, RESIDUAL_MARGIN, band[0], hum),
+                            var_q)
+    return AnyDriveSetup(band=band, fs=fs, probe_shapes=gam, probe_weights=w,
+                         coordinate_map=q_map, var_q=var_q, coordinate_model=bm_q,
+                         reaction_models=bm_r, var_g=var_g, couplings=model.couplings[:, 0],
+                         pinv=pinv, transfer=transfer, residual_model=bm_res,
+                         total_row=total_row,
+                         basis_couplings=np.real(mass_coupling(rig, basis.evaluate)),
+                         basis_probes=np.real(basis.evaluate(at_probes)),
+                         unseen=probe_misfit(model, probes, fs, gam, model.stds(at_probes).real,
+                                             w, q_map, rig.type_b.probe_scale, hum),
+                         type_b=type_b_moves(rig, model),
+                         hum=_channel_hum(rig, band, tare, tare_fs))
+
+
+HUM_REACH = 4.0
+"""The channels' hum tones are read up to this many times the band's top (at most 0.45 of the
+tare's sampling rate): the smoothers let through a part of those beyond the band, and nothing
+(their eighth-order fall, 4^-8) beyond."""
+
+
+def _channel_hum(rig: Rig, band: tuple[float, float], tare: np.ndarray | None,
+                 tare_fs: float | None) -> tuple[tuple[int, float, float], ...]:
+    """Every channel's hum tones, from the zero-current record's gauges and probes (none
+    without ``acquisition.mains`` or a tare), up to ``HUM_REACH`` times the band's top."""
+    if rig.mains is None or tare is None or tare_fs is None:
+        return ()
+    tones, power = hum_tones(tare, tare_fs, rig.mains, min(0.45 * tare_fs, HUM_REACH * band[1]))
+    return tuple((r, float(f), float(power[r, m])) for r in range(len(tare))
+                 for m, f in enumerate(tones))
+
+
+def with_reaction_priors(setup: AnyDriveSetup, gauges: np.ndarray,
+                         mains: float | None = None) -> AnyDriveSetup:
+    """``setup`` with every gauge's band model set from ``gauges`` (n_gauges, N) [N], their
+    noise kept: a stream's smoothers follow its drive (a sweep's first seconds hold only its
+    bottom; smoothers set there, at 170 Hz where the whole run's were at 182 Hz, put the
+    stream 1.3 of the batch's uncertainty off at the sweep's top, 140-150 Hz)."""
+    fs, band = setup.fs, setup.band
+    models = tuple(band_model(fs, *_prior(g, fs, band, v, mains=mains), v)
+                   for g, v in zip(gauges, setup.var_g, strict=True))
+    return dataclasses.replace(setup, reaction_models=models)
+
+
+def hum_notes(rig: Rig, tare: object, source: str) -> tuple[str, ...]:
+    """The run's note when the rig names its mains but no zero-current record says its hum."""
+    if rig.mains is None or tare is not None:
+        return ()
+    return (f"run '{source}': acquisition.mains is {rig.mains:g} Hz, but without a tare record "
+            "the gauges' and probes' hum on its harmonics is not in the uncertainty (give a "
+            "zero-current record, --tare)",)
+
+
+# --- from transient ---
+@dataclass(frozen=True)
+class TransientEstimate:
+    """The forces of one run under any drive, at every sample.
+
+    Attributes
+    ----------
+    run_name : str
+    force_names : tuple of str
+    time : (N,) array [s]
+    force : (n_forces, N) array [N]
+        Reactions and inertia.
+    force_std : (n_forces, N) array [N]
+        Standard uncertainty of every sample: the smoother's noise the short-time Wiener gains
+        let through and the signal they take, and at the record's ends the inertia that the
+        prediction carrying the record past them misses (:mod:`forcecal.signals.record_ends`).
+    total : (N,) array [N]
+    total_std : (N,) array [N]
+    static : (n_forces, N) array [N]
+        Reactions only, -Psi^+ R(t) (the raw gauge samples).
+    inertia : (n_gauges, N) array [N]
+        J_r(t).
+    reactions : (n_gauges, N) array [N]
+        The smoothed reactions.
+    coordinates : (1, N) array [m per unit coordinate]
+        The first shape's coordinate q_1(t) from the probes.
+    band : (low, high) [Hz]
+    smoothed : bool
+        True for the batch estimate, False for the real-time one (``stream``: each sample
+        from the samples up to a fixed latency after it).
+    notes : tuple of str
+    """
+
+    run_name: str
+    force_names: tuple[str, ...]
+    time: np.ndarray
+    force: np.ndarray
+    force_std: np.ndarray
+    total: np.ndarray
+    total_std: np.ndarray
+    static: np.ndarray
+    inertia: np.ndarray
+    reactions: np.ndarray
+    coordinates: np.ndarray
+    band: tuple[float, float]
+    smoothed: bool = True
+    notes: tuple[str, ...] = ()
+
+    @classmethod
+    def from_window(cls, rig: Rig, run_name: str, t0: float, fs: float,
+                    est: WindowEstimate, band: tuple[float, float], smoothed: bool,
+                    notes: tuple[str, ...]) -> TransientEstimate:
+        """The estimate of a run whose samples, from ``t0``, ``est`` holds."""
+        return cls(run_name=run_name, force_names=tuple(rig.force_names),
+                   time=t0 + np.arange(est.total.size) / fs, force=est.force,
+                   force_std=est.force_std, total=est.total, total_std=est.total_std,
+                   static=est.static, inertia=est.inertia, reactions=est.reactions,
+                   coordinates=est.coordinate[None, :], band=band, smoothed=smoothed,
+                   notes=notes)
+
+    @property
+    def inertia_share(self) -> float:
+        """RMS of the AC inertia term's part in the total over the AC total's RMS [1]."""
+        total = self.total - self.total.mean()
+        static = self.static.sum(axis=0)
+        part = (self.total - static) - (self.total - static).mean()
+        rms = float(np.sqrt(np.mean(total**2)))
+        return float(np.sqrt(np.mean(part**2))) / rms if rms > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class WindowEstimate:
+    """The forces over a stretch of samples (a whole run, or a stream's window).
+
+    ``force``, ``force_std`` (n_forces, N); ``total``, ``total_std`` (N,); ``static``
+    (n_forces, N) reactions only; ``inertia``, ``reactions`` (n_gauges, N); ``coordinate``
+    (N,); ``passed`` (n_forces,): the share of each force's smoothed noise the Wiener gains
+    let through; ``scan_noise`` (N,) [N^2]: the part of the total's variance the scan's noise
+    gives (:func:`forcecal.forces.inertia_errors.scan_noise_weights`).
+    """
+
+    force: np.ndarray
+    force_std: np.ndarray
+    total: np.ndarray
+    total_std: np.ndarray
+    static: np.ndarray
+    inertia: np.ndarray
+    reactions: np.ndarray
+    coordinate: np.ndarray
+    passed: np.ndarray
+    scan_noise: np.ndarray
+
+    def part(self, samples: slice) -> WindowEstimate:
+        """The ``samples`` of the stretch (``passed`` is the window's)."""
+        return WindowEstimate(**{f.name: getattr(self, f.name) if f.name == "passed"
+                                 else getattr(self, f.name)[..., samples] for f in fields(self)})
+
+    @staticmethod
+    def join(parts: Sequence[WindowEstimate]) -> WindowEstimate:
+        """Stretches one after another (``passed``: the largest share)."""
+        return WindowEstimate(**{
+            f.name: np.max([p.passed for p in parts], axis=0) if f.name == "passed"
+            else np.concatenate([getattr(p, f.name) for p in parts], axis=-1)
+            for f in fields(WindowEstimate)})
+
+
+def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarray,
+                  probes: np.ndarray, frame: int, source: str = "<run>",
+                  ends: tuple[bool, bool] = (True, True)) -> WindowEstimate:
+    """Steps 1-4 over a stretch of samples with a fixed setup and Wiener frame.
+
+    Parameters
+    ----------
+    setup : AnyDriveSetup
+    model : BroadbandModel
+    gauges : (n_gauges, N) array [N]
+    probes : (n_probes, N) array [m]
+    frame : int
+        Samples per Wiener frame (:func:`forcecal.signals.wiener.stft_frame`).
+    source : str
+        Named in messages.
+    ends : (bool, bool)
+        Whether the stretch starts, ends, the record: those ends are carried past by a
+        prediction of every channel (:mod:`forcecal.signals.record_ends`).
+
+    Returns
+    -------
+    WindowEstimate
+
+    Raises
+    ------
+    DataError
+        Forces that are not finite.
+    """
+    fs = setup.fs
+    bm_r, bm_res, transfer = setup.reaction_models, setup.residual_model, setup.transfer
+    reach = _edge_length(fs, setup.coordinate_model, gauges.shape[-1])
+    white = np.r_[setup.var_g, 1.0 / setup.probe_weights]          # each channel's noise
+    ext = extend(np.vstack([gauges, probes]), fs, setup.band[1], reach, white, ends,
+                 frame // 4)                                     # carried past the ends
+    level = gauges.mean(axis=1, keepdims=True)    # the DC passes whole (in the band the
+    gauges_x, probes_x = ext.values[:len(gauges)], ext.values[len(gauges):]
+    q = setup.coordinate_map @ probes_x                          # the first shape's coordinate
+    reactions = level + np.stack([smooth_states(bm_r[r], gauges_x[r] - level[r], states=(0,))[0]
+                                  for r in range(len(gauges))])   # gain is 1 - 1 / SNR_CAP)
+    u = (setup.total_row @ reactions)[None, :]                   # the reactions-only total
+    rest = q
+    if transfer is not None:                                     # the gauges' part of q_1''
+        rest = q - filtered(u, fs, transfer.response)[0]
+    acc_probes = smooth_states(bm_res, rest, states=(2,))[0]       # the probes' part of q_1''
+    acc_gauges = (np.zeros_like(acc_probes) if transfer is None else
+                  filtered(u, fs, lambda f: (2j * np.pi * f) ** 2 * transfer.response(f))[0])
+    acc = acc_probes + acc_gauges
+    m1 = setup.couplings
+    gam, w = setup.probe_shapes, setup.probe_weights
+
+    def correction(f: np.ndarray) -> np.ndarray:
+        return (model.inertia_correction(f, gam, w) if model.n_shapes > 1
+                else np.ones((len(m1), len(f))))
+
+    def inertia_of(x: np.ndarray) -> np.ndarray:             # (k, N) accelerations
+        lumped = m1[None, :, None] * x[:, None, :]
+        if model.n_shapes > 1:
+            lumped = np.stack([filtered(part, fs, correction) for part in lumped])
+        return lumped
+
+    by_probes, by_gauges = inertia_of(np.vstack([acc_probes, acc_gauges]))   # (n_gauges, N)
+    inertia = by_probes + by_gauges
+    pinv = setup.pinv
+    force = pinv @ (inertia - reactions)
+    if not np.all(np.isfinite(force)):
+        raise DataError(f"run '{source}': the forces are not finite (a channel holds "
+                        "non-finite samples?)")
+    f = np.fft.rfftfreq(frame, 1.0 / fs)
+    to_force = pinv @ (m1[:, None] * correction(f))             # q_1'' -> forces, (k, bins)
+    via_u = (np.zeros_like(f) if transfer is None
+             else (2j * np.pi * f) ** 2 * transfer.response(f))
+    per_gauge = [(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
+                 * smoother_response(bm_r[r], 0, frame) for r in range(len(gauges))]
+    per_q = smoother_response(bm_res, 2, frame) * to_force        # the probes' path, per q_1
+    n_g = len(gauges)
+    hum = [(per_gauge[c] if c < n_g else setup.coordinate_map[c - n_g] * per_q)
+           * tone_density(frame, fs, tone, power)     # each gauge's and probe's hum tones
+           for c, tone, power in setup.hum if power > 0]
+    noise = np.concatenate([
+        (np.sqrt(setup.var_q) * per_q)[:, None, :],
+        np.stack([g * np.sqrt(v) for g, v in zip(per_gauge, setup.var_g, strict=True)]
+                 + hum, axis=1)], axis=1)
+    # smoothed as the total and its complement (an orthonormal basis whose first row is the
+    # sum's): the total keeps its own, smaller noise (a gauge's hum or noise splits between
+    # the forces far more than it moves their sum)
+    start = np.eye(len(pinv))
+    start[:, 0] = 1.0
+    basis = np.linalg.qr(start)[0].T
+    sw = wiener_smooth(basis @ force, np.einsum("jk,ksb->jsb", basis, noise), fs, frame,
+                       np.vstack([basis.T, basis.sum(axis=1)]))
+    # the ends: the gauges' part of the inertia lost in the share the gauges' prediction
+    # misses, the probes' in the probes'
+    part_g, part_p = (ext.inner(pinv @ x) for x in (by_gauges, by_probes))
+    edge = np.hypot(
+        _edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach,
+                  ext.missed[:, :n_g].max(axis=1)),
+        _edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach,
+                  ext.missed[:, n_g:].max(axis=1)))
+    scan = short_time_variance(acc, np.vstack([setup.error_weights(model, frame),
+                                               setup.noise_weights(model, frame)[-1:]]),
+                               fs, frame)                 # and the total's by its noise alone
+    var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2 + scan[:-1]
+                    + series_type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv,
+                                      acc, inertia, reactions, fs)) + edge**2
+    inner = ext.inner
+    return WindowEstimate(force=inner(sw.values[:-1]),
+                          force_std=np.sqrt(inner(sw.std[:-1] ** 2) + var[:-1]),
+                          total=inner(sw.total), total_std=np.sqrt(inner(sw.total_std**2)
+                                                                   + var[-1]),
+                          static=-pinv @ gauges, inertia=inner(inertia),
+                          reactions=inner(reactions), coordinate=inner(q), passed=sw.passed,
+                          scan_noise=inner(scan[-1]))
+
+
+TRANSFER_MISFIT = 2.0
+"""A transfer whose residual's chi-square per degree of freedom exceeds this is noted: the
+reactions do not explain the probes' coordinate, and the probes carry what it misses."""
+
+
+def transfer_note(transfer: ReactionTransfer | None, source: str) -> str:
+    """What the run's reactions tell of its inertia, in a line."""
+    if transfer is None:
+        return (f"run '{source}': no transfer from the reactions to the motion could be fitted "
+                "over the band; the inertia is the probes' alone")
+    gain = 100 * float(np.sqrt(transfer.cov[0, 0]) / abs(transfer.num[0]))
+    line = (f"the reactions carry the inertia: their transfer to the first shape's coordinate "
+            f"(its static gain known to {gain:.2g} %) leaves chi-square {transfer.chi2:.3g} per "
+            "degree of freedom")
+    if transfer.chi2 > TRANSFER_MISFIT:
+        line += (f"; run '{source}': the reactions do not explain the probes' motion (a load "
+                 "whose pattern changes, a second force, a structure that is not linear?), "
+                 "and the probes carry what they miss")
+    return line
+
+
+def _transfer_std(transfer: ReactionTransfer | None, u: np.ndarray, fs: float,
+                  inertia_of: Callable[[np.ndarray], np.ndarray], pinv: np.ndarray
+                  ) -> np.ndarray:
+    """(n_forces + 1, N) [N]: each force's and the total's standard uncertainty from the
+    transfer's parameters, sample by sample (their covariance through the inertia each one
+    moves)."""
+    if transfer is None:
+        return np.zeros((len(pinv) + 1, u.shape[-1]))
+    sens = transfer.sensitivities
+    moves = filtered(np.repeat(u, len(transfer.cov), axis=0), fs,
+                     lambda f: (2j * np.pi * f) ** 2 * sens(f))  # (n_params, N) in q_1''
+    part = np.einsum("fg,kgn->kfn", pinv, inertia_of(moves))    # (n_params, n_forces, N)
+    part = np.concatenate([part, part.sum(axis=1, keepdims=True)], axis=1)
+    return np.sqrt(np.maximum(np.einsum("kfn,kl,lfn->fn", part, transfer.cov, part), 0.0))
+
+
+EDGE_PERIODS = 2.0
+"""The record's first and last this many periods of the coordinate's cutoff hold an inertia
+the smoother cannot see whole (:func:`_edge_std`)."""
+
+
+def _edge_length(fs: float, bm: BandModel, n: int) -> int:
+    """Samples at either end of ``n`` within ``EDGE_PERIODS`` periods of the cutoff of ``bm``."""
+    return min(int(np.ceil(EDGE_PERIODS * fs / (bm.scale[1] / (2 * np.pi)))), n // 2)
+
+
+def _edge_std(part: np.ndarray, m: int, missed: np.ndarray) -> np.ndarray:
+    """(n, N) [N]: the uncertainty of the inertia's part ``part`` (n, N) at the record's ends.
+
+    Within about a period of the cutoff of an end the smoothers and the reactions' transfer
+    take samples beyond it, which the record carries by a prediction
+    (:mod:`forcecal.signals.record_ends`): the inertia there is lost in the share the prediction
+    misses (``missed``, at the start and at the end; 1, its whole size, for a reflection).
+    Stated as the inertia part's RMS over the ``m`` samples next to each end times that share,
+    tapered as (1 - t / T_e)^2 from the end."""
+    n = part.shape[-1]
+    out = np.zeros_like(part)
+    if m < 1:
+        return out
+    taper = (1.0 - np.arange(m) / m) ** 2                        # from the end inwards
+    out[:, :m] = (missed[0] * np.sqrt(np.mean(part[:, :m] ** 2, axis=1)))[:, None] * taper
+    out[:, n - m:] = ((missed[1] * np.sqrt(np.mean(part[:, n - m:] ** 2, axis=1)))[:, None]
+                      * taper[::-1])
+    return out
+
+
+def run_channels(rig: Rig, run: Run, tare: Run | None = None
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The run's gauges (n_gauges, N) [N] and probes (n_probes, N) [m], less the tare's means,
+    and its coil current (N,) [A]."""
+    sig = channels_si(rig, run)
+    gauges = np.stack([sig[g] for g in rig.gauge_names])
+    probes = np.stack([sig[s] for s in rig.sensor_names])
+    if tare is not None:
+        tsig = channels_si(rig, tare)
+        gauges -= np.array([np.mean(tsig[g]) for g in rig.gauge_names])[:, None]
+        probes -= np.array([np.mean(tsig[s]) for s in rig.sensor_names])[:, None]
+    return gauges, probes, sig[rig.actuator.current]
+
+
+def check_length(model: BroadbandModel, n: int, fs: float, source: str) -> None:
+    """DataError unless ``n`` samples at ``fs`` are long enough for the model's band."""
+    band = model.band
+    if n < 4 * fs / max(band[0], 1.0) or n < 8 * fs / band[1]:
+        raise DataError(f"run '{source}': {n} samples are too short for the band "
+                        f"{band[0]:g}-{band[1]:g} Hz")
+
+
+def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,
+                    smooth: bool = True) -> TransientEstimate:
+    """The forces of a run under any drive, sample by sample.
+
+    Parameters
+    ----------
+    rig : Rig
+        With ``acquisition.band``.
+    model : BroadbandModel
+        From a broadband scan of the rig.
+    run : Run
+        The recording.
+    tare : Run, optional
+        A zero-current record: its mean gauge and probe values are the zero, and with
+        ``acquisition.mains`` its gauges' hum tones enter the uncertainty.
+    smooth : bool
+        The batch estimate over the whole record (default), or the real-time one that
+        ``stream`` gives (:class:`forcecal.stream.any_drive.AnyDriveStream`: every sample from
+        the samples up to a fixed latency after it, its setup from the run's first seconds).
+
+    Returns
+    -------
+    TransientEstimate
+
+    Raises
+    ------
+    InputError
+        More span shapes than probes, or a model of another rig.
+    DataError
+        A record too short for the band, or a gauge or probe channel that is constant or
+        changes while it runs (:func:`check_channel_noise`).
+    """
+    check_rig_keys(model.rig, model.source, rig)
+    fs = run.fs
+    n = run.n_samples
+    check_length(model, n, fs, run.source)
+    gauges, probes, current = run_channels(rig, run, tare)
+    reach = AboveBand(fs, model.band, run.t0)
+    reach.add(current)
+    above = reach.notes(run.source)
+    zero = None if tare is None else np.vstack(run_channels(rig, tare)[:2])
+    if not smooth:
+        from ..stream.any_drive import stream_arrays
+
+        live = stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name,
+                             tare=zero, tare_fs=None if tare is None else tare.fs)
+        return dataclasses.replace(live, notes=live.notes + above)
+    setup = any_drive_setup(rig, model, gauges, probes, fs, run.source, zero,
+                            None if tare is None else tare.fs)
+    check_channel_noise(gauges, probes, (*rig.gauge_names, *rig.sensor_names), fs, model.band,
+                        run.t0, run.source)
+    frame = stft_frame(fs, n)
+    est = window_forces(setup, model, gauges, probes, frame, run.source)
+    scan = ScanNoiseShare(fs, run.t0)
+    scan.add(np.vstack([est.scan_noise, est.total_std**2]))
+    notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
+             f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
+             transfer_note(setup.transfer, run.source),
+             *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),
+             *type_b_notes(rig, run.source), *hum_notes(rig, tare, run.source),
+             *scan.notes(run.source), *above)
+    return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
+                                         notes)
