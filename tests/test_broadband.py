@@ -20,6 +20,7 @@ from forcecal.records import Run, Scan
 from forcecal.signals.kalman import band_model, filter_states, smooth_states
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import _gauge_forces, _points, build_model, public_rig
+from forcecal.stream.any_drive import stream_any
 
 FS = 10_000.0
 
@@ -315,7 +316,7 @@ def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
     dead = dataclasses.replace(run, channels={**run.channels, "s2": np.full(run.n_samples, 3e-5)})
     for smooth in (True, False):               # the batch, and the stream's setup alike
         with pytest.raises(DataError, match="'s2' is constant"):
-            reconstruct_any(rig, bb_model, dead, smooth=smooth)
+            (reconstruct_any if smooth else stream_any)(rig, bb_model, dead)
     # a probe that dies, and a gauge that comes loose (ten times its noise), after the
     # stream's first two seconds: refused where it happens, in batch and in real time
     late, _, _ = _run(beam, np.random.default_rng(8), 40.0, seconds=4.0)
@@ -328,7 +329,7 @@ def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
         broken = dataclasses.replace(late, channels={**late.channels, channel: values})
         for smooth in (True, False):
             with pytest.raises(DataError, match=f"'{channel}' from 2.5 s to 3 s"):
-                reconstruct_any(rig, bb_model, broken, smooth=smooth)
+                (reconstruct_any if smooth else stream_any)(rig, bb_model, broken)
     doc = bb_model.to_json()
     for change, what in ((lambda d: d["couplings"].pop(), "couplings"),
                          (lambda d: d["line_snr"].__setitem__(0, None), "broadband"),
@@ -387,7 +388,7 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     # the inertia inside the record: 7.6e-6 of its RMS (the windows' own Fourier transforms)
     j_rms = np.sqrt(np.mean(batch.inertia[:, inner] ** 2))
     assert np.max(np.abs(streamed.inertia - batch.inertia)[:, inner]) < 1.8e-5 * j_rms
-    own = reconstruct_any(rig, bb_model, run, smooth=False)
+    own = stream_any(rig, bb_model, run)
     assert not own.smoothed and own.total.shape == batch.total.shape
     assert np.sqrt(np.mean((own.total - batch.total) ** 2)) < 0.25 * u_b
     truth = 2 * u
@@ -625,7 +626,7 @@ def test_forces_off_the_scans_load_pattern_are_noted_and_bounded(beam, bb_model)
         assert 0.09 < z < 0.8, z                                    # ...and so stated
     z = np.sqrt(np.mean(((est.total - u.sum(axis=0)) / est.total_std)[inner] ** 2))
     assert z < 1, z
-    live = reconstruct_any(beam[3], bb_model, run, smooth=False)    # from its first 2 s
+    live = stream_any(beam[3], bb_model, run)    # from its first 2 s
     assert any("disagree with the scan's operating shapes" in s for s in live.notes)
     z = np.sqrt(np.mean(((live.force[0] - u[0]) / live.force_std[0])[inner] ** 2))
     assert 0.09 < z < 0.8, z
@@ -979,7 +980,7 @@ def test_the_scans_noise_is_its_part_of_the_stated_variance_and_noted(beam, scan
     lost = est.total_std**2 - known.total_std**2
     assert np.max(np.abs(lost - est.scan_noise)) < 1e-6 * np.max(est.scan_noise)
     for smooth in (True, False):                                    # batch and stream
-        noted = [t for t in reconstruct_any(rig, noisy, run, smooth=smooth).notes
+        noted = [t for t in (reconstruct_any if smooth else stream_any)(rig, noisy, run).notes
                  if "the scan's noise makes" in t]
         assert len(noted) == 1 and "run 'random" in noted[0], noted
     assert not any("the scan's noise" in t for t in reconstruct_any(rig, bb_model, run).notes)

@@ -617,7 +617,7 @@ def test_quiet_and_verbose(paper_dir, tmp_path, capsys, monkeypatch):
     assert out.err == "" and "uncertainty budget" not in out.out
     assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "b")]) == 0
     assert capsys.readouterr().err == ""              # stderr is not a terminal: no progress
-    monkeypatch.setattr(sys.modules["forcecal.cli"], "_interactive", lambda: True)
+    monkeypatch.setattr(sys.modules["forcecal.cli.main"], "_interactive", lambda: True)
     assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "d")]) == 0
     assert "left)" in capsys.readouterr().err                      # progress with the time left
     assert main(["reconstruct", rig, scan, run, "-o", str(tmp_path / "c"), "-v"]) == 0

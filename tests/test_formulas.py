@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from forcecal.forces.coordinates import coordinate_map
-from forcecal.forces.steady import force_solve, kept_harmonics, significant_reactions
+from forcecal.forces.solve import force_solve
+from forcecal.forces.steady import kept_harmonics, significant_reactions
 from forcecal.model.inertia import acceleration, inertia_term, mass_weights
 from forcecal.model.relaxation import force_matrix, relaxation_shapes
 from forcecal.rig import parse_rig

@@ -17,14 +17,10 @@ import scipy.io
 
 from forcecal.cli.main import main
 from forcecal.errors import InputError
+from forcecal.forces.estimate import series_columns, waveform_std_series
 from forcecal.forces.steady import reconstruct
 from forcecal.io import result_formats
-from forcecal.io.result_formats import (
-    SERIES_FORMATS,
-    SERIES_SUFFIXES,
-    series_columns,
-    waveform_std_series,
-)
+from forcecal.io.result_formats import SERIES_FORMATS, SERIES_SUFFIXES
 from forcecal.io.results import write_estimate
 from forcecal.io.run_files import read_run, read_table_csv, write_run_csv
 

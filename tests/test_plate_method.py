@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from forcecal.errors import ConditioningError, RigError
-from forcecal.forces.steady import SPLIT_CONDITION, reconstruct
+from forcecal.forces.solve import SPLIT_CONDITION
+from forcecal.forces.steady import reconstruct
 from forcecal.model.basis import fit_shape
 from forcecal.model.inertia import mass_coupling
 from forcecal.model.relaxation import force_matrix, relaxation_shapes

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 from forcecal.errors import DataError, DimensionError, InputError
-from forcecal.forces.steady import channels_si, force_solve, implied_phasors, reconstruct
+from forcecal.forces.solve import force_solve
+from forcecal.forces.steady import channels_si, implied_phasors, reconstruct
 from forcecal.io.run_files import read_run, read_table_csv
 from forcecal.model.inertia import inertia_term
 from forcecal.model.relaxation import force_matrix

@@ -38,7 +38,8 @@ import pytest
 import scipy.stats
 
 from forcecal.forces.coordinates import MISFIT_LEVEL, coordinate_map, sensor_weights
-from forcecal.forces.steady import ForceEstimate, channels_si, force_solve, reconstruct
+from forcecal.forces.solve import force_solve
+from forcecal.forces.steady import ForceEstimate, channels_si, reconstruct
 from forcecal.forces.uncertainty import combinations, shape_operators
 from forcecal.model.inertia import inertia_term
 from forcecal.model.relaxation import force_matrix

@@ -346,6 +346,16 @@ def check_calibration_document(doc: Any, source: str) -> None:
         law = get_law(name)
     except (KeyError, ValueError, InputError):
         raise d.fail("law", f"= {name!r} is not a known law") from None
+    _check_calibration_values(d, doc, law)
+    unc = d.get(doc, "uncertainty", "", dict, required=False)
+    if unc is None:
+        return
+    _check_calibration_budget(d, unc, law)
+
+
+def _check_calibration_values(d: _Doc, doc: dict, law: Any) -> None:
+    """A calibration's parameters for ``law`` (a :class:`~forcecal.actuator.laws.Law`), their
+    covariance, the pole count, the calibrated ranges and the candidate laws' rows."""
     params = d.get(doc, "params", "", dict)
     p = law.n_params
     for n in law.param_names:
@@ -366,10 +376,12 @@ def check_calibration_document(doc: Any, source: str) -> None:
     for k, row in enumerate(cands):
         if not isinstance(row, dict):
             raise d.fail(f"candidates[{k}]", f"must be an object, found {_short(row)}")
-    unc = d.get(doc, "uncertainty", "", dict, required=False)
-    if unc is None:
-        return
-    # the parameters' uncertainty budget a campaign's calibration carries (optional)
+
+
+def _check_calibration_budget(d: _Doc, unc: dict, law: Any) -> None:
+    """The ``uncertainty`` block of a calibration for ``law``: the parameters' uncertainty
+    budget a campaign's calibration carries (optional)."""
+    p = law.n_params
     names = d.strings(d.get(unc, "param_names", "uncertainty", list), "uncertainty.param_names")
     if names != list(law.param_names):
         raise d.fail("uncertainty.param_names", f"= {names!r}; expected "

@@ -12,28 +12,13 @@ total on held-out runs, and the simplest law that predicts held-out runs as well
 is chosen. The product is a :class:`Calibration` that predicts the total force, with its
 standard uncertainty, from (current, gap) or from flux.
 
-The modules of the package:
-
-laws
-    The :class:`Law` protocol, every law, :func:`get_law` and :func:`ideal_k`.
-ac_only
-    :class:`ACOnlyLaw`, a law seen through AC-coupled gauges.
-data
-    :class:`CalibrationData`, the pooled observations.
-fitting
-    :func:`fit_law` and its :class:`LawFit`, :func:`check_identifiable`.
-propagation
-    The parameters' covariance propagated from described errors (noise columns through the
-    fit's Jacobian, systematic effects by refitting) instead of the residuals.
-selection
-    :func:`held_out_error`, :func:`select_law` and :func:`report_text`.
-prediction
-    The :class:`Calibration` file, :func:`predict` and :func:`predict_flux`.
-frequency
-    The law over frequency (a first-order lag of the magnetising current):
-    :class:`SteadyRecord`, :class:`FrequencyLaw` and its :class:`FrequencyStep` table.
-frequency_fit
-    :func:`fit_frequency_law` of a stepped-sine campaign.
+The modules: :mod:`.laws` (the :class:`Law` protocol, every law, :func:`get_law`,
+:func:`ideal_k`), :mod:`.ac_only` (:class:`ACOnlyLaw`), :mod:`.data`
+(:class:`CalibrationData`), :mod:`.fitting` (:func:`fit_law`, :class:`LawFit`,
+:func:`check_identifiable`), :mod:`.propagation` (the covariance propagated from described
+errors), :mod:`.selection` (:func:`held_out_error`, :func:`select_law`, :func:`report_text`),
+:mod:`.prediction` (:class:`Calibration`, :func:`predict`, :func:`predict_flux`),
+:mod:`.frequency` and :mod:`.frequency_fit` (the law over frequency, :class:`FrequencyLaw`).
 
 Shapes: ``n_obs`` observations, ``n_poles`` poles, ``n_params`` parameters of a law. SI units
 throughout.

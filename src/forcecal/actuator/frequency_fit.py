@@ -1,45 +1,13 @@
-"""Fitting the actuator's law over frequency: :func:`fit_frequency_law`.
+"""Fitting the actuator's law over frequency: :func:`fit_frequency_law` (METHOD.md section 5).
 
 The model is :mod:`forcecal.actuator.frequency`'s: ``tau di_m/dt + i_m = i`` and
-``f = K i_m^2 sum_p 1 / (s_p + s_fe)^2``.
-
-Fit
----
-The ``n`` instants of a run are not independent observations: they are a Fourier series of
-``2 H + 1`` real values (H harmonics), and the reconstruction's errors are errors of those
-phasors. The fit is therefore made on the force's phasors: for every run the DFT of the
-current (its instants cover exactly one period) gives I_n, the lag gives I_m,n, the law is
-evaluated at the instants, and the DFT of the modelled force is compared with the measured
-force's phasors F_0..F_H: Re and Im of every harmonic n >= 1 and the DC, each divided by its
-standard uncertainty (``force_std``: Re and Im each, the DC real, as
-:class:`forcecal.forces.estimate.ForceEstimate`'s ``total_std``). K, s_fe and tau are fitted over all
-runs at once by nonlinear least squares (start: a grid over s_fe, then over tau, K solved
-linearly).
-
-Uncertainty
------------
-Runs are independent; the harmonics of one run are taken as independent of one another (Re
-and Im of each alike). The covariance is ``c (J^T J)^-1`` with ``J`` the Jacobian of the
-weighted residuals and ``c = max(1, chi2 / dof)``: a misfit of the model inflates it, never
-shrinks it; ``dof`` counts harmonic values, not instants. Without ``force_std`` the harmonics
-are weighted as white noise on the instants would weight them (the DC twice, in variance, as
-precise as Re or Im of a harmonic) and ``c = chi2 / dof``: the scatter sets the level. The
-current and the gaps are taken as exact but for the errors runs share (a tare, the scan's
-shapes, a sensor's scale: ``SteadyRecord.shared``, each a change of the force and the gaps per
-standard uncertainty), which leave no residual when they move every run of a step alike: each
-moves the parameters by the least-squares response ``-J^+ (r' - r)`` at the fit, and the outer
-products of those moves are added to the covariance (in both fits). On the ``sweep`` rig the
-scan's shapes (the broadband model's smoothed ratios' uncertainty at each step's frequency)
-raise K(f)'s stated uncertainty at 60 Hz, 7 Hz under the first mode, from 0.065 % to 0.105 %.
-
-Per frequency step
-------------------
-Runs whose fundamentals agree within :data:`STEP_TOLERANCE` form a step. A second fit, with
-no model of the frequency dependence at the fundamental, frees per step the gain ``g`` and the
-lag ``phi`` of the fundamental of ``i_m`` (``I_m,1 = g exp(-j phi) I_1``) together with K and
-s_fe (the DC of every run pins K); harmonics n >= 2 of the current keep the first-order lag
-with the fitted tau. ``K(f) = K g`` (its uncertainty with K's, correlated) and
-``lag(f) = phi`` come with their standard uncertainties from that fit's covariance, as above.
+``f = K i_m^2 sum_p 1 / (s_p + s_fe)^2``. The instants of a run are a Fourier series of a few
+phasors, not independent observations, so K, s_fe and tau are fitted over all runs at once to
+the force's harmonic phasors, each weighted by its standard uncertainty; their covariance
+counts harmonic values, not instants, and adds the errors runs share. A second fit frees the
+gain and the lag of the magnetising current's fundamental per frequency step: the
+non-parametric K(f) and lag(f). The fit, its uncertainty and the steps are told in
+:func:`fit_frequency_law`'s notes.
 
 Shapes: ``n`` instants per run, ``n_poles`` poles, ``H+1`` harmonics 0..H, ``R`` runs. SI
 units throughout.
@@ -367,7 +335,7 @@ def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLER
     Returns
     -------
     FrequencyLaw
-        The global fit with its covariance and the per-step table (module docstring).
+        The global fit with its covariance and the per-step table (Notes).
 
     Raises
     ------
@@ -375,6 +343,40 @@ def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLER
         When the records are inconsistent (see :class:`SteadyRecord`).
     FitError
         When the runs cannot separate the parameters or the fit does not converge.
+
+    Notes
+    -----
+    *Fit.* The ``n`` instants of a run are not independent observations: they are a Fourier
+    series of ``2 H + 1`` real values (H harmonics), and the reconstruction's errors are errors
+    of those phasors. The fit is therefore made on the force's phasors: for every run the DFT
+    of the current (its instants cover exactly one period) gives I_n, the lag gives I_m,n, the
+    law is evaluated at the instants, and the DFT of the modelled force is compared with the
+    measured force's phasors F_0..F_H: Re and Im of every harmonic n >= 1 and the DC, each
+    divided by its standard uncertainty (``force_std``: Re and Im each, the DC real, as
+    :class:`forcecal.forces.estimate.ForceEstimate`'s ``total_std``). K, s_fe and tau are
+    fitted over all runs at once by nonlinear least squares (start: a grid over s_fe, then
+    over tau, K solved linearly).
+
+    *Uncertainty.* Runs are independent; the harmonics of one run are taken as independent of
+    one another (Re and Im of each alike). The covariance is ``c (J^T J)^-1`` with ``J`` the
+    Jacobian of the weighted residuals and ``c = max(1, chi2 / dof)``: a misfit of the model
+    inflates it, never shrinks it; ``dof`` counts harmonic values, not instants. Without
+    ``force_std`` the harmonics are weighted as white noise on the instants would weight them
+    (the DC twice, in variance, as precise as Re or Im of a harmonic) and ``c = chi2 / dof``:
+    the scatter sets the level. The current and the gaps are taken as exact but for the errors
+    runs share (a tare, the scan's shapes, a sensor's scale: ``SteadyRecord.shared``, each a
+    change of the force and the gaps per standard uncertainty), which leave no residual when
+    they move every run of a step alike: each moves the parameters by the least-squares
+    response ``-J^+ (r' - r)`` at the fit, and the outer products of those moves are added to
+    the covariance (in both fits).
+
+    *Per frequency step.* Runs whose fundamentals agree within ``step_tolerance`` form a step.
+    A second fit, with no model of the frequency dependence at the fundamental, frees per step
+    the gain ``g`` and the lag ``phi`` of the fundamental of ``i_m``
+    (``I_m,1 = g exp(-j phi) I_1``) together with K and s_fe (the DC of every run pins K);
+    harmonics n >= 2 of the current keep the first-order lag with the fitted tau.
+    ``K(f) = K g`` (its uncertainty with K's, correlated) and ``lag(f) = phi`` come with their
+    standard uncertainties from that fit's covariance, as above.
     """
     recs = _records(records)
     steps = _steps(np.array([r.f0 for r in recs]), step_tolerance)

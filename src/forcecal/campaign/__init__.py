@@ -1,44 +1,22 @@
 """Calibration of the electromagnet over a campaign of runs (METHOD.md section 5).
 
 A campaign is a manifest (INTERFACES.md section 4) listing runs at several static gaps and
-currents, and zero-current tare records. Every run is reconstructed (:func:`forcecal.forces.
-reconstruct`, in parallel when there are many), and each run contributes *calibration samples*:
-``samples_per_period`` instants spread over one period of its fitted Fourier series, holding
+currents, and zero-current tare records. Every run is reconstructed and contributes
+*calibration samples*, instants over one period of its fitted Fourier series: the coil
+current, the instantaneous air gap of every pole (:mod:`forcecal.actuator.gaps`), the
+reconstructed total force beside the reactions-only one, and the flux when the rig names a
+flux channel. The samples of all runs are pooled and :func:`forcecal.actuator.select_law`
+chooses the law. The samples of one run are a Fourier series of a few phasors, not
+independent observations: the parameters' uncertainty is propagated from the noise of those
+phasors and from the rig's type-B uncertainties.
 
-- the coil current ``i(t)`` [A], from the harmonic fit of the current channel;
-- the instantaneous air gap of every pole, ``s_p(t) = s_0,p - w(x_p, t)`` [m], where the
-  displacement at the pole comes from the spatial model and the run's generalized coordinates,
-  ``w(x_p, t) = w_dc(x_p) + sum_n Re(phi_n(x_p) Q_n exp(j n w0 t))`` (not the mean gap; the DC
-  deflection and the limits of its quasi-static approximation are described in
-  :mod:`forcecal.actuator.gaps`);
-- the reconstructed total actuator force (reactions plus inertia) [N], and beside it the
-  reactions-only total, both evaluated from their phasors;
-- the flux through a pole [Wb], when the rig names a flux channel.
-
-The samples of all runs are pooled and :func:`forcecal.actuator.select_law` chooses the law
-(see :mod:`forcecal.campaign.calibrate`, also for AC-coupled gauges). The samples of one run are
-a Fourier series of a few phasors, not independent observations: the parameters' uncertainty
-is propagated from the noise of those phasors and from the rig's type-B uncertainties
-(:mod:`forcecal.campaign.statistics`).
-
-The modules of the package:
-
-runs
-    Reconstructing the runs of a manifest (:func:`reconstruct_campaign`), the worker pool.
-samples
-    The calibration samples of a run (:func:`run_samples`) and their pooling
-    (:func:`calibration_data`).
-noise
-    What a run's errors do to its samples, per source (:class:`RunNoise`).
-statistics
-    The parameters' statistical and type-B uncertainty with its budget
-    (:func:`parameter_uncertainty`).
-repeatability
-    The spread over repeated setpoints.
-calibrate
-    :func:`calibrate_runs` and :func:`calibrate_campaign`.
-result
-    :class:`CampaignResult`, ``calibration.json`` and the text report.
+The modules: :mod:`.runs` (the runs of a manifest reconstructed, :func:`reconstruct_campaign`),
+:mod:`.samples` (a run's samples, :func:`run_samples`, and their pooling,
+:func:`calibration_data`), :mod:`.noise` (what a run's errors do to its samples,
+:class:`RunNoise`), :mod:`.statistics` (the parameters' statistical and type-B uncertainty,
+:func:`parameter_uncertainty`), :mod:`.repeatability` (the spread over repeated setpoints),
+:mod:`.calibrate` (:func:`calibrate_runs`, :func:`calibrate_campaign`) and :mod:`.result`
+(:class:`CampaignResult`, ``calibration.json`` and the text report).
 
 Shapes: ``n_poles`` force points of the actuator, ``n`` samples. SI units throughout.
 """

@@ -119,34 +119,32 @@ def _read_scan(args, rig, path=None):
                      reference_label=args.reference_label, locations=rig.structure.directed)
 
 
-def _build_model(rig, scan, args):
-    """The spatial model of one scan, or of several (a span of shapes per harmonic)."""
-    from ..model.spatial import build_spatial_model, merge_models
+def _build_model(rig, scans, args):
+    """The model of one scan, or of several (a span of shapes per harmonic), as the rig's
+    drive builds it."""
+    from ..drives import drive_of
 
-    if isinstance(scan, list):
-        if rig.band is not None:
-            raise InputError(f"rig '{rig.source}': a broadband model is built from one scan")
-        return merge_models(rig, [_build_model(rig, s, args) for s in scan])
-    try:
-        if rig.band is not None:
-            from ..model.broadband import build_broadband_model
-
-            return build_broadband_model(rig, scan, criterion=args.criterion)
-        return build_spatial_model(rig, scan, n_harmonics=args.harmonics,
-                                   criterion=args.criterion, basis=args.basis)
-    except ForcecalError as exc:
-        if str(scan.source) in str(exc) or str(rig.source) in str(exc):
-            raise
-        raise type(exc)(f"scan '{scan.source}' on rig '{rig.source}': {exc}") from None
+    drive = drive_of(rig)
+    drive.check_scans(rig, len(scans))
+    models = []
+    for scan in scans:
+        try:
+            models.append(drive.build_model(rig, scan, n_harmonics=args.harmonics,
+                                            criterion=args.criterion, basis=args.basis))
+        except ForcecalError as exc:
+            if str(scan.source) in str(exc) or str(rig.source) in str(exc):
+                raise
+            raise type(exc)(f"scan '{scan.source}' on rig '{rig.source}': {exc}") from None
+    return models[0] if len(models) == 1 else drive.merge_models(rig, models)
 
 
 def _model_for(args, rig):
-    """The spatial model: from a saved MODEL.json, or built from the scan."""
+    """The model: from a saved MODEL.json (either kind), or built from the scan."""
     from ..model.broadband import load_any_model
 
     if str(args.scan).endswith(".json"):
         return load_any_model(args.scan)
-    return _build_model(rig, _read_scan(args, rig), args)
+    return _build_model(rig, [_read_scan(args, rig)], args)
 
 
 def _inputs(args) -> list[str]:
@@ -180,6 +178,7 @@ def _save_model(model, path: str, scan: str, provenance: dict | None = None) -> 
 
 
 def _cmd_scan(args) -> int:
+    from ..drives import drive_of
     from ..io.staging import clean_stale
     from ..rig import load_rig
 
@@ -187,24 +186,11 @@ def _cmd_scan(args) -> int:
     _info(f"  reading {len(args.scans)} scan{'s' if len(args.scans) > 1 else ''}")
     scans = [_read_scan(args, rig, path) for path in args.scans]
     _info("  fitting the harmonic shapes and their mass couplings")
-    model = _build_model(rig, scans if len(scans) > 1 else scans[0], args)
+    model = _build_model(rig, scans, args)
     clean_stale(Path(args.output).parent)
     _save_model(model, args.output, ", ".join(args.scans), _provenance(args))
-    if rig.band is not None:
-        _print(f"{args.output}: band {model.band[0]:g}-{model.band[1]:g} Hz, {model.n_shapes} "
-               f"shape(s) span the deflections (order {model.shapes[0].order})")
-        return 0
-    mac = model.similarity.min()
-    _print(f"{args.output}: fundamental {model.f0:.6g} Hz, harmonics "
-          f"{', '.join(str(n) for n in model.harmonics)} (orders "
-          f"{', '.join(str(s.order) for s in model.shapes)}); lowest MAC between harmonics "
-          f"{mac:.5f}: {'one shape serves all' if model.one_shape else 'shapes differ'}")
-    if len(scans) > 1:
-        _print(f"{len(scans)} scans: shapes per harmonic "
-              + ", ".join(f"{int(n)}: {len(model.members(k))}"
-                          for k, n in enumerate(model.harmonics)))
-    for note in model.notes:
-        _print(f"note: {note}")
+    for line in drive_of(rig).model_lines(model, args.output, len(scans)):
+        _print(line)
     return 0
 
 
@@ -244,6 +230,7 @@ def _check_distinct_names(paths) -> None:
 
 
 def _cmd_reconstruct(args) -> int:
+    from ..drives import drive_of
     from ..io.results import write_estimate
     from ..io.staging import staged_folder
 
@@ -252,15 +239,11 @@ def _cmd_reconstruct(args) -> int:
                              "draws; give 0 (none) or 10 to 100000")
     _check_distinct_names(args.runs)
     rig = _load_rig(args)
+    drive = drive_of(rig)
+    drive.check_options(rig, ac_coupled=args.ac_coupled, monte_carlo=args.monte_carlo)
     model = _model_for(args, rig)
     runs = _read_runs(args.runs, rig)
     tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
-    if rig.drive == "any":
-        from ..io.transient_results import reconstruct_any_runs
-
-        for line in reconstruct_any_runs(rig, model, runs, tare, args.output, _provenance(args)):
-            _print(line)
-        return 0
     estimates = run_jobs(reconstruct_job,
                          [(rig, model, run, tare, args.ac_coupled, args.monte_carlo)
                           for run in runs],
@@ -274,13 +257,8 @@ def _cmd_reconstruct(args) -> int:
         for est, run in zip(estimates, runs, strict=True):
             series, _ = write_estimate(est, stage, source=run.source, fmt=args.format,
                                        provenance=origin)
-            lines.append(f"{Path(args.output) / series.name}: f0 {est.f0:.6g} Hz, total AC "
-                         f"uncertainty {est.waveform_std:.3g} N (k = 2: "
-                         f"{2 * est.waveform_std:.3g} N; largest source {_largest(est)}), "
-                         f"inertia share {est.inertia_share:.1%}")
-            lines += [f"note: {note}" for note in est.notes]
-            if _VERBOSITY[0] >= 2:
-                lines += _budget_lines(est)
+            lines += drive.run_lines(est, Path(args.output) / series.name,
+                                     _VERBOSITY[0] >= 2)
     for line in lines:
         _print(line)
     return 0
@@ -299,26 +277,6 @@ def _workers(args, n_jobs: int) -> int:
     if n_jobs < MANY_JOBS:
         return 1
     return max(1, min(n_jobs, os.cpu_count() or 1))
-
-
-def _budget_lines(est) -> list[str]:
-    """-v: every force's and the total's standard uncertainty at the DC and the fundamental,
-    source by source."""
-    names = [*est.force_names, "total"]
-    lines = ["  uncertainty budget [N] " + "  ".join(f"{n} DC, n=1" for n in names)]
-    rows = [*est.budget.items(), ("combined", est.combination_std),
-            ("expanded k = 2", est.expanded())]
-    for src, std in rows:
-        cells = "  ".join(f"{std[est.combination_names.index(n), 0]:.3g}, "
-                          f"{std[est.combination_names.index(n), 1]:.3g}" for n in names)
-        lines.append(f"    {src:<22} {cells}")
-    return lines
-
-
-def _largest(est) -> str:
-    """The budget source with the largest part in the total's AC harmonics."""
-    k = est.combination_names.index("total")
-    return max(est.budget, key=lambda src: float(np.sum(est.budget[src][k, 1:] ** 2)))
 
 
 def _cmd_calibrate(args) -> int:
@@ -346,11 +304,9 @@ def _cmd_calibrate(args) -> int:
             where.mkdir(parents=True, exist_ok=True)
             path = write_calibration(result, where)
             if not args.no_report:
-                from ..model.broadband import STEADY_HARMONICS, BroadbandModel, steady_model
                 from ..report.pipeline import calibration_report
 
-                shown = (steady_model(model, rig, result.runs[0].estimate.f0, STEADY_HARMONICS)
-                         if isinstance(model, BroadbandModel) else model)
+                shown = model.harmonic(rig, result.runs[0].estimate.f0)
                 calibration_report(rig, shown, result, where, provenance=origin)
             _print(folder / path.name)
     return 0
@@ -408,11 +364,10 @@ def _cmd_stream(args) -> int:
     output appears whole or not at all, ``-o -`` writes CSV to stdout as it goes."""
     from dataclasses import replace
 
+    from ..drives import drive_of
     from ..io.blocks import check_run_blocks, open_run_blocks
     from ..io.staging import clean_stale
-    from ..model.broadband import BroadbandModel
-    from ..stream.any_drive import stream_any_table
-    from ..stream.replay import bounded_forces, stream_table
+    from ..stream.replay import bounded_forces
 
     to_stdout = args.output == "-"
     suffix = Path(args.output).suffix.lower()
@@ -421,27 +376,25 @@ def _cmd_stream(args) -> int:
                              f"{suffix or 'no suffix'!r}; expected {', '.join(STREAM_SUFFIXES)}"
                              " or - (CSV on stdout)")
     rig = _load_rig(args)
+    drive = drive_of(rig)
     model = _model_for(args, rig)
-    broadband = isinstance(model, BroadbandModel)
-    if broadband and (args.steady or args.memory is not None):
+    harmonic = drive.streams_harmonics(model)
+    if not harmonic and (args.steady or args.memory is not None):
         raise _ArgumentError(f"{PROG} stream: argument {'--steady' if args.steady else '--memory'}"
                              f": the model '{args.scan}' is a broadband one (any drive); its "
                              "stream has a fixed latency and no memory to set")
     tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
     blocks = check_run_blocks(rig, open_run_blocks(args.run, rig))
     if tare is not None:             # as reconstruct: the gauges' zero (the probes' too under
-        zeroed = [*rig.gauge_names, *(rig.sensor_names if broadband else ())]    # any drive)
-        blocks = replace(blocks, offsets={c: float(np.mean(tare.channel(c))) for c in zeroed})
+        blocks = replace(blocks, offsets={c: float(np.mean(tare.channel(c)))     # any drive)
+                                          for c in drive.zeroed_channels(rig, model)})
     check = bounded_forces(blocks.source, MAX_FORCE_N)
     with blocks:
         if not to_stdout:
             clean_stale(Path(args.output).parent)
-        if broadband:
-            stream_any_table(rig, model, blocks, args.output, check=check,
-                             note=lambda text: _say(f"note: {text}"), tare=tare)
-        else:
-            stream_table(rig, model, blocks, args.output, block=args.block, check=check,
-                         forgetting=_forgetting(args, model, blocks.fs))
+        drive.stream(rig, model, blocks, args.output, check=check, block=args.block,
+                     note=lambda text: _say(f"note: {text}"), tare=tare,
+                     forgetting=_forgetting(args, model, blocks.fs) if harmonic else None)
     if not to_stdout:
         _print(args.output)
     return 0
@@ -463,6 +416,7 @@ def _forgetting(args, model, fs: float) -> float | None:
 
 
 def _cmd_report(args) -> int:
+    from ..drives import drive_of
     from ..io.staging import staged_folder
     from ..report.pipeline import run_report
 
@@ -470,12 +424,7 @@ def _cmd_report(args) -> int:
         raise _ArgumentError(f"{PROG} report: argument --truth: {args.truth!r} is not a folder")
     _check_distinct_names(args.runs)
     rig = _load_rig(args)
-    if rig.band is not None:
-        raise InputError(f"rig '{rig.source}': 'report' draws a steady drive's harmonic report "
-                         "from a harmonic model, and this rig's 'acquisition.band' makes its "
-                         "scan a broadband one; its runs' forces come from 'reconstruct' (their "
-                         "summary JSON and series), a stepped-sine campaign's report from "
-                         "'calibrate'")
+    drive_of(rig).check_report(rig)
     if str(args.scan).endswith(".json"):
         from ..model.spatial import load_model
 

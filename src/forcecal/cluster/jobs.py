@@ -11,59 +11,27 @@ or on another machine) computes what the command would have computed itself:
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import numpy as np
-
+from ..campaign import CampaignResult, calibrate_campaign
+from ..drives import drive_of
 from ..errors import InputError
+from ..forces.estimate import Estimate
 
-if TYPE_CHECKING:
-    from ..campaign import CampaignResult
-    from ..forces.estimate import ForceEstimate
-    from ..model.spatial import SpatialModel
-    from ..records import Run
-    from ..rig import Rig
-
-__all__ = ["MONTE_CARLO_SEED", "calibrate_job", "campaign_folders", "reconstruct_job",
-           "with_monte_carlo"]
-
-MONTE_CARLO_SEED = 20260101
-"""Seed of ``reconstruct --monte-carlo``: the same draws on every run and every worker."""
+__all__ = ["calibrate_job", "campaign_folders", "reconstruct_job"]
 
 
-def reconstruct_job(job: tuple[Any, ...]) -> ForceEstimate:
-    """One run's estimate: ``job`` is ``(rig, model, run, tare, ac_coupled, monte_carlo
-    draws)`` (0 draws: none)."""
-    from ..forces.steady import reconstruct
-
+def reconstruct_job(job: tuple[Any, ...]) -> Estimate:
+    """One run's estimate, as the rig's drive gives it: ``job`` is ``(rig, model, run, tare,
+    ac_coupled, monte_carlo draws)`` (0 draws: none)."""
     rig, model, run, tare, ac_coupled, n_draws = job
-    from ..model.spatial import SpatialModel
-
-    if not isinstance(model, SpatialModel):                # a broadband model: a steady run
-        from ..model.broadband import STEADY_HARMONICS, steady_model
-
-        model = steady_model(model, rig, rig.drive_frequency, STEADY_HARMONICS)
-    est = reconstruct(rig, model, run, tare=tare, ac_coupled=ac_coupled)
-    return with_monte_carlo(rig, model, run, est, tare, n_draws) if n_draws else est
-
-
-def with_monte_carlo(rig: Rig, model: SpatialModel, run: Run, est: ForceEstimate,
-                     tare: Run | None, n_draws: int) -> ForceEstimate:
-    """The estimate with the standard deviations of a Monte Carlo of its inputs (GUM S1)."""
-    from ..forces.budget import draw_std, monte_carlo
-    from ..forces.steady import solve_inputs
-
-    rng = np.random.default_rng(MONTE_CARLO_SEED)
-    draws = monte_carlo(rig, model, solve_inputs(rig, model, run, est, tare), n_draws, rng)
-    return dataclasses.replace(est, monte_carlo_std=draw_std(draws), monte_carlo_draws=n_draws)
+    return drive_of(rig).reconstruct(rig, model, run, tare=tare, ac_coupled=ac_coupled,
+                                     monte_carlo=n_draws)
 
 
 def calibrate_job(job: tuple[Any, ...]) -> CampaignResult:
     """One campaign's calibration: ``job`` is ``(rig, model, manifest, ac_only)``."""
-    from ..campaign import calibrate_campaign
-
     rig, model, manifest, ac_only = job
     return calibrate_campaign(rig, model, manifest, workers=1, ac_only=ac_only)
 

@@ -39,6 +39,7 @@ from ..model.spatial import SpatialModel
 from ..rig import Rig
 from .coordinates import coordinate_map, sensor_weights
 from .reaction_transfer import filtered
+from .solve import force_solve
 from .uncertainty import combinations
 
 __all__ = [
@@ -145,8 +146,6 @@ def combination_phasors(rig: Rig, model: SpatialModel, inputs: SolveInputs,
                                      n * inputs.w0)
     inertia[:, ~inputs.kept] = 0.0
     reactions[:, ~inputs.kept] = 0.0
-    from .steady import force_solve  # forces imports this module
-
     force = force_solve(np.linalg.pinv(force_matrix(rig)), inertia, reactions)
     if inputs.ac_coupled:
         force[:, 0] = 0.0

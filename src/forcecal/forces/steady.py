@@ -46,6 +46,7 @@ from .diagnostics import (
     span_notes,
 )
 from .estimate import ForceEstimate
+from .solve import SPLIT_CONDITION, force_solve, reactions_only
 from .uncertainty import (
     combinations,
     gauge_variance,
@@ -59,7 +60,6 @@ __all__ = [
     "SIGNIFICANT_REACTION",
     "ForceEstimate",
     "channels_si",
-    "force_solve",
     "implied_phasors",
     "kept_harmonics",
     "reconstruct",
@@ -67,34 +67,10 @@ __all__ = [
     "solve_inputs",
 ]
 
-SPLIT_CONDITION = 30.0
-"""cond(Psi) above which the split between the forces is flagged as poorly determined."""
-
 FREQUENCY_MISMATCH = 0.01
 """Relative difference between a run's and the scan's fundamental that draws a warning."""
 SIGNIFICANT_REACTION = 5.0
 """A harmonic without a shape is kept when a gauge shows it above this many noise stds."""
-
-
-def force_solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray) -> np.ndarray:
-    """F = Psi^+ (J - R) (eq. 8, 24 corrected): the forces from the inertia term and the
-    reactions, exact when there are as many forces as gauges, least squares otherwise.
-
-    Parameters
-    ----------
-    pinv : (n_forces, n_gauges) ndarray
-        [1] Psi^+.
-    inertia : (n_gauges, ...) ndarray
-        [N] J (phasors of any harmonics, or samples).
-    reactions : (n_gauges, ...) ndarray
-        [N] R, the forces the gauges exert on the structure.
-
-    Returns
-    -------
-    (n_forces, ...) ndarray [N]
-    """
-    forces: np.ndarray = pinv @ (inertia - reactions)
-    return forces
 
 
 def significant_reactions(reactions: np.ndarray, std: np.ndarray,
@@ -376,9 +352,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     inertia, var_probes, var_shapes, shaped = _inertia(rig, model, coords, s_fit, a_r, w0, h)
     with_inertia, kept = kept_harmonics(
         h, shaped, significant_reactions(reactions, g_fit.phasor_std), dc=True)
-    noise = {"gauge noise": np.repeat(gauge_variance(a_r, g_fit)[:, :, None], 2, axis=2),
-             "probe noise": var_probes, "scan shapes": var_shapes,
-             "unresolved harmonics": np.zeros_like(var_probes)}
+    noise = _noise_variances(a_r, g_fit, var_probes, var_shapes)
     notes += mains_notes(rig.mains, f0, kept, run.fs / rec.gauges.shape[-1],
                          f"run '{run.source}'", hummed)
     notes += _unresolved(rig, model, s_fit, a_r, with_inertia, kept, w0,
@@ -389,15 +363,11 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     force, static, std = _solve(pinv, inertia, reactions, var, ac_coupled)
     type_b = _type_b(rig, model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
                      ac_coupled)
-    budget = {name: _pooled(v, ac_coupled) for name, v in {**noise, **type_b}.items()}
-    std = np.sqrt(sum((b**2 for b in budget.values()), start=np.zeros_like(std)))
-    std_re_im = np.sqrt(sum(type_b.values(), start=var))
-    if ac_coupled:
-        std_re_im[:, 0, :] = 0.0
+    budget, std, std_re_im = _combined_std(noise, type_b, var, std, ac_coupled)
     if not rig.type_b.declared:
         notes.append(f"run '{run.source}': {rig.type_b.describe()}")
     notes += _split_note(rig, cond)
-    static_series = force_solve(pinv, tare_dc[:, None], rec.gauges)
+    static_series = reactions_only(pinv, rec.gauges - tare_dc[:, None])
     if ac_coupled:
         static_series = static_series - static_series.mean(axis=1, keepdims=True)
     n_f = len(rig.forces)
@@ -417,6 +387,29 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std, budget=budget,
         type_b=rig.type_b,
     )
+
+
+def _noise_variances(a_r: np.ndarray, g_fit: HarmonicFit, var_probes: np.ndarray,
+                     var_shapes: np.ndarray) -> dict[str, np.ndarray]:
+    """Step 6a: each noise source's variance of Re and of Im in every combination and
+    harmonic, (n_c, H+1, 2); the unresolved harmonics' zero, for :func:`_unresolved` to fill."""
+    return {"gauge noise": np.repeat(gauge_variance(a_r, g_fit)[:, :, None], 2, axis=2),
+            "probe noise": var_probes, "scan shapes": var_shapes,
+            "unresolved harmonics": np.zeros_like(var_probes)}
+
+
+def _combined_std(noise: dict[str, np.ndarray], type_b: dict[str, np.ndarray], var: np.ndarray,
+                  std: np.ndarray, ac_coupled: bool
+                  ) -> tuple[dict[str, np.ndarray], np.ndarray, np.ndarray]:
+    """Step 6c: the budget (every source's standard uncertainty, (n_c, H+1)), the combined
+    standard uncertainty ``std`` (shaped as the noise-only ``std``) and that of Re and of Im
+    (n_c, H+1, 2), from the noise variances (``var`` their sum) and the type-B ones."""
+    budget = {name: _pooled(v, ac_coupled) for name, v in {**noise, **type_b}.items()}
+    std = np.sqrt(sum((b**2 for b in budget.values()), start=np.zeros_like(std)))
+    std_re_im = np.sqrt(sum(type_b.values(), start=var))
+    if ac_coupled:
+        std_re_im[:, 0, :] = 0.0
+    return budget, std, std_re_im
 
 
 def _pooled(var: np.ndarray, ac_coupled: bool) -> np.ndarray:
@@ -503,7 +496,7 @@ def _solve(pinv: np.ndarray, inertia: np.ndarray, reactions: np.ndarray, var: np
     """Step 6: the forces, the reactions-only forces and the combinations' standard
     uncertainties (Re and Im averaged; the DC is real); no DC when the gauges are AC-coupled."""
     force = force_solve(pinv, inertia, reactions)
-    static = force_solve(pinv, np.zeros_like(reactions), reactions)
+    static = reactions_only(pinv, reactions)
     if ac_coupled:
         force[:, 0] = 0.0
         static[:, 0] = 0.0

@@ -3,46 +3,20 @@
 A swept, multi-tone or random drive has no harmonics to fit; eq. 15-16 hold at every instant
 instead. With the span of shapes of a broadband scan (:mod:`forcecal.model.broadband`):
 
-1. the first shape's coordinate at every sample from the probes,
-   q_1(t) = (g_1^T W s(t)) / (g_1^T W g_1), g_1 = phi_1 at the probes, W their inverse noise
-   variances (eq. 15-16);
-2. every gauge's reaction from a Kalman smoother of a band-limited signal
-   (:mod:`forcecal.signals.kalman`), and q_1'' from the reactions: the structure's transfer from the
-   reactions-only force to q_1, fitted over the record (:mod:`forcecal.forces.reaction_transfer`),
-   plus the smoothed second derivative of what it leaves of q_1 (the probes' evidence of what
-   the transfer misses; their noise alone where it holds);
-3. J_r = m_{r,1} q_1'' corrected frequency by frequency to the operating shape of every
-   frequency (:meth:`forcecal.model.broadband.BroadbandModel.inertia_correction`), and
+1. q_1(t), the first shape's coordinate, from the probes by weighted least squares;
+2. every gauge's reaction from a Kalman smoother (:mod:`forcecal.signals.kalman`), and q_1''
+   through the structure's transfer from the reactions (:mod:`.reaction_transfer`) plus the
+   smoothed second derivative of what it leaves of q_1;
+3. J_r = m_{r,1} q_1'' corrected frequency by frequency to the operating shape, and
    f(t) = Psi^+ (J(t) - R(t)) (eq. 8, 24), beside the reactions-only estimate -Psi^+ R(t);
-4. short-time Wiener gains on every force (:mod:`forcecal.signals.wiener`), which keep the few hertz
-   a moving drive holds at any instant and set the rest of the band's noise aside, each
-   sample's uncertainty being the noise they let through, plus the errors of the scan's
-   shapes (:mod:`forcecal.forces.inertia_errors`), of the transfer's parameters and of the rig's
-   declared sensitivities, positions and masses (:mod:`forcecal.forces.budget`).
+4. short-time Wiener gains on every force (:mod:`forcecal.signals.wiener`); each sample's
+   uncertainty is the noise they let through plus the errors of the scan's shapes, of the
+   transfer and of the rig's type-B inputs (:mod:`.inertia_errors`, :mod:`.budget`).
 
-What the estimate fixes before its first sample (the channels' noise, the band priors, the
-transfer, the checks of the probes, the type-B moves, the hum) is its setup
-(:mod:`forcecal.forces.transient`), from the whole run in batch. The smoothers and the
-reactions' transfer take samples on both sides of each one: the record is carried past its
-ends by a prediction of every channel (:mod:`forcecal.signals.record_ends`), and what that prediction
-misses is in the ends' uncertainty.
-
-In real time (``stream``, :mod:`forcecal.stream.any_drive`) the same estimate is computed
-over a window that slides with the stream: every sample is given once the samples a fixed
-latency after it have arrived (a smoother needs the future a causal filter lacks: the best
-causal estimate of an acceleration from displacements lags it).
-
-Force content above the scan's band (a drive's harmonics beyond it) has no measured operating
-shape: the gauges carry it as far as their smoother lets through, its inertia through the
-transfer with the band top's correction, whose slope there is counted in the uncertainty.
-
-The noise of every channel is read from its spectrum above the band (white beyond the drive's
-reach), so that a probe's noise sets its weight and the smoother's gain; a channel whose noise
-changes while the run goes on is refused, and force above the scan's band noted
-(:mod:`forcecal.signals.checks`). Probes that leave the scan's operating shapes (forces that
-do not keep the scan's load pattern, a probe's sign or scale wrong) are noted, and the
-inertia of the motion the scan did not see bounds every force's uncertainty
-(:mod:`forcecal.forces.unseen_motion`).
+:func:`any_drive_setup` fixes what the estimate needs before its first sample (the channels'
+noise, band models, transfer, probe checks, type-B moves, hum); :func:`window_forces` runs
+steps 1-4 over a stretch whose ends are carried past by :mod:`forcecal.signals.record_ends`;
+:func:`reconstruct_any` over a whole run, :mod:`forcecal.stream.any_drive` over a sliding window.
 """
 
 from __future__ import annotations
@@ -50,6 +24,7 @@ from __future__ import annotations
 import dataclasses
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, fields
+from typing import Any, ClassVar
 
 import numpy as np
 import scipy.signal
@@ -73,6 +48,7 @@ from ..signals.wiener import (
     wiener_smooth,
 )
 from .budget import TypeBMoves, series_type_b_variance, type_b_moves, type_b_notes
+from .estimate import inertia_share_of, series_summary
 from .inertia_errors import ScanNoiseShare, inertia_error_weights
 from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
 from .steady import channels_si
@@ -89,6 +65,7 @@ __all__ = [
     "hum_notes",
     "reconstruct_any",
     "run_channels",
+    "run_inputs",
     "transfer_note",
     "window_forces",
     "with_reaction_priors",
@@ -403,14 +380,71 @@ class TransientEstimate:
                    coordinates=est.coordinate[None, :], band=band, smoothed=smoothed,
                    notes=notes)
 
+    formats: ClassVar[tuple[str, ...]] = ("csv",)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """Each force and ``total``, then the same with ``_static`` (reactions only) and with
+        ``_std`` (standard uncertainty of every sample) [N]."""
+        names = [*self.force_names, "total"]
+        series = [*self.force, self.total]
+        static = [*self.static, self.static.sum(axis=0)]
+        std: list[np.ndarray] = [*self.force_std, self.total_std]
+        cols = dict(zip(names, series, strict=True))
+        cols.update({f"{n}_static": s for n, s in zip(names, static, strict=True)})
+        cols.update({f"{n}_std": s for n, s in zip(names, std, strict=True)})
+        return cols
+
+    def force_over_time(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """One force's (or ``total``'s) samples and their standard uncertainties [N]."""
+        cols = self.columns()
+        return cols[name], cols[f"{name}_std"]
+
+    def summary(self) -> dict:
+        """The JSON document of the run: band, estimator, every force's and the total's mean,
+        AC RMS and RMS uncertainty, the reactions-only AC RMS, the inertia share, the notes."""
+        return {"run": self.run_name, "drive": "any", "band_hz": list(self.band),
+                "estimator": ("Kalman smoother, short-time Wiener gains" if self.smoothed
+                              else "Kalman filter"),
+                **series_summary(self.columns(), self.force_names),
+                "inertia_share": self.inertia_share, "notes": list(self.notes)}
+
+    def to_dataframe(self) -> Any:
+        """The force series as a pandas DataFrame: index ``time`` [s], the columns of
+        :meth:`columns` (the columns of ``NAME.forces.csv``)."""
+        import pandas  # type: ignore[import-untyped]  # imported on use only
+
+        return pandas.DataFrame(self.columns(), index=pandas.Index(self.time, name="time"))
+
+    def __repr__(self) -> str:
+        """One line: the run, its band, the total's AC RMS with its uncertainty, the inertia
+        share."""
+        s = series_summary(self.columns(), self.force_names)["total"]
+        return (f"TransientEstimate(run '{self.run_name}', band {self.band[0]:g}-"
+                f"{self.band[1]:g} Hz, total AC RMS {s['ac_rms_n']:.4g} N ± {s['std_n']:.2g}; "
+                f"inertia share {100 * self.inertia_share:.1f} %)")
+
+    def _repr_html_(self) -> str:
+        """A small table for notebooks: per force and the total, AC RMS, the RMS of its
+        uncertainty and the reactions-only AC RMS."""
+        from html import escape
+
+        doc = series_summary(self.columns(), self.force_names)
+        static = [*self.static, self.static.sum(axis=0)]
+        rows = "".join(
+            f"<tr><td>{escape(n)}</td><td>{v['ac_rms_n']:.4g}</td><td>{v['std_n']:.2g}</td>"
+            f"<td>{float(np.std(st)):.4g}</td></tr>"
+            for (n, v), st in zip([*doc["forces"].items(), ("total", doc["total"])], static,
+                                  strict=True))
+        return (f"<p><b>TransientEstimate</b> of run '{escape(self.run_name)}': band "
+                f"{self.band[0]:g}-{self.band[1]:g} Hz, inertia share "
+                f"{100 * self.inertia_share:.1f} %</p><table><tr><th>force</th>"
+                "<th>AC RMS [N]</th><th>std (RMS) [N]</th><th>reactions only [N]</th></tr>"
+                f"{rows}</table>")
+
     @property
     def inertia_share(self) -> float:
         """RMS of the AC inertia term's part in the total over the AC total's RMS [1]."""
-        total = self.total - self.total.mean()
-        static = self.static.sum(axis=0)
-        part = (self.total - static) - (self.total - static).mean()
-        rms = float(np.sqrt(np.mean(total**2)))
-        return float(np.sqrt(np.mean(part**2))) / rms if rms > 0 else 0.0
+        return inertia_share_of(self.total, self.static.sum(axis=0))
 
 
 @dataclass(frozen=True)
@@ -478,37 +512,16 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
         Forces that are not finite.
     """
     fs = setup.fs
-    bm_r, bm_res, transfer = setup.reaction_models, setup.residual_model, setup.transfer
+    transfer = setup.transfer
     reach = _edge_length(fs, setup.coordinate_model, gauges.shape[-1])
     white = np.r_[setup.var_g, 1.0 / setup.probe_weights]          # each channel's noise
     ext = extend(np.vstack([gauges, probes]), fs, setup.band[1], reach, white, ends,
                  frame // 4)                                     # carried past the ends
-    level = gauges.mean(axis=1, keepdims=True)    # the DC passes whole (in the band the
-    gauges_x, probes_x = ext.values[:len(gauges)], ext.values[len(gauges):]
-    q = setup.coordinate_map @ probes_x                          # the first shape's coordinate
-    reactions = level + np.stack([smooth_states(bm_r[r], gauges_x[r] - level[r], states=(0,))[0]
-                                  for r in range(len(gauges))])   # gain is 1 - 1 / SNR_CAP)
-    u = (setup.total_row @ reactions)[None, :]                   # the reactions-only total
-    rest = q
-    if transfer is not None:                                     # the gauges' part of q_1''
-        rest = q - filtered(u, fs, transfer.response)[0]
-    acc_probes = smooth_states(bm_res, rest, states=(2,))[0]       # the probes' part of q_1''
-    acc_gauges = (np.zeros_like(acc_probes) if transfer is None else
-                  filtered(u, fs, lambda f: (2j * np.pi * f) ** 2 * transfer.response(f))[0])
+    q, reactions, u = _coordinate_and_reactions(setup, gauges, ext.values)
+    acc_probes, acc_gauges = _accelerations(setup, q, u)
     acc = acc_probes + acc_gauges
-    m1 = setup.couplings
-    gam, w = setup.probe_shapes, setup.probe_weights
-
-    def correction(f: np.ndarray) -> np.ndarray:
-        return (model.inertia_correction(f, gam, w) if model.n_shapes > 1
-                else np.ones((len(m1), len(f))))
-
-    def inertia_of(x: np.ndarray) -> np.ndarray:             # (k, N) accelerations
-        lumped = m1[None, :, None] * x[:, None, :]
-        if model.n_shapes > 1:
-            lumped = np.stack([filtered(part, fs, correction) for part in lumped])
-        return lumped
-
+    gam = setup.probe_shapes
+    correction, inertia_of = _inertia_maps(setup, model)
     by_probes, by_gauges = inertia_of(np.vstack([acc_probes, acc_gauges]))   # (n_gauges, N)
     inertia = by_probes + by_gauges
     pinv = setup.pinv
@@ -516,37 +529,14 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     if not np.all(np.isfinite(force)):
         raise DataError(f"run '{source}': the forces are not finite (a channel holds "
                         "non-finite samples?)")
-    f = np.fft.rfftfreq(frame, 1.0 / fs)
-    to_force = pinv @ (m1[:, None] * correction(f))             # q_1'' -> forces, (k, bins)
-    via_u = (np.zeros_like(f) if transfer is None
-             else (2j * np.pi * f) ** 2 * transfer.response(f))
-    per_gauge = [(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
-                 * smoother_response(bm_r[r], 0, frame) for r in range(len(gauges))]
-    per_q = smoother_response(bm_res, 2, frame) * to_force        # the probes' path, per q_1
-    n_g = len(gauges)
-    hum = [(per_gauge[c] if c < n_g else setup.coordinate_map[c - n_g] * per_q)
-           * tone_density(frame, fs, tone, power)     # each gauge's and probe's hum tones
-           for c, tone, power in setup.hum if power > 0]
-    noise = np.concatenate([
-        (np.sqrt(setup.var_q) * per_q)[:, None, :],
-        np.stack([g * np.sqrt(v) for g, v in zip(per_gauge, setup.var_g, strict=True)]
-                 + hum, axis=1)], axis=1)
+    noise = _noise_paths(setup, correction, frame, len(gauges))
     # smoothed as the total and its complement (an orthonormal basis whose first row is the
     # sum's): the total keeps its own, smaller noise (a gauge's hum or noise splits between
     # the forces far more than it moves their sum)
-    start = np.eye(len(pinv))
-    start[:, 0] = 1.0
-    basis = np.linalg.qr(start)[0].T
+    basis = _total_basis(len(pinv))
     sw = wiener_smooth(basis @ force, np.einsum("jk,ksb->jsb", basis, noise), fs, frame,
                        np.vstack([basis.T, basis.sum(axis=1)]))
-    # the ends: the gauges' part of the inertia lost in the share the gauges' prediction
-    # misses, the probes' in the probes'
-    part_g, part_p = (ext.inner(pinv @ x) for x in (by_gauges, by_probes))
-    edge = np.hypot(
-        _edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach,
-                  ext.missed[:, :n_g].max(axis=1)),
-        _edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach,
-                  ext.missed[:, n_g:].max(axis=1)))
+    edge = _ends_std(ext.inner, ext.missed, pinv, by_gauges, by_probes, reach, len(gauges))
     scan = short_time_variance(acc, np.vstack([setup.error_weights(model, frame),
                                                setup.noise_weights(model, frame)[-1:]]),
                                fs, frame)                 # and the total's by its noise alone
@@ -561,6 +551,103 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                           static=-pinv @ gauges, inertia=inner(inertia),
                           reactions=inner(reactions), coordinate=inner(q), passed=sw.passed,
                           scan_noise=inner(scan[-1]))
+
+
+def _coordinate_and_reactions(setup: AnyDriveSetup, gauges: np.ndarray, values: np.ndarray
+                              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Steps 1 and 2 on the extended channels ``values`` (gauges, then probes): the first
+    shape's coordinate q_1, every gauge's smoothed reaction (n_gauges, N') and the
+    reactions-only total u (1, N')."""
+    bm_r = setup.reaction_models
+    level = gauges.mean(axis=1, keepdims=True)    # the DC passes whole (in the band the
+    gauges_x, probes_x = values[:len(gauges)], values[len(gauges):]
+    q = setup.coordinate_map @ probes_x                          # the first shape's coordinate
+    reactions = level + np.stack([smooth_states(bm_r[r], gauges_x[r] - level[r], states=(0,))[0]
+                                  for r in range(len(gauges))])   # gain is 1 - 1 / SNR_CAP)
+    u = (setup.total_row @ reactions)[None, :]                   # the reactions-only total
+    return q, reactions, u
+
+
+def _accelerations(setup: AnyDriveSetup, q: np.ndarray, u: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray]:
+    """Step 2's q_1'' in two parts: the probes' (the smoothed second derivative of what the
+    reactions' transfer leaves of q_1) and the gauges' (u through the transfer; zero without
+    one)."""
+    fs, transfer = setup.fs, setup.transfer
+    rest = q
+    if transfer is not None:                                     # the gauges' part of q_1''
+        rest = q - filtered(u, fs, transfer.response)[0]
+    acc_probes = smooth_states(setup.residual_model, rest,
+                               states=(2,))[0]                   # the probes' part of q_1''
+    acc_gauges = (np.zeros_like(acc_probes) if transfer is None else
+                  filtered(u, fs, lambda f: (2j * np.pi * f) ** 2 * transfer.response(f))[0])
+    return acc_probes, acc_gauges
+
+
+def _inertia_maps(setup: AnyDriveSetup, model: BroadbandModel
+                  ) -> tuple[Callable[[np.ndarray], np.ndarray],
+                             Callable[[np.ndarray], np.ndarray]]:
+    """Step 3's maps: ``correction``, frequencies [Hz] to every gauge's factor on the first
+    shape's coupling (the operating shape's correction; 1 with one shape), and ``inertia_of``,
+    accelerations q_1'' (k, N) to every gauge's inertia (k, n_gauges, N)."""
+    fs, m1 = setup.fs, setup.couplings
+    gam, w = setup.probe_shapes, setup.probe_weights
+
+    def correction(f: np.ndarray) -> np.ndarray:
+        return (model.inertia_correction(f, gam, w) if model.n_shapes > 1
+                else np.ones((len(m1), len(f))))
+
+    def inertia_of(x: np.ndarray) -> np.ndarray:             # (k, N) accelerations
+        lumped = m1[None, :, None] * x[:, None, :]
+        if model.n_shapes > 1:
+            lumped = np.stack([filtered(part, fs, correction) for part in lumped])
+        return lumped
+
+    return correction, inertia_of
+
+
+def _noise_paths(setup: AnyDriveSetup, correction: Callable[[np.ndarray], np.ndarray],
+                 frame: int, n_g: int) -> np.ndarray:
+    """Every noise source's amplitude on every force per bin of a Wiener frame,
+    (n_forces, n_sources, bins): the coordinate's noise, then each gauge's, then the hum tones
+    of the gauges and probes, through the smoothers, the transfer and the force solve."""
+    fs, pinv, transfer = setup.fs, setup.pinv, setup.transfer
+    bm_r, bm_res = setup.reaction_models, setup.residual_model
+    f = np.fft.rfftfreq(frame, 1.0 / fs)
+    to_force = pinv @ (setup.couplings[:, None] * correction(f))  # q_1'' -> forces, (k, bins)
+    via_u = (np.zeros_like(f) if transfer is None
+             else (2j * np.pi * f) ** 2 * transfer.response(f))
+    per_gauge = [(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
+                 * smoother_response(bm_r[r], 0, frame) for r in range(n_g)]
+    per_q = smoother_response(bm_res, 2, frame) * to_force        # the probes' path, per q_1
+    hum = [(per_gauge[c] if c < n_g else setup.coordinate_map[c - n_g] * per_q)
+           * tone_density(frame, fs, tone, power)     # each gauge's and probe's hum tones
+           for c, tone, power in setup.hum if power > 0]
+    return np.concatenate([
+        (np.sqrt(setup.var_q) * per_q)[:, None, :],
+        np.stack([g * np.sqrt(v) for g, v in zip(per_gauge, setup.var_g, strict=True)]
+                 + hum, axis=1)], axis=1)
+
+
+def _total_basis(n: int) -> np.ndarray:
+    """(n, n): an orthonormal basis of the forces whose first row is along their sum."""
+    start = np.eye(n)
+    start[:, 0] = 1.0
+    return np.linalg.qr(start)[0].T
+
+
+def _ends_std(inner: Callable[[np.ndarray], np.ndarray], missed: np.ndarray, pinv: np.ndarray,
+              by_gauges: np.ndarray, by_probes: np.ndarray, reach: int, n_g: int
+              ) -> np.ndarray:
+    """(n_forces + 1, N) [N]: each force's and the total's uncertainty at the stretch's ends,
+    the gauges' part of the inertia lost in the share the gauges' prediction misses
+    (``missed``, (2, n_channels), the gauges first), the probes' in the probes'."""
+    part_g, part_p = (inner(pinv @ x) for x in (by_gauges, by_probes))
+    return np.hypot(
+        _edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach,
+                  missed[:, :n_g].max(axis=1)),
+        _edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach,
+                  missed[:, n_g:].max(axis=1)))
 
 
 TRANSFER_MISFIT = 2.0
@@ -652,8 +739,22 @@ def check_length(model: BroadbandModel, n: int, fs: float, source: str) -> None:
                         f"{band[0]:g}-{band[1]:g} Hz")
 
 
-def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,
-                    smooth: bool = True) -> TransientEstimate:
+def run_inputs(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, tuple[str, ...]]:
+    """A run's gauges [N] and probes [m], the tare's (their zero, or None), and the notes of
+    the drive's force above the scan's band; the model checked against the rig and the
+    record's length against the band (batch and stream alike)."""
+    check_rig_keys(model.rig, model.source, rig)
+    check_length(model, run.n_samples, run.fs, run.source)
+    gauges, probes, current = run_channels(rig, run, tare)
+    reach = AboveBand(run.fs, model.band, run.t0)
+    reach.add(current)
+    zero = None if tare is None else np.vstack(run_channels(rig, tare)[:2])
+    return gauges, probes, zero, reach.notes(run.source)
+
+
+def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None
+                    ) -> TransientEstimate:
     """The forces of a run under any drive, sample by sample.
 
     Parameters
@@ -667,10 +768,6 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     tare : Run, optional
         A zero-current record: its mean gauge and probe values are the zero, and with
         ``acquisition.mains`` its gauges' hum tones enter the uncertainty.
-    smooth : bool
-        The batch estimate over the whole record (default), or the real-time one that
-        ``stream`` gives (:class:`forcecal.stream.any_drive.AnyDriveStream`: every sample from
-        the samples up to a fixed latency after it, its setup from the run's first seconds).
 
     Returns
     -------
@@ -684,21 +781,9 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
         A record too short for the band, or a gauge or probe channel that is constant or
         changes while it runs (:func:`check_channel_noise`).
     """
-    check_rig_keys(model.rig, model.source, rig)
+    gauges, probes, zero, above = run_inputs(rig, model, run, tare)
     fs = run.fs
     n = run.n_samples
-    check_length(model, n, fs, run.source)
-    gauges, probes, current = run_channels(rig, run, tare)
-    reach = AboveBand(fs, model.band, run.t0)
-    reach.add(current)
-    above = reach.notes(run.source)
-    zero = None if tare is None else np.vstack(run_channels(rig, tare)[:2])
-    if not smooth:
-        from ..stream.any_drive import stream_arrays
-
-        live = stream_arrays(rig, model, gauges, probes, fs, run.t0, run.name,
-                             tare=zero, tare_fs=None if tare is None else tare.fs)
-        return dataclasses.replace(live, notes=live.notes + above)
     setup = any_drive_setup(rig, model, gauges, probes, fs, run.source, zero,
                             None if tare is None else tare.fs)
     check_channel_noise(gauges, probes, (*rig.gauge_names, *rig.sensor_names), fs, model.band,

@@ -1,6 +1,6 @@
 """The force series of ``reconstruct`` in every output format: CSV, HDF5, MATLAB and UFF.
 
-Every format holds the same series (:func:`series_columns`): the time [s]; per force and the
+Every format holds the same series (:func:`~forcecal.forces.estimate.series_columns`): the time [s]; per force and the
 ``total``, the force [N]; the same with suffix ``_static`` (reactions only) [N]; and with
 suffix ``_std`` the standard uncertainty of the force at each instant [N]
 (:func:`waveform_std_series`). The self-describing formats add the phasors and the
@@ -28,28 +28,23 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..forces.steady import ForceEstimate
-from ..signals.fourier_sums import series_at
+from ..forces.estimate import SERIES_FORMATS, Estimate, ForceEstimate
 from .run_files import write_table_csv
 
 __all__ = [
     "SERIES_FORMATS",
     "SERIES_SUFFIXES",
-    "series_columns",
     "series_json",
     "series_units",
-    "waveform_std_series",
     "write_forces_hdf5",
     "write_forces_mat",
     "write_forces_uff",
     "write_series",
 ]
 
-SERIES_SUFFIXES = {"csv": ".forces.csv", "hdf5": ".forces.h5", "mat": ".forces.mat",
-                   "uff": ".forces.uff"}
+SERIES_SUFFIXES = dict(zip(SERIES_FORMATS, (".forces.csv", ".forces.h5", ".forces.mat",
+                                           ".forces.uff"), strict=True))
 """The file ``NAME + suffix`` each format of ``reconstruct --format`` writes."""
-SERIES_FORMATS = tuple(SERIES_SUFFIXES)
-"""The formats of the force series, the default first."""
 
 HDF5_FORMAT = "forcecal forces 1"
 """The root attribute ``format`` of an HDF5 force file."""
@@ -68,86 +63,12 @@ _BLOCK = 1 << 16        # time stamps per block of the per-instant uncertainty
 # the series
 
 
-def waveform_std_series(est: ForceEstimate) -> np.ndarray:
-    """Standard uncertainty of every force and of the total at each time stamp.
-
-    The phasors' uncertainties propagate as in :attr:`ForceEstimate.waveform_std`: harmonic n
-    enters x(t) as Re(X_n) cos(n w0 t) - Im(X_n) sin(n w0 t), whose variance is
-    ``std_n**2`` (Re and Im each have the standard uncertainty ``std_n``), and the DC its own
-    ``std_0**2``. An error df in the fundamental turns harmonic n by 2 pi n df (t - t_mid):
-    the waveform moves by (df / f0) (t - t_mid) dx/dt, zero at mid-record and largest at its
-    ends. The two are independent:
-
-        u(t)**2 = sum_n std_n**2 + (f0_std / f0)**2 (t - t_mid)**2 (dx_AC/dt)**2.
-
-    Over the record, the RMS of u(t) without the DC term is the estimate's ``waveform_std``
-    for the total (to the sampling of the record).
-
-    Parameters
-    ----------
-    est : ForceEstimate
-        The run's estimate.
-
-    Returns
-    -------
-    (n_forces + 1, n_samples) ndarray [N]
-        One row per force in ``est.force_names`` order, then the total (its phasors'
-        uncertainties ``est.total_std`` account for the correlation between the forces).
-    """
-    phasors = np.vstack([est.force, est.total[None, :]])
-    std = np.vstack([est.force_std, est.total_std[None, :]])
-    t = np.asarray(est.time, dtype=float)
-    out = np.empty((phasors.shape[0], t.size))
-    out[:] = np.sum(std**2, axis=1)[:, None]
-    if est.f0_std != 0.0 and t.size > 1:
-        # dx_AC/dt has the phasors j n w0 X_n; a block of time stamps at a time, so that
-        # memory holds the result and no more
-        rate = phasors * (1j * 2.0 * np.pi * est.f0 * np.arange(phasors.shape[1]))
-        t_mid = 0.5 * (t[0] + t[-1])
-        for s in range(0, t.size, _BLOCK):
-            part = t[s:s + _BLOCK]
-            out[:, s:s + _BLOCK] += (est.f0_std / est.f0 * (part - t_mid)
-                                     * series_at(rate, est.f0, part)) ** 2
-    return np.sqrt(out, out=out)
-
-
-def series_columns(est: ForceEstimate) -> dict[str, np.ndarray]:
-    """The columns of the force series after ``time``, in file order.
-
-    Parameters
-    ----------
-    est : ForceEstimate
-        The run's estimate.
-
-    Returns
-    -------
-    dict name -> (n_samples,) ndarray [N]
-        Every force and ``total``; the same with suffix ``_static`` (reactions only); the same
-        with suffix ``_std`` (:func:`waveform_std_series`).
-
-    Raises
-    ------
-    InputError
-        Two columns of one name (a force named like another's ``_static`` or ``_std``).
-    """
-    names = (*est.force_names, "total")
-    static = [*est.static_series, est.static_series.sum(axis=0)]       # rows are views
-    values = [*est.series, est.total_series, *static, *waveform_std_series(est)]
-    keys = [*names, *(f"{n}_static" for n in names), *(f"{n}_std" for n in names)]
-    columns = dict(zip(keys, values, strict=True))
-    if len(columns) != len(keys):
-        twice = sorted({k for k in keys if keys.count(k) > 1})
-        raise InputError(f"run '{est.run_name}': the force columns {', '.join(twice)} would be "
-                         "written twice; rename the rig's forces")
-    return columns
-
-
 def series_units(columns: Mapping[str, object]) -> dict[str, str]:
     """The unit of ``time`` and of every column: ``{"time": "s", "F1": "N", ...}``."""
     return {"time": "s", **{name: "N" for name in columns}}
 
 
-def write_series(est: ForceEstimate, path: str | Path, fmt: str,
+def write_series(est: Estimate, path: str | Path, fmt: str,
                  columns: Mapping[str, np.ndarray] | None = None) -> Path:
     """Write the force series of ``est`` to ``path`` in format ``fmt``.
 
@@ -160,7 +81,7 @@ def write_series(est: ForceEstimate, path: str | Path, fmt: str,
     fmt : {"csv", "hdf5", "mat", "uff"}
         The format.
     columns : mapping, optional
-        :func:`series_columns` of ``est``, when already computed.
+        :func:`~forcecal.forces.estimate.series_columns` of ``est``, when already computed.
 
     Returns
     -------
@@ -172,9 +93,10 @@ def write_series(est: ForceEstimate, path: str | Path, fmt: str,
     InputError
         An unknown format, or a force name the format cannot hold.
     """
-    cols = dict(columns) if columns is not None else series_columns(est)
+    cols = dict(columns) if columns is not None else est.columns()
     if fmt == "csv":
         return write_table_csv(path, est.time, cols)
+    assert isinstance(est, ForceEstimate)  # the other formats hold the phasors too
     writers = {"hdf5": write_forces_hdf5, "mat": write_forces_mat, "uff": write_forces_uff}
     if fmt not in writers:
         raise InputError(f"run '{est.run_name}': output format {fmt!r} is not one of "
@@ -197,7 +119,7 @@ def write_forces_hdf5(est: ForceEstimate, path: str | Path,
                       columns: Mapping[str, np.ndarray] | None = None) -> Path:
     """Write the force series as HDF5.
 
-    Root datasets ``time`` [s] and one per column of :func:`series_columns` [N], each with
+    Root datasets ``time`` [s] and one per column of :func:`~forcecal.forces.estimate.series_columns` [N], each with
     the attributes ``units`` and ``quantity`` (``force``, ``reactions-only force`` or
     ``standard uncertainty``); a force's dataset also names its ``std`` and ``static``
     datasets. Root attributes: ``format``, ``run``, ``fundamental_hz``, ``fundamental_std_hz``,
@@ -213,7 +135,7 @@ def write_forces_hdf5(est: ForceEstimate, path: str | Path,
     path : str or Path
         The ``.h5`` file, written in place.
     columns : mapping, optional
-        :func:`series_columns` of ``est``.
+        :func:`~forcecal.forces.estimate.series_columns` of ``est``.
 
     Returns
     -------
@@ -227,7 +149,7 @@ def write_forces_hdf5(est: ForceEstimate, path: str | Path,
     """
     import h5py
 
-    cols = dict(columns) if columns is not None else series_columns(est)
+    cols = dict(columns) if columns is not None else est.columns()
     for name in cols:
         if not name or "/" in name or name == ".":
             raise InputError(f"run '{est.run_name}': force name {name!r} cannot name an HDF5 "
@@ -288,7 +210,7 @@ def write_forces_mat(est: ForceEstimate, path: str | Path,
     path : str or Path
         The ``.mat`` file, written in place.
     columns : mapping, optional
-        :func:`series_columns` of ``est``.
+        :func:`~forcecal.forces.estimate.series_columns` of ``est``.
 
     Returns
     -------
@@ -297,7 +219,7 @@ def write_forces_mat(est: ForceEstimate, path: str | Path,
     """
     from scipy.io import savemat
 
-    cols = dict(columns) if columns is not None else series_columns(est)
+    cols = dict(columns) if columns is not None else est.columns()
     names, phasors, std = _per_force(est)
 
     def block(suffix: str) -> np.ndarray:
@@ -346,7 +268,7 @@ def write_forces_uff(est: ForceEstimate, path: str | Path,
                      columns: Mapping[str, np.ndarray] | None = None) -> Path:
     """Write the force series as a Universal File of dataset-58 time records (ASCII).
 
-    One record per column of :func:`series_columns`: function type 1 (time response), ID line
+    One record per column of :func:`~forcecal.forces.estimate.series_columns`: function type 1 (time response), ID line
     1 the column's name, ID line 2 what it holds (``Force``, ``Force  reactions only``,
     ``Force  std``), ID line 4 the run, ID line 5 the fundamental; response node k + 1 for the
     k-th force (the total after the forces, its ``_static`` and ``_std`` records on the same
@@ -363,7 +285,7 @@ def write_forces_uff(est: ForceEstimate, path: str | Path,
     path : str or Path
         The ``.uff`` file, written in place.
     columns : mapping, optional
-        :func:`series_columns` of ``est``.
+        :func:`~forcecal.forces.estimate.series_columns` of ``est``.
 
     Returns
     -------
@@ -379,7 +301,7 @@ def write_forces_uff(est: ForceEstimate, path: str | Path,
 
     from ._uff_write import _write_sets
 
-    cols = dict(columns) if columns is not None else series_columns(est)
+    cols = dict(columns) if columns is not None else est.columns()
     time = np.asarray(est.time, dtype=float)
     if time.size < 2:
         raise InputError(f"run '{est.run_name}': a UFF time record needs two samples or more")
@@ -417,7 +339,7 @@ def _kind(name: str, names: list[str]) -> tuple[str, str]:
     return name, ""
 
 
-def series_json(est: ForceEstimate, fmt: str, columns: Mapping[str, object]) -> dict:
+def series_json(est: Estimate, fmt: str, columns: Mapping[str, object]) -> dict:
     """The ``series`` entry of ``NAME.json``: the file, its format and every column's unit."""
     return {"file": f"{est.run_name}{SERIES_SUFFIXES[fmt]}", "format": fmt,
             "units": series_units(columns)}

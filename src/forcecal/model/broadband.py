@@ -205,6 +205,11 @@ class BroadbandModel:
         beta = (g1 * weights) @ (probe_shapes @ mix) / ((g1 * weights) @ g1)
         return (self.couplings @ mix) / (beta * self.couplings[:, :1])
 
+    def harmonic(self, rig: Rig, f0: float) -> SpatialModel:
+        """The harmonic model of a steady run at ``f0`` [Hz] (:func:`steady_model`, with
+        :data:`STEADY_HARMONICS` harmonics)."""
+        return steady_model(self, rig, f0, STEADY_HARMONICS)
+
     def to_json(self) -> dict[str, Any]:
         """A JSON-able description (``kind`` = "broadband")."""
         return {"kind": "broadband", "band": list(self.band),
@@ -317,10 +322,40 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
         (no response on any line; fewer are set aside, noted), or a drive that leaves no line
         coherent.
     """
+    band = _broadband_band(rig, scan)
+    st = rig.structure
+    resp, dead = scan_response(scan, band, rig.scan_averages).without_dead()
+    good = _drive_lines(scan, band, resp.coherence, len(dead))
+    tiny = np.finfo(float).tiny
+    h, std = resp.values[:, good], np.maximum(resp.std[:, good], tiny)
+    a, s_noise, u, sv, chi2 = _line_span(h, std)
+    d, note = _span_size(sv, chi2, a.shape)
+    notes = [f"scan '{scan.source}': {note}"] if note else []
+    notes += set_aside_notes(scan, dead)
+    points = st.coordinates(resp.points, source=f"scan '{scan.source}'")
+    weights = record_weights(np.median(s_noise, axis=1))
+    shapes = _span_shapes(rig, points, u, sv, d, weights, criterion)
+    couplings = np.column_stack([np.real(mass_coupling(rig, s.evaluate)) for s in shapes])
+    basis = np.column_stack([s.evaluate(points) for s in shapes])
+    coords, cov = _line_coordinates(basis, weights, resp.values, resp.std, good, h, std,
+                                    len(points), len(resp.frequencies))
+    ratios, ratio_std = smooth_ratios(resp.frequencies, coords, cov)
+    line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
+                / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
+    return BroadbandModel(band=band, shapes=shapes, couplings=couplings,
+                          frequencies=resp.frequencies, coordinates=coords,
+                          singular_values=sv[:min(len(sv), 12)], chi2=chi2, line_snr=line_snr,
+                          gauge_names=tuple(rig.gauge_names), n_points=len(points),
+                          source=scan.source, notes=tuple(notes), rig=rig_keys(rig),
+                          ratios=ratios, ratio_std=ratio_std)
+
+
+def _broadband_band(rig: Rig, scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float]:
+    """The rig's band, once the rig and the scan can give a broadband model: InputError for
+    a rig without a band, a body, or FRFs without the rig's number of averages."""
     if rig.band is None:
         raise InputError(f"rig '{rig.source}': a broadband scan needs 'acquisition.band'")
-    st = rig.structure
-    if st.directed:
+    if rig.structure.directed:
         raise InputError(f"rig '{rig.source}': broadband shapes are built for beams and plates "
                          "(a body's vector shapes are not supported over a band)")
     if isinstance(scan, ScanFRF) and rig.scan_averages is None:
@@ -328,17 +363,30 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
                          "follows from their coherence and the number of averages behind them; "
                          "a Universal File does not record that number: give it as "
                          "'acquisition.scan_averages'")
-    resp, dead = scan_response(scan, rig.band, rig.scan_averages).without_dead()
-    if len(dead) > MAX_SET_ASIDE * len(scan.points):
-        raise InputError(f"scan '{scan.source}': {len(dead)} of its {len(scan.points)} points "
+    return rig.band
+
+
+def _drive_lines(scan: Scan | ScanSpectra | ScanFRF, band: tuple[float, float],
+                 coherence: np.ndarray, n_dead: int) -> np.ndarray:
+    """(n_lines,) bool: the lines that carry the drive (median coherence over the points at
+    least ``MIN_COHERENCE``). InputError when more than ``MAX_SET_ASIDE`` of the points are
+    dead, or fewer than three lines carry the drive."""
+    if n_dead > MAX_SET_ASIDE * len(scan.points):
+        raise InputError(f"scan '{scan.source}': {n_dead} of its {len(scan.points)} points "
                          "hold no response on any line of the band (dead channels?)")
-    good = np.median(resp.coherence, axis=0) >= MIN_COHERENCE
+    good = np.median(coherence, axis=0) >= MIN_COHERENCE
     if np.count_nonzero(good) < 3:
         raise InputError(f"scan '{scan.source}': {np.count_nonzero(good)} line(s) of the band "
-                         f"{rig.band[0]:g}-{rig.band[1]:g} Hz carry the drive (median "
+                         f"{band[0]:g}-{band[1]:g} Hz carry the drive (median "
                          f"coherence >= {MIN_COHERENCE}); is the drive broadband?")
-    tiny = np.finfo(float).tiny
-    h, std = resp.values[:, good], np.maximum(resp.std[:, good], tiny)
+    return good
+
+
+def _line_span(h: np.ndarray, std: np.ndarray
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Step 2: the lines ``h`` (n_points, n_good) in units of their noise, Re and Im side by
+    side (``a``), their noise in those units, the SVD's left vectors and singular values, and
+    the reduced chi-square of the spans of 1 .. ``MAX_SHAPES`` + 1 shapes."""
     # every line in units of its own noise: the SVD is then the rank-d least-squares fit
     line_noise = np.median(std, axis=0)
     a = np.hstack([(h / line_noise).real, (h / line_noise).imag])
@@ -346,11 +394,14 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     u, sv, _ = np.linalg.svd(a, full_matrices=False)
     n_try = min(len(sv), MAX_SHAPES + 1)
     chi2 = np.array([_chi2(a, s_noise, u[:, :d]) for d in range(1, n_try + 1)])
-    d, note = _span_size(sv, chi2, a.shape)
-    notes = [f"scan '{scan.source}': {note}"] if note else []
-    notes += set_aside_notes(scan, dead)
-    points = st.coordinates(resp.points, source=f"scan '{scan.source}'")
-    weights = record_weights(np.median(s_noise, axis=1))
+    return a, s_noise, u, sv, chi2
+
+
+def _span_shapes(rig: Rig, points: np.ndarray, u: np.ndarray, sv: np.ndarray, d: int,
+                 weights: np.ndarray, criterion: str) -> tuple[ShapeFit, ...]:
+    """Step 3: the span's ``d`` shapes fitted over the points with the structure's basis, all of
+    one order."""
+    st = rig.structure
     # the span scaled by its singular values: every column carries the data's own noise; one
     # order serves them all, the highest the smooth ones make plausible (an Akaike weight not
     # negligible), not the one of least score: the inertia integrates the shapes over the
@@ -363,35 +414,32 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     fit = st.fit_shape(points, u[:, :d] * sv[:d], criterion, weights, "polynomial",
                        min_order=lead.basis.order if isinstance(lead, ShapeFit) else 1)
     assert isinstance(fit, ShapeFit), "a beam's or a plate's shape"
-    shapes = tuple(ShapeFit(basis=fit.basis, coefficients=fit.coefficients[:, k] / sv[k],
-                            order=fit.order, orders=fit.orders, score=fit.score,
-                            criterion=fit.criterion, residual_std=fit.residual_std / sv[k],
-                            coefficient_covariance=fit.coefficient_covariance / sv[k] ** 2)
-                   for k in range(d))
-    couplings = np.column_stack([np.real(mass_coupling(rig, s.evaluate)) for s in shapes])
-    basis = np.column_stack([s.evaluate(points) for s in shapes])
+    return tuple(ShapeFit(basis=fit.basis, coefficients=fit.coefficients[:, k] / sv[k],
+                          order=fit.order, orders=fit.orders, score=fit.score,
+                          criterion=fit.criterion, residual_std=fit.residual_std / sv[k],
+                          coefficient_covariance=fit.coefficient_covariance / sv[k] ** 2)
+                 for k in range(d))
+
+
+def _line_coordinates(basis: np.ndarray, weights: np.ndarray, values: np.ndarray,
+                      values_std: np.ndarray, good: np.ndarray, h: np.ndarray, std: np.ndarray,
+                      n_points: int, n_lines: int) -> tuple[np.ndarray, np.ndarray]:
+    """Step 3: every line's operating shape in the span's coordinates (n_shapes, n_lines) and
+    their covariance (n_lines, n_shapes, n_shapes), of Re and of Im each, from the points' noise
+    and the good lines' misfit to the span."""
     # every line's coordinates by weighted least squares, and their covariance (of Re and of
     # Im each) from the points' noise: A diag(std^2) A^T
     solve = np.linalg.solve(basis.T @ (basis * weights[:, None]), (basis * weights[:, None]).T)
-    coords = solve @ resp.values
-    cov = np.einsum("kp,pl,jp->lkj", solve, resp.std**2, solve)
+    coords = solve @ values
+    cov = np.einsum("kp,pl,jp->lkj", solve, values_std**2, solve)
     # a line the span leaves more than its noise (a shape the span lacks near a mode, where
     # the line is strongest) holds its coordinates less well than its noise says: their
     # covariance takes the line's reduced chi-square off the span (its Birge ratio) above 1
     resid = h - basis @ coords[:, good]
-    dof = 2 * max(len(points) - basis.shape[1], 1)
-    birge = np.ones(len(resp.frequencies))
+    dof = 2 * max(n_points - basis.shape[1], 1)
+    birge = np.ones(n_lines)
     birge[good] = np.maximum(np.sum(np.abs(resid) ** 2 / std**2, axis=0) / dof, 1.0)
-    cov = cov * birge[:, None, None]
-    ratios, ratio_std = smooth_ratios(resp.frequencies, coords, cov)
-    line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
-                / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
-    return BroadbandModel(band=rig.band, shapes=shapes, couplings=couplings,
-                          frequencies=resp.frequencies, coordinates=coords,
-                          singular_values=sv[:min(len(sv), 12)], chi2=chi2, line_snr=line_snr,
-                          gauge_names=tuple(rig.gauge_names), n_points=len(points),
-                          source=scan.source, notes=tuple(notes), rig=rig_keys(rig),
-                          ratios=ratios, ratio_std=ratio_std)
+    return coords, cov * birge[:, None, None]
 
 
 WEIGHT_RANGE = 1e8
@@ -583,6 +631,10 @@ def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:
         As :func:`forcecal.model.spatial.load_model`, or a broadband document that does not read.
     """
     doc = read_model_document(path)
-    if isinstance(doc, dict) and doc.get("kind") == "broadband":
-        return BroadbandModel.from_json(doc, source=str(path))
-    return SpatialModel.from_json(doc, source=str(path))
+    kind = doc.get("kind", "harmonic") if isinstance(doc, dict) else "harmonic"
+    return MODEL_KINDS.get(kind, SpatialModel).from_json(doc, source=str(path))
+
+
+MODEL_KINDS: dict[str, type[SpatialModel] | type[BroadbandModel]] = {
+    "harmonic": SpatialModel, "broadband": BroadbandModel}
+"""A MODEL.json's ``kind`` -> the class that reads it (a harmonic model has none)."""

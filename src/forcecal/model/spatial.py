@@ -185,6 +185,10 @@ class SpatialModel:
 
     # ----------------------------------------------------------------- JSON
 
+    def harmonic(self, rig: Rig, f0: float | None) -> SpatialModel:
+        """The harmonic model of a steady run at ``f0`` [Hz]: this one."""
+        return self
+
     def to_json(self) -> dict:
         shape = shape_to_json
         return {

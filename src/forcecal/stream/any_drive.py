@@ -48,6 +48,7 @@ from ..forces.transient import (
     check_length,
     hum_notes,
     run_channels,
+    run_inputs,
     transfer_note,
     window_forces,
     with_reaction_priors,
@@ -64,7 +65,7 @@ from ..signals.wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
 
 __all__ = ["HISTORY", "LATENCY", "STEP", "WARMUP", "AnyDriveStream", "StreamChunk",
-           "stream_any_table", "stream_arrays"]
+           "stream_any", "stream_any_table", "stream_arrays"]
 
 LATENCY = 0.5
 """[s] every sample is given once this much of the record after it has arrived (at least two
@@ -367,3 +368,21 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         for text in above.notes(blocks.source):
             note(text)
     return rows
+
+
+def stream_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None
+               ) -> TransientEstimate:
+    """The real-time estimate of a run under any drive, as ``stream`` gives it
+    (:class:`AnyDriveStream`: every sample from the samples up to a fixed latency after it,
+    its setup from the run's first seconds); the batch one is
+    :func:`forcecal.forces.transient.reconstruct_any`.
+
+    Raises
+    ------
+    InputError, DataError
+        As :func:`forcecal.forces.transient.reconstruct_any`.
+    """
+    gauges, probes, zero, above = run_inputs(rig, model, run, tare)
+    live = stream_arrays(rig, model, gauges, probes, run.fs, run.t0, run.name,
+                         tare=zero, tare_fs=None if tare is None else tare.fs)
+    return dataclasses.replace(live, notes=live.notes + above)

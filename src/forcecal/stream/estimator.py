@@ -49,7 +49,8 @@ import numpy as np
 
 from ..errors import DataError, DimensionError, InputError
 from ..forces.coordinates import check_sensor_gain, choose_members, coordinate_map, member_fit
-from ..forces.steady import FREQUENCY_MISMATCH, force_solve, kept_harmonics, significant_reactions
+from ..forces.solve import force_solve, reactions_only
+from ..forces.steady import FREQUENCY_MISMATCH, kept_harmonics, significant_reactions
 from ..model.inertia import inertia_term
 from ..model.relaxation import force_matrix
 from ..model.spatial import SpatialModel, check_model_rig
@@ -368,7 +369,7 @@ class StreamEstimator:
         n_f, n_g, n_s = self._n_f, self._n_g, self._n_s
         n_out = 2 * n_f if self.ac_coupled else n_f
         c = np.zeros((n_out, len(self.channel_names), 2 * self.n_harmonics + 1))
-        from_reactions = force_solve(self._pinv, np.zeros((n_g, n_g)), np.eye(n_g))
+        from_reactions = reactions_only(self._pinv, np.eye(n_g))
         for n in self._force_harmonics:
             c[:n_f, :n_g, 0 if n == 0 else 2 * n - 1] = from_reactions
         for n, couplings, gain in self._shaped:
@@ -544,7 +545,7 @@ class StreamEstimator:
             if self._state.count % self.grid == 0:
                 self._on_grid()
         force = out[:self._n_f]
-        static = -(self._pinv @ y[:self._n_g])
+        static = reactions_only(self._pinv, y[:self._n_g])
         if self.ac_coupled:
             static -= out[self._n_f:]
         else:

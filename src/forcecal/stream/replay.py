@@ -11,12 +11,14 @@ the forces as arrays.
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
+from dataclasses import dataclass
 from pathlib import Path
-from typing import IO
+from typing import IO, Any, ClassVar
 
 import numpy as np
 
 from ..errors import DataError, InputError
+from ..forces.estimate import inertia_share_of, series_summary
 from ..io.blocks import RunBlocks
 from ..io.table_writer import CSV_DIGITS, table_writer
 from ..model.spatial import SpatialModel
@@ -24,8 +26,17 @@ from ..records import Run
 from ..rig import Rig
 from .estimator import StreamEstimator
 
-__all__ = ["bounded_forces", "replay", "stream_columns", "stream_forces", "stream_rows",
-           "stream_table", "write_stream_csv"]
+__all__ = [
+    "StreamedForces",
+    "bounded_forces",
+    "replay",
+    "stream_columns",
+    "stream_forces",
+    "stream_rows",
+    "stream_steady",
+    "stream_table",
+    "write_stream_csv",
+]
 
 Check = Callable[[np.ndarray, Mapping[str, np.ndarray], Mapping[str, np.ndarray]], None]
 """A test of each block of streamed forces before it is written: (time, forces, static)."""
@@ -272,3 +283,91 @@ def write_stream_csv(path: str | Path, time: np.ndarray, forces: Mapping[str, np
                       rows=time.size) as out:
         out.write(time, stream_rows(force.reshape(-1, time.size), stat.reshape(-1, time.size)))
     return Path(path)
+
+
+@dataclass(frozen=True)
+class StreamedForces:
+    """The forces of one run under a steady drive as the recursive estimator gives them
+    (``stream``), at every sample: an :class:`~forcecal.forces.estimate.Estimate`.
+
+    Attributes
+    ----------
+    run_name : str
+    force_names : tuple of str
+    time : (N,) array [s]
+    force, static : (n_forces, N) arrays [N]
+        With inertia, and reactions only.
+    std : (n_forces + 1, N) array [N]
+        Each force's and the total's standard uncertainty at each sample.
+    notes : tuple of str
+    """
+
+    run_name: str
+    force_names: tuple[str, ...]
+    time: np.ndarray
+    force: np.ndarray
+    static: np.ndarray
+    std: np.ndarray
+    notes: tuple[str, ...] = ()
+    formats: ClassVar[tuple[str, ...]] = ("csv",)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """The columns of ``stream``'s table after ``time`` (:func:`stream_columns`)."""
+        rows = stream_rows(self.force, self.static, self.std)
+        return dict(zip(stream_columns(self.force_names, std=True), rows, strict=True))
+
+    def force_over_time(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """One force's (or ``total``'s) samples and their standard uncertainties [N]."""
+        cols = self.columns()
+        return cols[name], cols[f"{name}_std"]
+
+    @property
+    def inertia_share(self) -> float:
+        """RMS of the AC inertia term's part in the total over the AC total's RMS [1]."""
+        return inertia_share_of(self.force.sum(axis=0), self.static.sum(axis=0))
+
+    def summary(self) -> dict:
+        """The JSON document of the run: every force's and the total's mean, AC RMS and RMS
+        uncertainty, the reactions-only AC RMS, the inertia share, the notes."""
+        return {"run": self.run_name, "drive": "steady",
+                "estimator": "recursive least squares of the harmonics",
+                **series_summary(self.columns(), self.force_names),
+                "inertia_share": self.inertia_share, "notes": list(self.notes)}
+
+    def to_dataframe(self) -> Any:
+        """The force series as a pandas DataFrame: index ``time`` [s], the columns of
+        :meth:`columns`."""
+        import pandas  # type: ignore[import-untyped]  # imported on use only
+
+        return pandas.DataFrame(self.columns(), index=pandas.Index(self.time, name="time"))
+
+    def __repr__(self) -> str:
+        """One line: the run, the total's AC RMS with its uncertainty, the inertia share."""
+        s = series_summary(self.columns(), self.force_names)["total"]
+        return (f"StreamedForces(run '{self.run_name}', total AC RMS {s['ac_rms_n']:.4g} N ± "
+                f"{s['std_n']:.2g}; inertia share {100 * self.inertia_share:.1f} %)")
+
+    def _repr_html_(self) -> str:
+        """The one line of :meth:`__repr__`, for notebooks."""
+        from html import escape
+
+        return f"<p>{escape(repr(self))}</p>"
+
+
+def stream_steady(rig: Rig, model: SpatialModel, run: Run, tare: Run | None = None,
+                  block: int = 256) -> StreamedForces:
+    """A run under a steady drive through the recursive estimator, as ``stream`` gives it
+    (with the defaults of :class:`StreamEstimator`), the tare's gauge DC taken off.
+
+    Raises
+    ------
+    InputError, DataError
+        As :func:`replay`.
+    """
+    tare_dc = None if tare is None else [g.scale * tare.channel(g.name).mean()
+                                         for g in rig.gauges]
+    est = _estimator(rig, model, run.fs, run.t0, None, {"tare_dc": tare_dc})
+    raw = np.stack([run.channel(name) for name in est.channel_names])
+    pieces = list(stream_forces(est, [raw], block, run.t0))
+    force, static, std = (np.concatenate([p[k] for p in pieces], axis=1) for k in (1, 2, 3))
+    return StreamedForces(run.name, tuple(est.force_names), run.time, force, static, std)

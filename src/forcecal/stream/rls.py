@@ -1,63 +1,23 @@
 """The streaming estimator's kernel: recursive least squares of harmonic regressors with
 forgetting (METHOD.md section 3, step 7).
 
-What is estimated
------------------
-Every channel (gauges, probes, coil current) is written as a Fourier series whose phasors
-drift slowly,
+Every channel (gauges, probes, coil current) is a Fourier series whose phasors drift slowly,
+y_c(t_k) = X_{c,0}(k) + sum_{n=1..H} Re(X_{c,n}(k) exp(j n theta_k)), theta_k the drive's
+phase, on the regressor of :func:`forcecal.signals.harmonics.design_matrix`. The phasors of
+sample k minimize sum_{i <= k} lambda^(k-i) (y_i - phi_i^T x)^2 + lambda^k r0 |x|^2: RLS with
+forgetting factor lambda from the prior P_0 = I / r0 (``PRIOR``). Every channel shares the
+regressor, hence one information matrix; the forces follow from the phasors at every sample
+as in the batch :func:`forcecal.forces.reconstruct`.
 
-    y_c(t_k) = X_{c,0}(k) + sum_{n=1..H} Re( X_{c,n}(k) exp(j n theta_k) ),
-
-with the regressor [1, cos(theta_k), -sin(theta_k), cos(2 theta_k), ...] of
-:func:`forcecal.signals.harmonics.design_matrix` and theta_k the phase of the drive. The phasors of
-sample k minimize the exponentially weighted squared error
-
-    sum_{i <= k} lambda^(k-i) (y_i - phi_i^T x)^2  +  lambda^k r0 |x|^2,
-
-which is recursive least squares (RLS) with forgetting factor lambda started from the prior
-P_0 = I / r0 (``PRIOR``: one sample's worth of information, which keeps the first, poorly
-conditioned samples finite and fades as lambda^k). Every channel shares the regressor, hence
-one information matrix. The forces at sample k follow from the phasors exactly as in the batch
-:func:`forcecal.forces.reconstruct` (Q_n from the probes, J_n = m_n (-(n w0)^2) Q_n,
-F_n = Psi^+ (J_n - R_n)), evaluated at that sample: F(t_k) = sum_n Re(F_n(k) exp(j n theta_k)).
-
-The exact block form chosen
----------------------------
-:func:`rls_update` is the textbook information form (R_k = lambda R_{k-1} + phi_k phi_k^T,
-b_k = lambda b_{k-1} + phi_k y_k, x_k = R_k^{-1} b_k) vectorized over a block: the reference
-implementation, O(p^3) per sample with p = 2H+1.
-
-:func:`harmonic_update` computes the same x_k for the harmonic regressor in O(p) per sample
-and channel. The regressor is a rotating phasor: phi_i = T(theta_i) phi(0), T a block rotation
-by n theta_i. In the frame that rotates with the drive, the information matrix
-
-    M_k = T_k^T R_k T_k = lambda^k r0 I + sum_{d=0}^{k-1} lambda^d phi(-d a) phi(-d a)^T,
-
-(a = w0 / fs) no longer depends on the data nor on the absolute phase; its entries are the
-geometric sums g_m = sum_d lambda^d exp(j m a d) = (1 - (lambda e^{jma})^k) / (1 - lambda e^{jma}),
-m = 0..2H, in closed form (:func:`harmonic_information`). The right-hand side in that frame is
-the demodulated and exponentially averaged signal, T_k^T b_k <-> exp(j n theta_k) d_n(k) with
-d_n(k) = lambda d_n(k-1) + y_k exp(-j n theta_k): a first-order IIR per harmonic (a complex
-resonator), which a block evaluates at once as a scaled cumulative sum. Hence
-
-    x_k = T_k M_k^{-1} [exp(j n theta_k) d_n(k)]          (exact RLS, no approximation).
-
-After lambda^k < ``STEADY_TOL`` (about 37 / (1 - lambda) samples) M_k equals its stationary
-value to rounding and one inverse serves every sample; the linear readout to the forces is then
-folded into the channel mixing, so that a sample costs O(p n_channels) for the demodulation and
-O(p n_forces) for the cumulative sums. Before that, each sample gets its own solve of M_k
-(start-up only). The demodulation is the "demodulate and low-pass" view of RLS; the exact M_k
-is what removes the ripple at 2 n w0 that a plain first-order low-pass of the demodulated
-signal leaves (about (1 - lambda) / (2 n a) of each phasor, 4 % for a memory of two periods).
-
-A block is processed in pieces that end on a fixed grid of sample counts (``grid``, one drive
-period); the frequency tracker acts only on that grid, so the result does not depend on how the
-samples were split into blocks (to rounding: 1e-15 relative once the window spans a period,
-1e-12 during the first period, where the conditioning of M_k amplifies rounding).
-
-The per-sample loops (demodulation, cumulative sums, readout, and the start-up's solves of
-M_k) run compiled (:mod:`forcecal.stream.compiled`); ``compiled=False`` runs them as whole-array
-NumPy, the reference the compiled loops are tested against (equal to rounding).
+:func:`rls_update` is the textbook information form, the reference (O(p^3) per sample,
+p = 2H+1). :func:`harmonic_update` computes the same estimate, exactly, in O(p) per sample and
+channel: in the frame that rotates with the drive the information matrix has a closed form
+(:func:`harmonic_information`) and the right-hand side is the demodulated, exponentially
+averaged signal (derived in their docstrings). A block is processed in pieces that end on
+a fixed grid of sample counts (``grid``, one drive period) and the frequency tracker acts only
+there, so the result does not depend on how the samples were split into blocks (to rounding).
+The per-sample loops run compiled (:mod:`forcecal.stream.compiled`); ``compiled=False`` runs
+them as whole-array NumPy, the reference they are tested against.
 """
 
 from __future__ import annotations
@@ -222,13 +182,23 @@ def harmonic_information(lam: float, step: float, n_harmonics: int,
                          prior: float = PRIOR) -> np.ndarray:
     """Information matrix M_k of the harmonic regressor in the rotating frame.
 
+    The regressor is a rotating phasor: phi_i = T(theta_i) phi(0), T a block rotation by
+    n theta_i. In the frame that rotates with the drive the information matrix
+
+        M_k = T_k^T R_k T_k = lambda^k r0 I + sum_{d=0}^{k-1} lambda^d phi(-d a) phi(-d a)^T
+
+    (a = w0 / fs) depends neither on the data nor on the absolute phase; its entries are the
+    geometric sums g_m = sum_d lambda^d exp(j m a d) = (1 - (lambda e^{jma})^k) /
+    (1 - lambda e^{jma}), m = 0..2H, in closed form.
+
     Parameters
     ----------
     lam : forgetting factor
     step : [cycles per sample] f0 / fs
     n_harmonics : H
     count : samples seen, scalar or (n,); None for the stationary value (count -> infinity)
-    prior : r0
+    prior : r0 (``PRIOR``, one sample's worth of information: it keeps the first, poorly
+        conditioned samples finite and fades as lambda^k)
 
     Returns
     -------
@@ -388,6 +358,24 @@ def harmonic_update(state: HarmonicState, y: np.ndarray, lam: float,
                     readout: np.ndarray | None = None, prior: float = PRIOR, *,
                     compiled: bool = True) -> tuple[HarmonicState, np.ndarray]:
     """Exact RLS of harmonic regressors over a block, at the state's constant frequency.
+
+    The same x_k as :func:`rls_update` (the information form R_k = lambda R_{k-1} +
+    phi_k phi_k^T, b_k = lambda b_{k-1} + phi_k y_k, x_k = R_k^{-1} b_k), in O(p) per sample
+    and channel. In the frame that rotates with the drive, M_k is
+    :func:`harmonic_information`'s and the right-hand side is the demodulated, exponentially
+    averaged signal, T_k^T b_k <-> exp(j n theta_k) d_n(k) with d_n(k) = lambda d_n(k-1) +
+    y_k exp(-j n theta_k): a first-order IIR per harmonic (a complex resonator), which a block
+    evaluates at once as a scaled cumulative sum. Hence, with no approximation,
+
+        x_k = T_k M_k^{-1} [exp(j n theta_k) d_n(k)].
+
+    Once lambda^k < ``STEADY_TOL`` M_k equals its stationary value to rounding and one inverse
+    serves every sample; the linear readout is then folded into the channel mixing
+    (:func:`mixing`), so that a sample costs O(p n_channels) for the demodulation and
+    O(p n_out) for the cumulative sums. Before that, each sample gets its own solve of M_k
+    (start-up only). This is the "demodulate and low-pass" view of RLS; the exact M_k is what
+    removes the ripple at 2 n w0, about (1 - lambda) / (2 n a) of each phasor, that a plain
+    first-order low-pass of the demodulated signal leaves.
 
     Parameters
     ----------
