@@ -21,13 +21,13 @@ from forcecal.model.inertia import mass_weights
 from forcecal.model.relaxation import force_matrix, relaxation_shapes
 from forcecal.model.spatial import build_spatial_model
 from forcecal.rig import parse_rig, rig_to_dict
+from forcecal.simulate.physics import relaxation_modes
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import (
     build_model,
     measure_run,
     measure_scan,
     public_rig,
-    relaxation_modes,
     run_truth,
     scan_response,
     simulate_response,

@@ -165,7 +165,7 @@ def test_steady_model_from_broadband(beam, bb_model):
     of its mass coupling to its value at a probe is the FE beam's own at that frequency
     (achieved within 0.057 % at 36-180 Hz with the smoothed ratios, 0.40 % with each line's
     own; test 0.17 %, where one shape for all is up to 7.2 % off)."""
-    from forcecal.simulate.virtual_rig import _inertia
+    from forcecal.simulate.physics import _inertia
 
     preset, model, phi, rig, modal = beam
     sm = steady_model(bb_model, rig, 36.0, 6)

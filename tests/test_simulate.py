@@ -36,14 +36,9 @@ from forcecal.simulate.integrate import (
     steady_oversample,
 )
 from forcecal.simulate.magnet import MU0, Drive, Magnet, Pole
+from forcecal.simulate.physics import relaxation_modes
 from forcecal.simulate.presets import NoiseSpec, get_preset
-from forcecal.simulate.virtual_rig import (
-    build_model,
-    public_rig,
-    record_run,
-    record_scan,
-    relaxation_modes,
-)
+from forcecal.simulate.virtual_rig import build_model, public_rig, record_run, record_scan
 
 # Named tolerances.
 FREQ_RTOL = 1e-3          # FE eigenfrequencies vs Euler-Bernoulli (60 elements: ~4e-7)

@@ -24,14 +24,9 @@ from forcecal.simulate.beam import hermite_row
 from forcecal.simulate.export import write_simulation
 from forcecal.simulate.integrate import _Stepper, integrate, lead_time
 from forcecal.simulate.magnet import Drive
+from forcecal.simulate.physics import _magnets_at
 from forcecal.simulate.presets import BeamSpec, NoiseSpec, RunSpec, ScanSpec, get_preset
-from forcecal.simulate.virtual_rig import (
-    _magnets_at,
-    build_model,
-    record_run,
-    scan_offsets,
-    scan_response,
-)
+from forcecal.simulate.virtual_rig import build_model, record_run, scan_offsets, scan_response
 from forcecal.simulate.waveforms import BandLimitedRandom, MultiTone, PeriodicChirp, SweptSine
 
 FS = 10_000.0

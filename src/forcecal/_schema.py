@@ -17,12 +17,7 @@ from .errors import InputError
 from .model._orthonormal_basis import FAMILIES, n_functions
 
 __all__ = [
-    "CALIBRATION_FORMAT",
     "MAX_DOCUMENT_BYTES",
-    "MAX_HARMONIC",
-    "MAX_NUMBER",
-    "MAX_ORDER",
-    "MODEL_FORMAT",
     "check_calibration_document",
     "check_model_document",
     "reject_constant",

@@ -29,20 +29,21 @@ from .actuator import Calibration, Law, predict, predict_flux
 from .campaign import CampaignResult, calibrate_campaign, write_calibration
 from .campaign import load_calibration as _load_calibration
 from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
-from .forces.steady import reconstruct
+from .drives import drive_of
+from .forces.estimate import Estimate
 from .io.run_files import read_run
 from .io.scan_files import read_scan as _read_scan
-from .model.spatial import SpatialModel, build_spatial_model, load_model
-from .records import Scan, ScanFRF, ScanSpectra
-from .rig import Rig, load_rig
+from .model.broadband import BroadbandModel, load_any_model
+from .model.spatial import SpatialModel
+from .records import Run, Scan, ScanFRF, ScanSpectra
+from .rig import Rig
 
-# load_rig, read_run, build_spatial_model, load_model and reconstruct are re-exported unchanged.
+# load_rig and read_run are re-exported unchanged.
 __all__ = [
     "build_spatial_model",
     "calibrate",
     "load_calibration",
     "load_model",
-    "load_rig",
     "predict",
     "predict_flux",
     "read_run",
@@ -111,8 +112,8 @@ def calibrate(
     ----------
     rig : Rig
         The rig; ``rig.actuator`` names the current (and flux) channels.
-    scan_or_model : Scan or SpatialModel
-        The SLDV scan, or the spatial model already built from it.
+    scan_or_model : Scan, ScanSpectra, ScanFRF, SpatialModel or BroadbandModel
+        The SLDV scan, or the model already built from it.
     manifest_path : str or Path
         The campaign manifest CSV (runs, static gaps, tares).
     progress : callable, optional
@@ -145,7 +146,7 @@ def calibrate(
     >>> result = forcecal.calibrate(rig, scan, "manifest.csv")   # doctest: +SKIP
     >>> result.calibration                                       # doctest: +SKIP
     """
-    model = (scan_or_model if isinstance(scan_or_model, SpatialModel)
+    model = (scan_or_model if isinstance(scan_or_model, SpatialModel | BroadbandModel)
              else build_spatial_model(rig, scan_or_model))
     return calibrate_campaign(rig, model, manifest_path, progress=progress, workers=workers,
                               laws=laws, ac_only=ac_only, samples_per_period=samples_per_period)
@@ -176,3 +177,117 @@ def load_calibration(path: str | Path) -> Calibration:
     >>> forcecal.actuator.predict(cal, 1.5, 1e-3).total          # doctest: +SKIP
     """
     return _load_calibration(path)
+
+
+def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
+                        n_harmonics: int = 6, criterion: str = "gcv",
+                        basis: str = "polynomial") -> SpatialModel | BroadbandModel:
+    """The spatial model of a scan, as the rig's drive builds it: harmonic shapes and their
+    mass couplings from a steady scan (:func:`forcecal.model.spatial.build_spatial_model`), or
+    from a broadband scan (``acquisition.band``) the shapes over its band
+    (:func:`forcecal.model.broadband.build_broadband_model`).
+
+    Parameters
+    ----------
+    rig : Rig
+    scan : Scan, ScanSpectra or ScanFRF
+        From :func:`read_scan`.
+    n_harmonics : int
+        Harmonics 1..H considered (a steady scan).
+    criterion : {"gcv", "bic"}
+        How each shape's order is chosen.
+    basis : {"polynomial", "modes"}
+        The shapes' family (a steady scan).
+
+    Returns
+    -------
+    SpatialModel or BroadbandModel
+
+    Examples
+    --------
+    >>> model = forcecal.build_spatial_model(rig, scan)          # doctest: +SKIP
+    """
+    return drive_of(rig).build_model(rig, scan, n_harmonics=n_harmonics, criterion=criterion,
+                                     basis=basis)
+
+
+def load_model(path: str | Path) -> SpatialModel | BroadbandModel:
+    """Read a ``MODEL.json`` written by ``forcecal scan``: a harmonic model or a broadband one.
+
+    Raises
+    ------
+    InputError
+        Naming the file, when it is missing, not JSON, or not a model.
+    """
+    return load_any_model(path)
+
+
+def reconstruct(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
+                n_harmonics: int | None = None, tare: Run | None = None,
+                ac_coupled: bool = False, monte_carlo: int = 0) -> Estimate:
+    """The forces of one run, as the rig's drive estimates them: harmonic phasors and their
+    series under a steady drive (:class:`~forcecal.forces.estimate.ForceEstimate`), or forces
+    sample by sample under any drive
+    (:class:`~forcecal.forces.transient.TransientEstimate`); both answer
+    :class:`~forcecal.forces.estimate.Estimate`.
+
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel or BroadbandModel
+        From :func:`build_spatial_model` or :func:`load_model`.
+    run : Run
+        The recording (gauge, sensor and current channels named as in the rig).
+    n_harmonics : int, optional
+        Steady drive: harmonics 1..H estimated (default: the model's).
+    tare : Run, optional
+        A zero-current record: its mean gauge (and under any drive probe) values are the zero.
+    ac_coupled : bool
+        Steady drive: the gauges have no DC (piezoelectric).
+    monte_carlo : int
+        Steady drive: draws of a Monte Carlo of the inputs (GUM S1) beside the linear budget.
+
+    Returns
+    -------
+    Estimate
+
+    Raises
+    ------
+    InputError
+        A model of another rig, or an option the drive has no use for.
+    DataError
+        Channels the method cannot use (named).
+
+    Examples
+    --------
+    >>> est = forcecal.reconstruct(rig, model, forcecal.read_run("runs/r01.csv"))  # doctest: +SKIP
+    >>> est.to_dataframe()[["total", "total_static"]]                             # doctest: +SKIP
+    """
+    return drive_of(rig).reconstruct(rig, model, run, n_harmonics=n_harmonics, tare=tare,
+                                     ac_coupled=ac_coupled, monte_carlo=monte_carlo)
+
+
+def stream(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
+           tare: Run | None = None) -> Estimate:
+    """A run through the real-time estimator of the rig's drive, as ``forcecal stream`` gives
+    it: the recursive harmonic estimator under a steady drive, the fixed-latency one sample by
+    sample under any drive (or with a broadband model).
+
+    Parameters
+    ----------
+    rig : Rig
+    model : SpatialModel or BroadbandModel
+    run : Run
+    tare : Run, optional
+        A zero-current record, as :func:`reconstruct`.
+
+    Returns
+    -------
+    Estimate
+        Its forces at every sample, with their standard uncertainties.
+
+    Examples
+    --------
+    >>> live = forcecal.stream(rig, model, forcecal.read_run("runs/r01.csv"))  # doctest: +SKIP
+    """
+    return drive_of(rig).stream_run(rig, model, run, tare)

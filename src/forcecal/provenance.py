@@ -11,6 +11,8 @@ from collections.abc import Sequence
 from datetime import UTC, datetime
 from pathlib import Path
 
+from ._version import __version__
+
 __all__ = ["file_digest", "provenance"]
 
 _CHUNK = 1 << 20
@@ -51,8 +53,6 @@ def provenance(inputs: Sequence[str | Path], argv: Sequence[str] | None = None) 
         ``forcecal_version``, ``created_utc`` (ISO 8601, seconds), ``command`` (the command
         line, shell-quoted), ``python``, and ``inputs``: ``[{"path", "bytes", "sha256"}]``.
     """
-    from ._version import __version__
-
     args = list(sys.argv if argv is None else argv)
     if args:
         args[0] = Path(args[0]).name

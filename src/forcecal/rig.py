@@ -17,26 +17,19 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ._toml import TableReader, channel_map, check_numbers, node_channel, parse_node_channel
+from ._toml import TableReader, channel_map, check_numbers
 from .errors import RigError
 from .structures import KINDS, UP, LumpedMass, Structure, locations
 
 __all__ = [
-    "DRIVES",
     "Actuator",
     "ForcePoint",
     "Gauge",
     "LumpedMass",
     "Rig",
     "Sensor",
-    "Structure",
     "TypeB",
     "load_rig",
-    "locations",
-    "node_channel",
-    "parse_node_channel",
-    "parse_rig",
-    "read_acquisition",
     "rig_to_dict",
 ]
 
@@ -265,7 +258,8 @@ class Rig:
     exported as FRFs (their noise follows from it and their coherence); None when not given."""
     drive: str = "steady"
     """``acquisition.drive``: "steady" (periodic at one fundamental, the harmonic path) or
-    "any" (swept, multi-tone or random: forces sample by sample, :mod:`forcecal.forces.transient`)."""
+    "any" (swept, multi-tone or random: forces sample by sample,
+    :mod:`forcecal.forces.transient`)."""
 
     @property
     def gauge_names(self) -> list[str]:

@@ -6,17 +6,15 @@ The magnetising current ``i_m`` follows the coil current ``i`` through a first-o
 whose current has phasors I_n (n = 0..H), ``I_m,n = I_n / (1 + j n 2 pi f0 tau)``, the DC
 unchanged. Small-signal, at a fixed gap, the force's component at f relative to i^2's is
 ``H(f) = 1 / (1 + j 2 pi f tau)``: ``K(f) = K / sqrt(1 + (2 pi f tau)^2)``, and the force lags
-i^2 by ``atan(2 pi f tau)``.
+i^2 by ``atan(2 pi f tau)`` (METHOD.md section 5, a law beyond eq. 18).
 
 A stepped-sine campaign gives one :class:`SteadyRecord` per run: the current, the gaps and the
-reconstructed total force at ``n`` instants spread evenly over exactly one period of the run's
-fundamental (what :class:`forcecal.campaign.CalibrationSamples` holds,
-:meth:`SteadyRecord.from_samples`), with the standard uncertainty of the force's harmonic
-phasors. :func:`forcecal.actuator.frequency_fit.fit_frequency_law` fits them (how, and how the
-uncertainty is computed, is told there) into a :class:`FrequencyLaw`: K, s_fe and tau with
-their covariance, the calibrated frequency range and a table of :class:`FrequencyStep`, the
-non-parametric K(f) and lag(f) at every frequency step. A calibration file carries the law as
-its ``frequency_law`` (:meth:`FrequencyLaw.to_json`).
+reconstructed total force at ``n`` instants over exactly one period of the run's fundamental
+(:meth:`SteadyRecord.from_samples`), with the standard uncertainty of the force's harmonic
+phasors. :func:`forcecal.actuator.frequency_fit.fit_frequency_law` fits them into a
+:class:`FrequencyLaw`: K, s_fe and tau with their covariance, the calibrated frequency range
+and a table of :class:`FrequencyStep`, the non-parametric K(f) and lag(f) at every step. A
+calibration file carries the law as its ``frequency_law`` (:meth:`FrequencyLaw.to_json`).
 
 Shapes: ``n`` instants per run, ``n_poles`` poles, ``H+1`` harmonics 0..H. SI units
 throughout (lags in degrees where the name says ``deg``).
@@ -32,14 +30,9 @@ import numpy as np
 
 from .._schema import _covariance, _Doc
 from ..errors import DimensionError, InputError
+from .gaps import fourier_series
 
-__all__ = [
-    "FREQUENCY_PARAM_NAMES",
-    "FREQUENCY_PARAM_UNITS",
-    "FrequencyLaw",
-    "FrequencyStep",
-    "SteadyRecord",
-]
+__all__ = ["FrequencyLaw", "FrequencyStep", "SteadyRecord"]
 
 FREQUENCY_PARAM_NAMES = ("K", "s_fe", "tau")
 """The parameters of a :class:`FrequencyLaw`, in the order of its covariance."""
@@ -170,8 +163,6 @@ class SteadyRecord:
             force_std = _noise_std(noise)
         shared: tuple[tuple[str, np.ndarray, np.ndarray], ...] = ()
         if noise is not None:
-            from .gaps import fourier_series
-
             shared = tuple(
                 (e.name, fourier_series(e.total, f0, t),
                  -fourier_series(e.motion, f0, t).T)          # the gap is s_0 - w
@@ -284,7 +275,8 @@ class FrequencyLaw:
     dof : int
         Its degrees of freedom (harmonic values minus parameters).
     covariance_scale : float
-        The factor ``c`` applied to ``(J^T J)^-1`` (see the module docstring).
+        The factor ``c`` applied to ``(J^T J)^-1`` (see
+        :func:`~forcecal.actuator.frequency_fit.fit_frequency_law`).
     """
 
     k: float

@@ -5,32 +5,13 @@ METHOD.md section 5 fits the actuator's law against the instantaneous gap of eve
 from the spatial model and the run's generalized coordinates,
 ``w(x_p, t) = w_dc(x_p) + sum_n Re(phi_n(x_p) Q_n exp(j n w0 t))``.
 
+The harmonic shapes say nothing about the static (DC) deflection, which the probes' DC values
+(minus the tare's) measure: they are fitted with one quasi-static shape
+(:func:`quasi_static_shape`, which tells the approximation's limits), and that shape gives
+the DC deflection at the poles (:func:`pole_motion`).
+
 Shapes: ``n_poles`` force points of the actuator, ``H`` the highest harmonic, ``n_t`` instants.
 SI units throughout.
-
-Notes
------
-The DC deflection. The harmonic shapes phi_n come from the scan and say nothing about the static
-(DC) deflection, yet the DC pull of the magnet bends the structure by a sizeable fraction of the
-gap. The probes measure it: their DC values (minus the tare record's, which fixes the probes'
-zero at zero current) are fitted by least squares with ONE quasi-static shape, the real part of
-the fundamental's shape phi_1 after rotating it to its most real phase, and that shape gives the
-DC deflection at the poles. This is an approximation whose limits are:
-
-- phi_1 is the response at w0, so it carries the inertia loading of the drive frequency; the
-  static shape lacks it. The error grows like (f0 / f1)^2 relative to the first bending
-  resonance f1 (a 20 Hz drive below a 71 Hz mode leaves well under 1 % of the DC deflection);
-  near a resonance the approximation fails.
-- The DC load must be distributed over the poles like the AC load: true for one magnet whose
-  poles carry one flux, not for several magnets driven with different DC/AC ratios.
-- Any other static load (preload, a change of gravity sag) must be in the tare.
-- With more probes than one, the misfit of the probes' DC to the shape is reported per run
-  (``dc_misfit``); it is the warning sign that the quasi-static shape does not hold.
-
-A model built from a broadband scan (:func:`forcecal.model.broadband.steady_model`) has measured the
-quasi-static shape itself, the operating shape at the lowest line of its band, and takes it
-instead (``SpatialModel.static_shape``): on the ``sweep`` rig the fundamental's shape had put
-the DC gap 1.4 um (0.18 %) off at 100 Hz, above the first mode, which moved K(f) by +0.2 %.
 """
 
 from __future__ import annotations
@@ -81,7 +62,26 @@ def quasi_static_shape(model: SpatialModel, rig: Rig) -> Callable[[np.ndarray], 
 
     The fundamental's shape phi_1 (or the lowest harmonic the model has) is rotated by the
     phase that makes it most real, ``theta = arg(sum phi^2) / 2`` over the structure, and its
-    real part is taken (see the module docstring for the limits of this approximation).
+    real part is taken.
+
+    The harmonic shapes come from the scan and say nothing about the static deflection, yet
+    the DC pull of the magnet bends the structure by a sizeable fraction of the gap. The
+    probes measure it: their DC values (minus the tare record's, which fixes the probes' zero
+    at zero current) are fitted by least squares with this ONE shape, which then gives the DC
+    deflection at the poles. This is an approximation whose limits are:
+
+    - phi_1 is the response at w0, so it carries the inertia loading of the drive frequency;
+      the static shape lacks it. The error grows like (f0 / f1)^2 relative to the first
+      bending resonance f1; near a resonance the approximation fails.
+    - The DC load must be distributed over the poles like the AC load: true for one magnet
+      whose poles carry one flux, not for several magnets driven with different DC/AC ratios.
+    - Any other static load (preload, a change of gravity sag) must be in the tare.
+    - With more probes than one, the misfit of the probes' DC to the shape is reported per run
+      (``dc_misfit``); it is the warning sign that the quasi-static shape does not hold.
+
+    A model built from a broadband scan (:func:`forcecal.model.broadband.steady_model`) has
+    measured the quasi-static shape itself, the operating shape at the lowest line of its band
+    (``SpatialModel.static_shape``), and that shape is taken instead.
 
     Parameters
     ----------

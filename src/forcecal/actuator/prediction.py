@@ -29,8 +29,14 @@ from .laws import Law, get_law
 if TYPE_CHECKING:
     from .fitting import LawFit
 
-__all__ = ["FREQUENCY_EXTRAPOLATION", "Calibration", "ExtrapolationWarning", "Prediction",
-           "predict", "predict_flux"]
+__all__ = [
+    "FREQUENCY_EXTRAPOLATION",
+    "Calibration",
+    "ExtrapolationWarning",
+    "Prediction",
+    "predict",
+    "predict_flux",
+]
 
 _CALIBRATION_FORMAT = "forcecal-calibration"
 _CALIBRATION_VERSION = 1

@@ -1,35 +1,18 @@
-"""Parameter covariance of a fitted law by propagation, not from the residuals.
+"""Parameter covariance of a fitted law by propagation, not from the residuals (METHOD.md
+sections 5 and 7, "the whole uncertainty").
 
 The residual covariance ``s^2 (J^T J)^-1`` of :func:`forcecal.actuator.fit_law` takes every
 observation as an independent draw. The samples of a campaign are not: each run's samples are a
-Fourier series of a few harmonic phasors (sixty-four instants carry at most ``2 H + 1``
-independent values), and some errors are common to every run (a shared tare record, the scan's
-shapes, a sensor's scale). Here the errors are described explicitly.
+Fourier series of a few harmonic phasors (at most ``2 H + 1`` independent values), and some
+errors are common to every run (a shared tare record, the scan's shapes, a sensor's scale).
+Here the errors are described explicitly:
 
-*Noise columns* (:class:`NoiseColumns`). The observations' errors are written as a sum of
-independent unit normal variables ``z_c``: column ``c`` moves the force, the current and the
-gaps of every observation together by ``(F_c, i_c, s_c)`` per unit of ``z_c``. A column may
-touch one run (a harmonic of its force, of its current, a coordinate of its probes) or every run
-(the tare's DC, the scan's shapes), which is how correlation is expressed. The fit's linear
-response to a column is
-
-    d theta_c = -(J^T J)^-1 J^T D_c / w,   D_c = dm/di i_c + sum_p dm/ds_p s_c,p - F_c
-
-with ``J`` the Jacobian of the fitted residuals ``(m - F) / w``, ``m`` the model of the total
-force and ``w`` the residual's denominator; the parameters' covariance is
-``sum_c d theta_c d theta_c^T``. For an AC-only law the model and the measured force are
-zero-mean per run, and so is ``D_c``.
-
-*Run scatter* (:func:`run_scatter`). The covariance clustered by run (a sandwich estimator):
-each run's residuals pushed through the fit, ``d theta_g = -(J^T J)^-1 J_g^T r_g``, and
-``G / (G - 1) sum_g d theta_g d theta_g^T`` over the ``G`` runs. It needs no noise model but
-counts a misfit of the law as scatter, and with few runs it is itself uncertain.
-
-*Systematic effects* (:func:`systematic_effect`). A type-B error (a sensor's scale, the static
-gaps) moves all the data at once, possibly nonlinearly: the data are moved by +1 and by -1
-standard uncertainty of the effect, the law is refitted from the fitted parameters each time,
-and the central difference ``(theta(+1) - theta(-1)) / 2`` is the effect's contribution; its
-outer product is its covariance.
+- *noise columns* (:class:`NoiseColumns`), independent unit sources that move the force, the
+  current and the gaps, propagated linearly through the fit (:func:`column_effects`);
+- *run scatter* (:func:`run_scatter`), the covariance clustered by run (a sandwich
+  estimator), which needs no noise model;
+- *systematic effects* (:func:`systematic_effect`), type-B errors applied by +-1 standard
+  uncertainty and refitted.
 
 Shapes: ``n_obs`` observations, ``n_poles`` poles, ``n_params`` parameters of a law, ``n_cols``
 noise columns. SI units throughout.
@@ -54,6 +37,12 @@ __all__ = ["NoiseColumns", "column_effects", "covariance_of", "run_scatter", "sy
 @dataclass(frozen=True)
 class NoiseColumns:
     """The observations' errors as independent unit sources.
+
+    The errors are written as a sum of independent unit normal variables ``z_c``: column ``c``
+    moves the force, the current and the gaps of every observation together by
+    ``(F_c, i_c, s_c)`` per unit of ``z_c``. A column may touch one run (a harmonic of its
+    force, of its current, a coordinate of its probes) or every run (the tare's DC, the scan's
+    shapes), which is how correlation is expressed.
 
     Attributes
     ----------
@@ -152,6 +141,15 @@ def column_effects(law: Law, params: np.ndarray, data: CalibrationData,
                    columns: NoiseColumns) -> np.ndarray:
     """The fitted parameters' change per unit of every noise column (linear propagation).
 
+    The fit's linear response to a column is
+
+        d theta_c = -(J^T J)^-1 J^T D_c / w,   D_c = dm/di i_c + sum_p dm/ds_p s_c,p - F_c
+
+    with ``J`` the Jacobian of the fitted residuals ``(m - F) / w``, ``m`` the model of the
+    total force and ``w`` the residual's denominator; the parameters' covariance is
+    ``sum_c d theta_c d theta_c^T`` (:func:`covariance_of`). For an AC-only law the model and
+    the measured force are zero-mean per run, and so is ``D_c``.
+
     Parameters
     ----------
     law : Law
@@ -213,6 +211,11 @@ def systematic_effect(law: Law, params: np.ndarray,
                       move: Callable[[float], CalibrationData]) -> np.ndarray:
     """The parameters' change per standard uncertainty of a systematic effect, by refitting.
 
+    A type-B error (a sensor's scale, the static gaps) moves all the data at once, possibly
+    nonlinearly: the data are moved by +1 and by -1 standard uncertainty of the effect, the
+    law is refitted from the fitted parameters each time, and the central difference is the
+    effect's contribution; its outer product is its covariance.
+
     Parameters
     ----------
     law : Law
@@ -239,6 +242,10 @@ def systematic_effect(law: Law, params: np.ndarray,
 
 def run_scatter(law: Law, params: np.ndarray, data: CalibrationData) -> np.ndarray | None:
     """The parameters' covariance clustered by group (run): a sandwich estimator.
+
+    Each run's residuals are pushed through the fit, ``d theta_g = -(J^T J)^-1 J_g^T r_g``. It
+    needs no noise model but counts a misfit of the law as scatter, and with few runs it is
+    itself uncertain.
 
     Parameters
     ----------

@@ -10,11 +10,9 @@ chooses the law. The samples of one run are a Fourier series of a few phasors, n
 independent observations: the parameters' uncertainty is propagated from the noise of those
 phasors and from the rig's type-B uncertainties.
 
-The modules: :mod:`.runs` (the runs of a manifest reconstructed, :func:`reconstruct_campaign`),
-:mod:`.samples` (a run's samples, :func:`run_samples`, and their pooling,
-:func:`calibration_data`), :mod:`.noise` (what a run's errors do to its samples,
-:class:`RunNoise`), :mod:`.statistics` (the parameters' statistical and type-B uncertainty,
-:func:`parameter_uncertainty`), :mod:`.repeatability` (the spread over repeated setpoints),
+The modules: :mod:`.runs` (:func:`reconstruct_campaign`), :mod:`.samples` (:func:`run_samples`,
+:func:`calibration_data`), :mod:`.noise` (:class:`RunNoise`, what a run's errors do to its
+samples), :mod:`.statistics` (:func:`parameter_uncertainty`), :mod:`.repeatability`,
 :mod:`.calibrate` (:func:`calibrate_runs`, :func:`calibrate_campaign`) and :mod:`.result`
 (:class:`CampaignResult`, ``calibration.json`` and the text report).
 
@@ -24,26 +22,18 @@ Shapes: ``n_poles`` force points of the actuator, ``n`` samples. SI units throug
 from __future__ import annotations
 
 from ..actuator import ACOnlyLaw
-from ..actuator.gaps import PoleMotion, pole_motion, quasi_static_shape
-from .calibrate import CURRENT_GAP_LAWS, calibrate_campaign, calibrate_runs
-from .noise import RunNoise, run_noise
-from .repeatability import Repeatability
-from .result import CampaignResult, ReactionsOnly, load_calibration, report_text, write_calibration
-from .runs import PARALLEL_MIN_RUNS, RunResult, reconstruct_campaign, rig_for_entry
-from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, calibration_data, run_samples
-from .statistics import ParameterUncertainty, noise_columns, parameter_uncertainty
+from ..actuator.gaps import pole_motion
+from .calibrate import calibrate_campaign, calibrate_runs
+from .noise import RunNoise
+from .result import CampaignResult, load_calibration, report_text, write_calibration
+from .runs import RunResult, reconstruct_campaign, rig_for_entry
+from .samples import CalibrationSamples, calibration_data
+from .statistics import noise_columns, parameter_uncertainty
 
 __all__ = [
-    "CURRENT_GAP_LAWS",
-    "DEFAULT_SAMPLES_PER_PERIOD",
-    "PARALLEL_MIN_RUNS",
     "ACOnlyLaw",
     "CalibrationSamples",
     "CampaignResult",
-    "ParameterUncertainty",
-    "PoleMotion",
-    "ReactionsOnly",
-    "Repeatability",
     "RunNoise",
     "RunResult",
     "calibrate_campaign",
@@ -53,11 +43,8 @@ __all__ = [
     "noise_columns",
     "parameter_uncertainty",
     "pole_motion",
-    "quasi_static_shape",
     "reconstruct_campaign",
     "report_text",
     "rig_for_entry",
-    "run_noise",
-    "run_samples",
     "write_calibration",
 ]

@@ -1,29 +1,13 @@
-"""What the errors of one run do to its calibration samples: :class:`RunNoise`.
+"""What the errors of one run do to its calibration samples: :class:`RunNoise` (METHOD.md
+sections 5 and 7, "the whole uncertainty").
 
 A run's calibration samples (:mod:`forcecal.campaign.samples`) are Fourier series of a few
 phasors: the total force's (from the force estimate), the current's (its harmonic fit) and the
 displacement at the poles (the probes' coordinates on the scan's shapes, and the probes' DC on
 the quasi-static shape). Their errors are therefore errors of those phasors, and
-:func:`run_noise` describes them per source, as standard uncertainties or as signed changes per
-standard uncertainty:
-
-- the force's own noise (the estimate's budget: ``gauge noise``, ``unresolved harmonics``,
-  and ``probe noise`` of harmonics without coordinates), independent between runs;
-- the current's noise, from its harmonic fit, independent between runs;
-- the probes' noise through the coordinates ``Q_n``: one error of ``Q_n`` moves both the
-  inertia force (``dF/dQ``) and the pole displacement (``dw/dQ``), so the two are kept together;
-  the probes' DC moves the quasi-static deflection;
-- the tare record's noise, in the gauges' DC and the probes' zero: shared by every run that
-  used the same tare;
-- the scan's shapes: one error of the shape coefficients (along each principal direction of
-  their covariance, Re and Im) moves the mass couplings, the coordinates fitted to the probes,
-  the shape at the poles and the quasi-static shape of every run at once; each run's resulting
-  change of its total force and pole displacement is computed with the estimate's formulas;
-- the rig's type-B parameters (:func:`forcecal.forces.budget.parameters`), each as its signed change of
-  the total force's phasors and of the pole displacement per standard uncertainty, with the
-  estimate's own force solve and the displacement computed as :func:`forcecal.actuator.gaps.pole_motion`
-  does.
-
+:func:`run_noise` describes them per source (the force's, the current's and the probes' noise,
+the tare record's, the scan's shapes and the rig's type-B parameters), as standard
+uncertainties or as signed changes per standard uncertainty.
 :mod:`forcecal.campaign.statistics` turns these into noise columns and systematic effects for
 the calibration's parameters.
 
@@ -49,7 +33,7 @@ from ..records import Run
 from ..rig import Rig
 from ..signals.harmonics import HarmonicFit, fit_harmonics
 
-__all__ = ["CoordinateNoise", "RunNoise", "SharedEffect", "pole_phasors", "run_noise"]
+__all__ = ["RunNoise", "run_noise"]
 
 FORCE_NOISE_SOURCES = ("gauge noise", "unresolved harmonics", "probe noise")
 """The estimate's budget sources carried by :attr:`RunNoise.force_std` (``probe noise`` only
@@ -93,7 +77,8 @@ class SharedEffect:
         The error (for a type-B parameter its rig key, as :func:`forcecal.forces.budget.parameters`
         names it).
     source : str
-        Its budget source (``tare record``, ``scan shapes``, :data:`forcecal.forces.budget.SOURCES`).
+        Its budget source (``tare record``, ``scan shapes``,
+        :data:`forcecal.forces.budget.SOURCES`).
     total : (H+1,) complex array [N]
         Change of the total force's phasors.
     motion : (n_poles, H+1) complex array [m]
@@ -419,6 +404,29 @@ def run_noise(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
     Returns
     -------
     RunNoise
+
+    Notes
+    -----
+    The sources, as standard uncertainties or as signed changes per standard uncertainty:
+
+    - the force's own noise (the estimate's budget: ``gauge noise``, ``unresolved
+      harmonics``, and ``probe noise`` of harmonics without coordinates), independent
+      between runs;
+    - the current's noise, from its harmonic fit, independent between runs;
+    - the probes' noise through the coordinates ``Q_n``: one error of ``Q_n`` moves both the
+      inertia force (``dF/dQ``) and the pole displacement (``dw/dQ``), so the two are kept
+      together; the probes' DC moves the quasi-static deflection;
+    - the tare record's noise, in the gauges' DC and the probes' zero: shared by every run
+      that used the same tare;
+    - the scan's shapes: one error of the shape coefficients (along each principal direction
+      of their covariance, Re and Im) moves the mass couplings, the coordinates fitted to the
+      probes, the shape at the poles and the quasi-static shape of every run at once; each
+      run's resulting change of its total force and pole displacement is computed with the
+      estimate's formulas;
+    - the rig's type-B parameters (:func:`forcecal.forces.budget.parameters`), each as its
+      signed change of the total force's phasors and of the pole displacement per standard
+      uncertainty, with the estimate's own force solve and the displacement computed as
+      :func:`forcecal.actuator.gaps.pole_motion` does.
     """
     h = int(estimate.harmonics[-1])
     row = estimate.combination_names.index("total")

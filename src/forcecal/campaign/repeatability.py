@@ -15,7 +15,7 @@ import numpy as np
 from ..io.manifest import ManifestEntry
 from .runs import RunResult
 
-__all__ = ["Repeatability", "repeatability"]
+__all__ = ["Repeatability"]
 
 _Setpoint = tuple[Any, ...]
 """``(gap, sorted per-pole gaps, sorted labels but repeat)`` of a manifest row."""

@@ -27,7 +27,6 @@ from .statistics import ParameterUncertainty
 __all__ = [
     "CampaignResult",
     "ReactionsOnly",
-    "k_total_of",
     "load_calibration",
     "report_text",
     "write_calibration",

@@ -2,9 +2,10 @@
 
 Each run contributes ``samples_per_period`` instants spread over one period of its fitted
 Fourier series, holding the coil current [A], the instantaneous air gap of every pole [m] (see
-:mod:`forcecal.actuator.gaps`), the reconstructed total actuator force (reactions plus inertia) [N] and
-beside it the reactions-only total, and the flux through a pole [Wb] when the rig names a flux
-channel. :func:`calibration_data` pools the samples of the runs for :mod:`forcecal.actuator`.
+:mod:`forcecal.actuator.gaps`), the reconstructed total actuator force (reactions plus
+inertia) [N] and beside it the reactions-only total, and the flux through a pole [Wb] when the
+rig names a flux channel. :func:`calibration_data` pools the samples of the runs for
+:mod:`forcecal.actuator` (METHOD.md section 5).
 
 Shapes: ``n_poles`` force points of the actuator, ``n`` samples. SI units throughout.
 """

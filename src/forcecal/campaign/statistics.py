@@ -1,36 +1,14 @@
-"""The uncertainty of a campaign's calibration parameters: :func:`parameter_uncertainty`.
+"""The uncertainty of a campaign's calibration parameters: :func:`parameter_uncertainty`
+(METHOD.md sections 5 and 7, "the whole uncertainty").
 
 The law is fitted to the runs' calibration samples (:mod:`forcecal.campaign.calibrate`), but
 the samples of one run are not independent observations: they are a Fourier series of the
-run's force, current and pole-displacement phasors, so sixty-four instants carry no more
-information than the dozen phasors behind them, and some errors are common to every run. The
-parameters' covariance is therefore not the fit's residual one, ``s^2 (J^T J)^-1``, but
-propagated from the errors of the phasors (:mod:`forcecal.actuator.propagation`):
-
-Statistical part (noise; what a repeated campaign would scatter by). Every error of a run
-(:class:`forcecal.campaign.noise.RunNoise`) becomes one or more *noise columns*, each moving
-that run's samples as the Fourier series of a unit change of one phasor component (Re or Im of
-one harmonic of the force, of the current, of a coordinate of the probes, the DC of the
-quasi-static deflection) times its standard uncertainty. Errors shared by runs are columns that
-move every such run at once: the tare record's gauge and probe means (every run that
-subtracted that tare) and the scan's shapes (a common complex fraction of every run's inertia
-phasor at each harmonic). The parameters move by ``d theta_c = -(J^T J)^-1 J^T D_c / w`` per
-column (``D_c`` the column's change of the model minus the force, linearized), and the
-statistical covariance is ``sum_c d theta_c d theta_c^T``, grouped by source for the budget.
-
-Type-B part (systematic; the same in every run of the campaign, so never averaged down by the
-number of runs). Each effect is applied to every run at once by +-1 standard uncertainty, the
-law refitted from the fitted parameters, and the central difference taken: the current sensor's
-scale (``rig.type_b.current_scale``, relative), every static gap shifted together
-(``rig.type_b.gap``), and each of the force estimate's type-B parameters (each gauge's and each
-probe's sensitivity, every position, every mass: :func:`forcecal.forces.budget.parameters`) as its
-signed change of every run's force and pole displacement. Their covariances add to the
-statistical one (the effects are independent); the budget groups them by source.
-
-Beside them: the residual covariance (as if every sample were independent; what a fit of the
-pooled samples reports) and the run-clustered sandwich ``sum_runs (d theta_r)(d theta_r)^T``
-with ``d theta_r`` each run's residuals pushed through the fit (it also sees a misfit of the
-law, which no repetition of the campaign would average out).
+run's force, current and pole-displacement phasors, and some errors are common to every run.
+The parameters' covariance is therefore not the fit's residual one, ``s^2 (J^T J)^-1``, but
+propagated from the errors of the phasors (:mod:`forcecal.actuator.propagation`): a
+statistical part from every run's noise (:func:`noise_columns`) and a type-B part from the
+rig's systematic errors, each refitted; the residual covariance and the run-clustered
+sandwich are kept beside. :func:`parameter_uncertainty` tells how.
 
 Shapes: ``n_params`` parameters of the law, ``n_obs`` pooled samples. SI units throughout.
 """
@@ -61,7 +39,6 @@ if TYPE_CHECKING:
 
 __all__ = [
     "COVERAGE_FACTOR",
-    "STATISTICAL_SOURCES",
     "TYPE_B_SOURCES",
     "ParameterUncertainty",
     "noise_columns",
@@ -399,6 +376,36 @@ def parameter_uncertainty(fit: LawFit, data: CalibrationData, results: Sequence[
     ------
     FitError
         When a refit of a type-B effect fails.
+
+    Notes
+    -----
+    *Statistical part* (noise; what a repeated campaign would scatter by). Every error of a run
+    (:class:`forcecal.campaign.noise.RunNoise`) becomes one or more *noise columns*, each
+    moving that run's samples as the Fourier series of a unit change of one phasor component
+    (Re or Im of one harmonic of the force, of the current, of a coordinate of the probes, the
+    DC of the quasi-static deflection) times its standard uncertainty. Errors shared by runs
+    are columns that move every such run at once: the tare record's gauge and probe means
+    (every run that subtracted that tare) and the scan's shapes (a common complex fraction of
+    every run's inertia phasor at each harmonic). The parameters move by
+    ``d theta_c = -(J^T J)^-1 J^T D_c / w`` per column (``D_c`` the column's change of the
+    model minus the force, linearized), and the statistical covariance is
+    ``sum_c d theta_c d theta_c^T``, grouped by source for the budget.
+
+    *Type-B part* (systematic; the same in every run of the campaign, so never averaged down by
+    the number of runs). Each effect is applied to every run at once by +-1 standard
+    uncertainty, the law refitted from the fitted parameters, and the central difference
+    taken: the current sensor's scale (``rig.type_b.current_scale``, relative), every static
+    gap shifted together (``rig.type_b.gap``), and each of the force estimate's type-B
+    parameters (each gauge's and each probe's sensitivity, every position, every mass:
+    :func:`forcecal.forces.budget.parameters`) as its signed change of every run's force and
+    pole displacement. Their covariances add to the statistical one (the effects are
+    independent); the budget groups them by source.
+
+    Beside them: the residual covariance (as if every sample were independent; what a fit of
+    the pooled samples reports) and the run-clustered sandwich
+    ``sum_runs (d theta_r)(d theta_r)^T`` with ``d theta_r`` each run's residuals pushed
+    through the fit (it also sees a misfit of the law, which no repetition of the campaign
+    would average out).
     """
     law, params = fit.law, fit.params
     p = law.n_params

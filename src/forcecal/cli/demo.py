@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["run_demo"]
+__all__: list[str] = []
 
 
 def run_demo(out: Path, progress: Callable[[str], None] = lambda _m: None) -> Path:

@@ -17,7 +17,6 @@ from pathlib import Path
 
 import numpy as np
 
-from ..cluster.jobs import calibrate_job, campaign_folders, reconstruct_job
 from ..cluster.pool import run_jobs
 from ..errors import ForcecalError, InputError
 from .parser import PROG, build_parser, check_arguments
@@ -230,6 +229,7 @@ def _check_distinct_names(paths) -> None:
 
 
 def _cmd_reconstruct(args) -> int:
+    from ..cluster.jobs import reconstruct_job
     from ..drives import drive_of
     from ..io.results import write_estimate
     from ..io.staging import staged_folder
@@ -281,6 +281,7 @@ def _workers(args, n_jobs: int) -> int:
 
 def _cmd_calibrate(args) -> int:
     from ..campaign import calibrate_campaign, write_calibration
+    from ..cluster.jobs import calibrate_job, campaign_folders
     from ..io.staging import staged_folder
 
     rig = _load_rig(args)

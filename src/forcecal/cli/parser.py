@@ -6,7 +6,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-__all__ = ["PROG", "ArgumentError", "build_parser", "check_arguments"]
+__all__: list[str] = []
 
 PROG = "forcecal"
 

@@ -1,6 +1,8 @@
-"""Many jobs at once: a process pool on this machine, or a Dask cluster (:mod:`.pool`), and
-the jobs the commands spread over them (:mod:`.jobs`)."""
+"""Many jobs at once (INTERFACES.md section 5: ``--workers``, ``--scheduler``): a process pool
+on this machine, or a Dask cluster (:mod:`.pool`), and the jobs the commands spread over them
+(:mod:`.jobs`)."""
 
-from .pool import pool_map, run_jobs, single_threaded_workers
 
-__all__ = ["pool_map", "run_jobs", "single_threaded_workers"]
+from .pool import pool_map, run_jobs
+
+__all__ = ["pool_map", "run_jobs"]

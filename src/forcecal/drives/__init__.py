@@ -19,4 +19,4 @@ def drive_of(rig: Rig) -> Drive:
     return DRIVES[rig.drive](rig)
 
 
-__all__ = ["DRIVES", "AnyDrive", "Drive", "SteadyDrive", "drive_of"]
+__all__ = ["drive_of"]

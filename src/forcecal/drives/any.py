@@ -53,20 +53,22 @@ class AnyDrive:
         """What ``scan`` prints: the band and the shapes."""
         return [band_line(model, output)]
 
-    def check_options(self, rig: Rig, *, ac_coupled: bool = False, monte_carlo: int = 0,
-                      memory: bool = False) -> None:
+    def check_options(self, rig: Rig, *, n_harmonics: int | None = None,
+                      ac_coupled: bool = False, monte_carlo: int = 0) -> None:
         """Refuse the options of the harmonic estimate: forces sample by sample have no
         harmonics to drop the DC of, and no Monte Carlo of their inputs."""
-        for given, option in ((ac_coupled, "--ac-coupled"), (monte_carlo, "--monte-carlo")):
+        for given, option in ((n_harmonics is not None, "n_harmonics"),
+                              (ac_coupled, "--ac-coupled"), (monte_carlo, "--monte-carlo")):
             if given:
                 raise InputError(f"rig '{rig.source}': {option} serves a steady drive's harmonic "
                                  "estimate; under acquisition.drive = 'any' the forces come "
                                  "sample by sample with their stated uncertainty")
 
-    def reconstruct(self, rig: Rig, model: Any, run: Run, *, tare: Run | None = None,
-                    ac_coupled: bool = False, monte_carlo: int = 0) -> TransientEstimate:
+    def reconstruct(self, rig: Rig, model: Any, run: Run, *, n_harmonics: int | None = None,
+                    tare: Run | None = None, ac_coupled: bool = False, monte_carlo: int = 0) -> TransientEstimate:
         """The batch estimate of a run's forces, sample by sample."""
-        self.check_options(rig, ac_coupled=ac_coupled, monte_carlo=monte_carlo)
+        self.check_options(rig, n_harmonics=n_harmonics, ac_coupled=ac_coupled,
+                           monte_carlo=monte_carlo)
         return reconstruct_any(rig, _broadband(rig, model), run, tare)
 
     def stream_run(self, rig: Rig, model: Any, run: Run, tare: Run | None = None

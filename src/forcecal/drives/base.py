@@ -11,7 +11,7 @@ from ..errors import InputError
 from ..records import Run
 from ..rig import Rig
 
-__all__ = ["Drive", "Note", "refuse_report", "refuse_scans"]
+__all__ = ["Drive"]
 
 Note = Callable[[str], None]
 """Where a note is said (the command line prints it)."""
@@ -46,13 +46,13 @@ class Drive(Protocol):
         """What ``scan`` prints of the model it wrote to ``output``."""
         ...
 
-    def reconstruct(self, rig: Rig, model: Any, run: Run, *, tare: Run | None = None,
-                    ac_coupled: bool = False, monte_carlo: int = 0) -> Any:
+    def reconstruct(self, rig: Rig, model: Any, run: Run, *, n_harmonics: int | None = None,
+                    tare: Run | None = None, ac_coupled: bool = False, monte_carlo: int = 0) -> Any:
         """A run's estimate (an :class:`~forcecal.forces.estimate.Estimate`)."""
         ...
 
-    def check_options(self, rig: Rig, *, ac_coupled: bool = False, monte_carlo: int = 0,
-                      memory: bool = False) -> None:
+    def check_options(self, rig: Rig, *, n_harmonics: int | None = None,
+                      ac_coupled: bool = False, monte_carlo: int = 0) -> None:
         """Refuse the options this drive has no use for."""
         ...
 

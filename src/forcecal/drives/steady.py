@@ -25,7 +25,7 @@ from ..stream.any_drive import stream_any, stream_any_table
 from ..stream.replay import StreamedForces, stream_steady, stream_table
 from .base import Note, refuse_report, refuse_scans
 
-__all__ = ["MONTE_CARLO_SEED", "SteadyDrive"]
+__all__ = ["SteadyDrive"]
 
 MONTE_CARLO_SEED = 20260101
 """Seed of ``reconstruct --monte-carlo``: the same draws on every run and every worker."""
@@ -78,16 +78,17 @@ class SteadyDrive:
                                      for k, n in enumerate(model.harmonics)))
         return lines + [f"note: {note}" for note in model.notes]
 
-    def check_options(self, rig: Rig, *, ac_coupled: bool = False, monte_carlo: int = 0,
-                      memory: bool = False) -> None:
+    def check_options(self, rig: Rig, *, n_harmonics: int | None = None,
+                      ac_coupled: bool = False, monte_carlo: int = 0) -> None:
         """Every option serves a steady drive."""
 
-    def reconstruct(self, rig: Rig, model: Any, run: Run, *, tare: Run | None = None,
-                    ac_coupled: bool = False, monte_carlo: int = 0) -> ForceEstimate:
+    def reconstruct(self, rig: Rig, model: Any, run: Run, *, n_harmonics: int | None = None,
+                    tare: Run | None = None, ac_coupled: bool = False, monte_carlo: int = 0) -> ForceEstimate:
         """A run's harmonic estimate, with a Monte Carlo of its inputs when ``monte_carlo``
         draws are asked (GUM S1)."""
         harmonic = model.harmonic(rig, rig.drive_frequency)
-        est = reconstruct_steady(rig, harmonic, run, tare=tare, ac_coupled=ac_coupled)
+        est = reconstruct_steady(rig, harmonic, run, n_harmonics=n_harmonics, tare=tare,
+                                 ac_coupled=ac_coupled)
         return with_monte_carlo(rig, harmonic, run, est, tare, monte_carlo) if monte_carlo \
             else est
 

@@ -1,4 +1,4 @@
-"""The type-B part of the uncertainty budget (GUM; METHOD.md section 6).
+"""The type-B part of the uncertainty budget (GUM; METHOD.md sections 6 and 7).
 
 Noise is not the only source of error in a force estimate: the gauges' and probes' sensitivities
 are known to a calibration's uncertainty, the positions of gauges, force points and probes to a
@@ -10,16 +10,12 @@ moments).
 Linear propagation (GUM 5.1): each parameter theta_i (a gauge's or a probe's scale, one
 coordinate of one point, the distributed mass, one lumped mass) is moved by +-u(theta_i) and the
 force solve is repeated with the estimate's own formulas (the coordinate map over the members
-the run used, the mass couplings recomputed for the moved rig, the force solve); the central
-difference is the sensitivity times u. The parameters are independent, so their variances add;
-the budget groups them by source. Re and Im are pooled as for the noise.
-
-Monte Carlo (GUM Supplement 1, :func:`monte_carlo`): every parameter and every channel phasor
-drawn at once from its distribution, each draw through the same force solve; its standard
-deviation checks the linear propagation where the model is not linear over the uncertainties.
-
-The run's harmonic fits, its kept harmonics and the members each harmonic uses are held at the
-estimate's: a type-B error moves the forces, not which harmonics the data show.
+the run used, the mass couplings recomputed for the moved rig); the central difference is the
+sensitivity times u. The parameters are independent, so their variances add; the budget groups
+them by source. Monte Carlo (GUM Supplement 1, :func:`monte_carlo`) draws every parameter and
+every channel phasor at once and checks the linear propagation. The run's harmonic fits, kept
+harmonics and members are held at the estimate's: a type-B error moves the forces, not which
+harmonics the data show.
 """
 
 from __future__ import annotations
@@ -43,22 +39,14 @@ from .solve import force_solve
 from .uncertainty import combinations
 
 __all__ = [
-    "MONTE_CARLO_SOURCES",
     "SOURCES",
     "Parameter",
     "SolveInputs",
-    "TypeBMoves",
     "combination_phasors",
     "draw_std",
-    "drawn_rig",
-    "massed_rig",
     "monte_carlo",
-    "moved_rig",
     "parameters",
-    "series_type_b_variance",
-    "type_b_moves",
     "type_b_notes",
-    "type_b_variance",
 ]
 
 
@@ -435,9 +423,10 @@ def type_b_moves(rig: Rig, model: BroadbandModel) -> TypeBMoves | None:
                       scale=np.array(scale))
 
 
-def series_type_b_variance(moves: TypeBMoves | None, model: BroadbandModel, probe_shapes: np.ndarray,
-                    coordinate_map: np.ndarray, pinv: np.ndarray, acceleration: np.ndarray,
-                    inertia: np.ndarray, reactions: np.ndarray, fs: float) -> np.ndarray:
+def series_type_b_variance(moves: TypeBMoves | None, model: BroadbandModel,
+                           probe_shapes: np.ndarray, coordinate_map: np.ndarray, pinv: np.ndarray,
+                           acceleration: np.ndarray, inertia: np.ndarray, reactions: np.ndarray,
+                           fs: float) -> np.ndarray:
     """(n_forces + 1, N) [N^2]: each force's and the total's variance from the declared type-B
     uncertainties, sample by sample.
 

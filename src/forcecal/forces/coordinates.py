@@ -8,12 +8,13 @@ more coordinates than sensors (the corrected eq. 16: Nq <= NS) and sensors away 
 of phi_n: the gain of the sensor set on each shape is reported, and a set that sees a shape too
 faintly is refused (:func:`check_sensor_gain`).
 
-A model built from several scans holds a span of shapes per harmonic (:mod:`forcecal.model.spatial`);
-the run's deflection is then w_n = sum_j phi_n^(j) Q_n,j over the members that the probes need,
-chosen by :func:`choose_members`: every subset of at most NS members (METHOD.md eq. 16) that
-the sensors can tell apart is fitted, and the one with the least Akaike information criterion
-AIC = chi^2 + 2 (2 Nq) wins (chi^2 of the probes' residuals against their noise and the
-shapes' uncertainty; 2 Nq real parameters). One member is the one-scan case, unchanged.
+A model built from several scans holds a span of shapes per harmonic
+(:mod:`forcecal.model.spatial`); the run's deflection is then w_n = sum_j phi_n^(j) Q_n,j over
+the members that the probes need, chosen by :func:`choose_members`: every subset of at most NS
+members (METHOD.md eq. 16) that the sensors can tell apart is fitted, and the one with the
+least Akaike information criterion AIC = chi^2 + 2 (2 Nq) wins (chi^2 of the probes' residuals
+against their noise and the shapes' uncertainty; 2 Nq real parameters). One member is the
+one-scan case, unchanged.
 """
 
 from __future__ import annotations
@@ -30,17 +31,11 @@ from ..rig import Rig
 from ..signals.harmonics import HarmonicFit
 
 __all__ = [
-    "MIN_SENSOR_GAIN",
-    "Coordinates",
-    "MemberFit",
     "check_sensor_gain",
     "choose_members",
     "coordinate_map",
     "deflection",
-    "generalized_coordinates",
     "member_fit",
-    "sensor_gain",
-    "sensor_rows",
     "sensor_weights",
 ]
 

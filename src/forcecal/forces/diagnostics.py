@@ -29,19 +29,7 @@ from ..signals.mains import on_mains
 from ..signals.noise import GUARD
 from .coordinates import Coordinates
 
-__all__ = [
-    "DC_RATIO_TOLERANCE",
-    "DRIFT_TOLERANCE",
-    "MISFIT_QUANTILE",
-    "MISFIT_RATIO",
-    "PUSH_SIGMAS",
-    "dc_vs_ac_notes",
-    "drift_notes",
-    "mains_notes",
-    "probe_misfit_notes",
-    "pull_only_notes",
-    "span_notes",
-]
+__all__: list[str] = []
 
 MISFIT_QUANTILE = 0.999
 """Chi-square quantile above which the probes contradict a harmonic's shape..."""

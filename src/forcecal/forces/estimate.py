@@ -16,16 +16,7 @@ from .budget import MONTE_CARLO_SOURCES
 from .coordinates import Coordinates
 from .solve import SPLIT_CONDITION
 
-__all__ = [
-    "SERIES_FORMATS",
-    "Estimate",
-    "ForceEstimate",
-    "estimate_summary",
-    "inertia_share_of",
-    "series_columns",
-    "series_summary",
-    "waveform_std_series",
-]
+__all__ = ["SERIES_FORMATS", "Estimate", "ForceEstimate", "inertia_share_of", "series_summary"]
 
 _BLOCK = 1 << 16        # time stamps per block of the per-instant uncertainty
 

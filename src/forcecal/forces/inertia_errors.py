@@ -1,13 +1,14 @@
 """What the scan's errors do to the inertia under any drive (METHOD.md section 7, "any drive").
 
-The inertia of a run under any drive is J_r = m_{r,1} c_r(nu) q''_1 (:mod:`forcecal.forces.transient`):
-the first shape's coupling, corrected at every frequency to the operating shape of the
-broadband scan (:meth:`forcecal.model.broadband.BroadbandModel.inertia_correction`). Both come from
-the scan, which leaves them uncertain in three ways:
+The inertia of a run under any drive is J_r = m_{r,1} c_r(nu) q''_1
+(:mod:`forcecal.forces.transient`): the first shape's coupling, corrected at every frequency to
+the operating shape of the broadband scan
+(:meth:`forcecal.model.broadband.BroadbandModel.inertia_correction`). Both come from the scan,
+which leaves them uncertain in three ways:
 
-- the fitted shapes' coefficients (their covariance, :class:`forcecal.model.basis.ShapeFit`), which
-  move the couplings and the shapes at the probes (drawn, as the weakest shapes are known to
-  a few times their size);
+- the fitted shapes' coefficients (their covariance, :class:`forcecal.model.basis.ShapeFit`),
+  which move the couplings and the shapes at the probes (drawn, as the weakest shapes are
+  known to a few times their size);
 - the smoothed ratios a_k / a_1 of the operating shape over frequency
   (:meth:`forcecal.model.broadband.BroadbandModel.mixing_std`), which move the correction;
 - above the band, where no line was measured, the correction held at the band's top.
@@ -24,8 +25,7 @@ import numpy as np
 from ..model.broadband import BroadbandModel
 from ..signals.checks import WorstHalfSecond
 
-__all__ = ["ScanNoiseShare", "above_band_weights", "correction_sensitivities",
-           "inertia_error_weights", "scan_noise_weights", "shape_error_weights"]
+__all__ = ["ScanNoiseShare"]
 
 SHAPE_DRAWS = 400
 """Draws of the shapes' coefficients (:func:`shape_error_weights`): the variance to about 7 %."""

@@ -2,29 +2,20 @@
 section 7, "any drive").
 
 Under any drive the first shape's coordinate q_1 from the probes carries the inertia, and its
-second derivative carries the probes' noise times w^2: at the top of the band that is the
-estimate's largest error. The gauges are far quieter. The structure is linear and does not
-change while it runs, so its reactions-only force u(t) = -1^T Psi^+ R(t) (the forces the
-gauges alone would give) and the coordinate are tied, frequency by frequency, by a transfer
-that depends on the structure alone (its stiffness, mass and damping), not on the drive, the
-magnet or the gap:
+second derivative carries the probes' noise times w^2; the gauges are far quieter. The
+structure is linear and does not change while it runs, so its reactions-only force
+u(t) = -1^T Psi^+ R(t) and the coordinate are tied, frequency by frequency, by a transfer of
+the structure alone (not of the drive, the magnet or the gap):
 
     Q_1(w) = G(w) U(w),   G(s) = b_0 / (1 + a_1 s + a_2 s^2),   s = i w / w_top.
 
-With one flexible mode in the band, u = F - J is the force less the inertia, J = T(w) F with
-T = m_c phi_F s^2 / (m_1 (w_1^2 + 2 zeta w_1 s + s^2)); so Q_1 = G U with G's poles where the
-reactions vanish for a force (T = 1). Such a pole may lie on either side of the imaginary axis:
-G ties two measured signals, not a cause to its effect, and is applied over a record, never
-as a causal filter.
-
-The transfer is fitted by least squares on the band's bins (Sanathanan-Koerner iterations
-towards the output error (Q - G U) / sigma, sigma the probes' noise in one bin, which is the
-only noise that counts: the gauges' is far below it). Three parameters average the probes'
-noise over every sample of the record. :mod:`forcecal.forces.transient` then takes q_1'' as the
-gauges' part, IFFT(s^2 G U), plus the smoothed second derivative of the residual q_1 - G u:
-the probes' own evidence of what the transfer misses (a load whose pattern changes, a second
-force, a structure that is not linear). Where the transfer holds, that residual is the
-probes' noise and the smoother takes almost nothing from it.
+G's poles lie where the reactions vanish for a force, on either side of the imaginary axis: G
+ties two measured signals, not a cause to its effect, and is applied over a record, never as a
+causal filter. It is fitted by least squares on the band's bins (Sanathanan-Koerner iterations
+towards the output error (Q - G U) / sigma, sigma the probes' noise in one bin).
+:mod:`forcecal.forces.transient` then takes q_1'' as the gauges' part, IFFT(s^2 G U), plus the
+smoothed second derivative of the residual q_1 - G u: the probes' own evidence of what the
+transfer misses (a load whose pattern changes, a second force, a structure that is not linear).
 """
 
 from __future__ import annotations
@@ -36,7 +27,7 @@ import numpy as np
 
 from ..signals.mains import near_mains
 
-__all__ = ["DEN_ORDER", "NUM_ORDER", "ReactionTransfer", "filtered", "fit_reaction_transfer"]
+__all__: list[str] = []
 
 NUM_ORDER = 0
 """Order of G's numerator in s."""

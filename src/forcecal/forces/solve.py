@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["SPLIT_CONDITION", "force_solve", "reactions_only"]
+__all__ = ["force_solve", "reactions_only"]
 
 SPLIT_CONDITION = 30.0
 """cond(Psi) above which the split between the forces is flagged as poorly determined."""

@@ -1,14 +1,14 @@
 """Forces from reactions and inertia (METHOD.md sections 2 and 3, steps 5 and 6).
 
 Per harmonic n >= 1: F_n = Psi^+ (J_n - R_n) (:func:`force_solve`) with the inertia term J_n of
-:func:`forcecal.model.inertia.inertia_term`; the DC part has no inertia, F_0 = -Psi^+ (R_0 - R_0,tare).
-Which harmonics enter at all is one policy (:func:`kept_harmonics`), shared by the batch and the
-streaming estimators. The reactions-only (static) estimate, -Psi^+ R(t) sample by sample, is
-returned beside it as the baseline.
+:func:`forcecal.model.inertia.inertia_term`; the DC part has no inertia,
+F_0 = -Psi^+ (R_0 - R_0,tare). Which harmonics enter at all is one policy
+(:func:`kept_harmonics`), shared by the batch and the streaming estimators. The reactions-only
+(static) estimate, -Psi^+ R(t) sample by sample, is returned beside it as the baseline.
 
 :func:`reconstruct` is the batch estimate of one run, written as the method's steps. Standard
-uncertainties come from :mod:`forcecal.forces.uncertainty`: linear propagation from the noise of every
-channel and from the scan model's shape coefficients.
+uncertainties come from :mod:`forcecal.forces.uncertainty`: linear propagation from the noise
+of every channel and from the scan model's shape coefficients.
 """
 
 from __future__ import annotations
@@ -57,10 +57,8 @@ from .uncertainty import (
 )
 
 __all__ = [
-    "SIGNIFICANT_REACTION",
     "ForceEstimate",
     "channels_si",
-    "implied_phasors",
     "kept_harmonics",
     "reconstruct",
     "significant_reactions",

@@ -55,8 +55,6 @@ from .steady import channels_si
 from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
 
 __all__ = [
-    "RESIDUAL_MARGIN",
-    "TOP_MARGIN",
     "AnyDriveSetup",
     "TransientEstimate",
     "WindowEstimate",

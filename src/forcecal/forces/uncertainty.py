@@ -31,17 +31,7 @@ from ..rig import Rig
 from ..signals.harmonics import HarmonicFit
 from .coordinates import Coordinates, coordinate_map, sensor_weights
 
-__all__ = [
-    "ShapeOperators",
-    "combinations",
-    "gauge_variance",
-    "inertia_variance",
-    "inertia_variance_parts",
-    "shape_jacobian",
-    "shape_operators",
-    "unresolved_inertia",
-    "unresolved_inertia_bound",
-]
+__all__ = ["ShapeOperators", "shape_operators"]
 
 
 def combinations(rig: Rig) -> tuple[tuple[str, ...], np.ndarray]:

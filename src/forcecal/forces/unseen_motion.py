@@ -1,33 +1,23 @@
 """What the probes see that the scan's operating shapes do not (METHOD.md section 7, "any drive").
 
 Under any drive the inertia rests on one coordinate, the first shape's, corrected frequency by
-frequency to the operating shape of the broadband scan (:mod:`forcecal.forces.transient`). That holds
-while the run keeps the scan's load pattern. Forces that do not keep their ratio (a second
-actuator, a gap ratio changed since the scan) deflect the structure in shapes the scan never
-saw, and so does a probe whose sign, scale or position is wrong. The reactions then split
-between the forces by an inertia nobody measured: on the FE beam with two independent random
-pole forces each force is 16 % off while its stated uncertainty is 30 times smaller, and the
-total stays right (0.2 %).
+frequency to the operating shape of the broadband scan (:mod:`forcecal.forces.transient`). That
+holds while the run keeps the scan's load pattern. Forces that do not keep their ratio (a
+second actuator, a gap ratio changed since the scan) deflect the structure in shapes the scan
+never saw, and so does a probe whose sign, scale or position is wrong: the reactions then split
+between the forces by an inertia nobody measured, while their total stays right.
 
-The probes tell. At every frequency of the band their spectra should lie on the operating
-shape at the probes, p(nu) = G a(nu). Over the record's Hann segments (half overlapping):
-
-- the residual r = S - p c, c the weighted least-squares fit of each segment's probes on p;
-- its reduced chi-square per line, against the probes' noise and the operating shape's own
-  uncertainty at the probes (the ratios' and the shapes' coefficients'), averaged over the
-  lines where the probes stand clear of their noise (``LIVE_SNR``). Runs that keep the scan's
-  pattern leave 0.83 on the FE beam and 0.88-1.0 on the sweep and random rigs; two
-  independent pole forces leave 68; one probe read 1 % off, 4.9-5.3 on the rigs (2 % on the
-  FE beam: 26).
-
-Above ``MISFIT_LIMIT`` the run is noted, and every force's stated uncertainty takes a bound on
-the inertia of the unseen motion: its deflection at the probes (the residual's power above
-what noise and the shape's uncertainty explain, per unit of the first coordinate), times the
-first shape's mass coupling per unit deflection at the probes, through each force's row of
+The probes tell (:func:`probe_misfit`). At every frequency of the band their spectra should lie
+on the operating shape at the probes, p(nu) = G a(nu). Over the record's Hann segments (half
+overlapping) each segment's probes are fitted on p by weighted least squares, and the
+residual's reduced chi-square per line, against the probes' noise and the operating shape's own
+uncertainty at the probes, is averaged over the lines where the probes stand clear of their
+noise (``LIVE_SNR``). Above ``MISFIT_LIMIT`` the run is noted (:func:`unseen_notes`), and every
+force's stated uncertainty takes a bound on the inertia of the unseen motion
+(:func:`unseen_weights`): its deflection at the probes per unit of the first coordinate, times
+the first shape's mass coupling per unit deflection at the probes, through each force's row of
 Psi^+ at its full length (the worst direction). The unseen shape's own coupling is unknown, so
-the bound is wide: on the beam's independent pole forces it states each force's error 4 times
-over, and the total's 70 times (antisymmetric shapes carry no net mass, which two probes
-cannot tell).
+the bound is wide.
 """
 
 from __future__ import annotations
@@ -41,8 +31,7 @@ import scipy.signal
 from ..model.broadband import BroadbandModel
 from ..signals.mains import near_mains
 
-__all__ = ["LIVE_SNR", "MISFIT_LIMIT", "UnseenMotion", "probe_misfit", "unseen_notes",
-           "unseen_weights"]
+__all__ = ["unseen_notes"]
 
 MISFIT_LIMIT = 4.0
 """The probes' reduced chi-square off the operating shapes above which the run is noted and

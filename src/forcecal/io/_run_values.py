@@ -16,20 +16,7 @@ from ..errors import DataError, InputError
 from ..records import Run
 from ..signals.checks import check_equal_lengths, check_finite, check_plausible, check_sample_count
 
-__all__ = [
-    "RunFile",
-    "check_finite_time",
-    "decimal_resolution",
-    "finish_run",
-    "finite_number",
-    "first_irregular_step",
-    "first_line",
-    "positive_number",
-    "run_from_time",
-    "sampled_run",
-    "sampling_from_time",
-    "tdms_log",
-]
+__all__: list[str] = []
 
 _UNIFORM_RTOL = 1e-6  # allowed deviation of a time step from the mean step, relative
 _ROUNDING_CAP = 0.25  # rounded stamps excuse at most this share of a step

@@ -29,7 +29,7 @@ from ._uff_pairs import (
 from ._uff_sets import PLUS_Z, length_factor, set_type
 from ._uff_spectra import common_lines
 
-__all__ = ["COHERENCE", "FRF", "frfs_from_sets"]
+__all__: list[str] = []
 
 FRF = 4  # dataset 58 function type "frequency response function"
 COHERENCE = 6  # dataset 58 function type "coherence"

@@ -13,8 +13,7 @@ import numpy as np
 from ..errors import DataError, InputError
 from ._uff_sets import PLUS_Z, QUANTITY_OF_ORDINATE
 
-__all__ = ["MIN_MEASURED_SHARE", "Row", "check_no_missing_points", "scan_quantity", "scan_rows",
-           "split_records"]
+__all__: list[str] = []
 
 MIN_MEASURED_SHARE = 0.5
 """Fewest of the geometry's nodes, as a share, that a scan must measure (else it was cut)."""

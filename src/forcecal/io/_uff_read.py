@@ -16,7 +16,6 @@ from ..errors import DataError, InputError
 from ..records import FRF_PHASE, Scan, ScanFRF, ScanSpectra
 from ._uff_frf import COHERENCE, FRF, frfs_from_sets
 from ._uff_pairs import (
-    MIN_MEASURED_SHARE,
     Row,
     record_values,
     scan_quantity,
@@ -35,7 +34,7 @@ from ._uff_sets import (
 )
 from ._uff_spectra import spectra_from_sets
 
-__all__ = ["MIN_MEASURED_SHARE", "read_scan_uff"]
+__all__: list[str] = []
 
 _KINDS = {2: "auto spectra", 3: "cross spectra", 4: "frequency response functions",
           5: "transmissibilities", 6: "coherences", 9: "power spectral densities",

@@ -12,26 +12,7 @@ import pyuff
 
 from ..errors import InputError
 
-__all__ = [
-    "COORDINATE_SETS",
-    "FREQUENCY_ABSCISSA",
-    "GENERAL_ORDINATE",
-    "ORDINATE_OF_QUANTITY",
-    "PLUS_Z",
-    "QUANTITY_OF_ORDINATE",
-    "RATE_DIGITS",
-    "SPECTRUM",
-    "TIME_ABSCISSA",
-    "TIME_RESPONSE",
-    "first_line",
-    "geometry_of",
-    "length_factor",
-    "nodes_of",
-    "read_sets",
-    "read_uff_geometry",
-    "set_type",
-    "type_list",
-]
+__all__: list[str] = []
 
 TIME_RESPONSE = 1  # dataset 58 function type "time response"
 SPECTRUM = 12  # dataset 58 function type "spectrum" (complex lines over frequency)

@@ -23,7 +23,7 @@ from ..signals.checks import SCAN_FLOORS, SCAN_LIMITS
 from ._uff_pairs import Row, record_values, scan_quantity, scan_rows, split_records
 from ._uff_sets import SPECTRUM, TIME_ABSCISSA, length_factor, set_type
 
-__all__ = ["common_lines", "spectra_from_sets"]
+__all__: list[str] = []
 
 _LABELS = ("id1", "id2", "id3", "id4", "id5", "ordinate_axis_lab", "ordinate_axis_units_lab")
 """The text fields of a record searched for its amplitude convention."""

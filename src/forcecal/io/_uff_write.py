@@ -26,7 +26,7 @@ from ._uff_sets import (
     TIME_RESPONSE,
 )
 
-__all__ = ["write_frf_uff", "write_scan_uff"]
+__all__: list[str] = []
 
 
 def write_scan_uff(

@@ -38,8 +38,10 @@ from ..records import Run
 from ..rig import Rig
 from ..signals.checks import MIN_SAMPLES, check_record_length, check_run_for_rig
 from ._run_values import RunFile, finish_run, first_line
+from .run_channels import apply_rig
+from .run_files import read_run
 
-__all__ = ["CHECK_WINDOW", "READ_BLOCK", "RunBlocks", "check_run_blocks", "open_run_blocks"]
+__all__ = ["RunBlocks", "check_run_blocks", "open_run_blocks"]
 
 READ_BLOCK = 1 << 16
 """Samples per channel read at once."""
@@ -150,8 +152,6 @@ def open_run_blocks(path: str | Path, rig: Rig | None = None, *,
     InputError, DataError
         As :func:`~forcecal.io.run_files.read_run` for a file it refuses.
     """
-    from .run_files import read_run
-
     path = Path(path)
     suffix = path.suffix.lower()
     opened = None
@@ -168,8 +168,9 @@ def open_run_blocks(path: str | Path, rig: Rig | None = None, *,
 
 
 def check_run_blocks(rig: Rig, blocks: RunBlocks) -> RunBlocks:
-    """The checks of a run read whole and of :func:`~forcecal.signals.checks.check_run_for_rig`, over
-    the record in windows (see the module docstring).
+    """The checks of a run read whole and of
+    :func:`~forcecal.signals.checks.check_run_for_rig`, over the record in windows (see the
+    module docstring).
 
     Parameters
     ----------
@@ -225,8 +226,6 @@ def _renamed(path: Path, names: list[str], n: int, fs: float, t0: float,
     the map or the sampling is not what the block reader can take (read whole then)."""
     if rig is None:
         return {name: name for name in names}
-    from .run_channels import apply_rig
-
     marks = {name: np.broadcast_to(np.float64(k), (n,)) for k, name in enumerate(names)}
     try:
         run = apply_rig(RunFile(Run(channels=marks, fs=fs, t0=t0, name=path.stem,

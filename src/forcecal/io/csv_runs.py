@@ -31,7 +31,7 @@ import numpy as np
 
 from ..errors import DataError, InputError
 
-__all__ = ["TIME_UNITS", "CsvColumns", "read_csv_columns"]
+__all__: list[str] = []
 
 TIME_UNITS = {"": 1.0, "s": 1.0, "sec": 1.0, "ms": 1e-3, "us": 1e-6, "µs": 1e-6, "μs": 1e-6}
 """Units of the time column understood, and their factor to s."""

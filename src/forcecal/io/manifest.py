@@ -19,7 +19,7 @@ import numpy as np
 from .._atomic import write_text_atomic
 from ..errors import InputError
 
-__all__ = ["GAP_RATIO", "MAX_GAP_M", "ManifestEntry", "read_manifest", "write_manifest"]
+__all__ = ["GAP_RATIO", "ManifestEntry", "read_manifest", "write_manifest"]
 
 MAX_GAP_M = 0.1
 """Largest static gap a manifest may give [m]; a larger one is probably in mm."""

@@ -1,9 +1,9 @@
 """The force series of ``reconstruct`` in every output format: CSV, HDF5, MATLAB and UFF.
 
-Every format holds the same series (:func:`~forcecal.forces.estimate.series_columns`): the time [s]; per force and the
-``total``, the force [N]; the same with suffix ``_static`` (reactions only) [N]; and with
-suffix ``_std`` the standard uncertainty of the force at each instant [N]
-(:func:`waveform_std_series`). The self-describing formats add the phasors and the
+Every format holds the same series (:func:`~forcecal.forces.estimate.series_columns`): the
+time [s]; per force and the ``total``, the force [N]; the same with suffix ``_static``
+(reactions only) [N]; and with suffix ``_std`` the standard uncertainty of the force at each
+instant [N] (:func:`waveform_std_series`). The self-describing formats add the phasors and the
 fundamental:
 
 - CSV (``NAME.forces.csv``): the header row names the columns, as INTERFACES.md section 5
@@ -29,18 +29,10 @@ import numpy as np
 
 from ..errors import InputError
 from ..forces.estimate import SERIES_FORMATS, Estimate, ForceEstimate
+from ._uff_write import _write_sets
 from .run_files import write_table_csv
 
-__all__ = [
-    "SERIES_FORMATS",
-    "SERIES_SUFFIXES",
-    "series_json",
-    "series_units",
-    "write_forces_hdf5",
-    "write_forces_mat",
-    "write_forces_uff",
-    "write_series",
-]
+__all__: list[str] = []
 
 SERIES_SUFFIXES = dict(zip(SERIES_FORMATS, (".forces.csv", ".forces.h5", ".forces.mat",
                                            ".forces.uff"), strict=True))
@@ -119,14 +111,15 @@ def write_forces_hdf5(est: ForceEstimate, path: str | Path,
                       columns: Mapping[str, np.ndarray] | None = None) -> Path:
     """Write the force series as HDF5.
 
-    Root datasets ``time`` [s] and one per column of :func:`~forcecal.forces.estimate.series_columns` [N], each with
-    the attributes ``units`` and ``quantity`` (``force``, ``reactions-only force`` or
-    ``standard uncertainty``); a force's dataset also names its ``std`` and ``static``
-    datasets. Root attributes: ``format``, ``run``, ``fundamental_hz``, ``fundamental_std_hz``,
-    ``waveform_std_n``, ``dc_observed``, ``notes``. The group ``harmonics`` holds ``harmonic``,
-    ``frequency_hz``, ``kept``, ``with_inertia`` (H+1,) and per force and ``total`` the
-    phasors (complex [N], the convention of :mod:`forcecal.signals.harmonics`) and, suffixed
-    ``_std``, their standard uncertainties (of Re and of Im) [N].
+    Root datasets ``time`` [s] and one per column of
+    :func:`~forcecal.forces.estimate.series_columns` [N], each with the attributes ``units``
+    and ``quantity`` (``force``, ``reactions-only force`` or ``standard uncertainty``); a
+    force's dataset also names its ``std`` and ``static`` datasets. Root attributes:
+    ``format``, ``run``, ``fundamental_hz``, ``fundamental_std_hz``, ``waveform_std_n``,
+    ``dc_observed``, ``notes``. The group ``harmonics`` holds ``harmonic``, ``frequency_hz``,
+    ``kept``, ``with_inertia`` (H+1,) and per force and ``total`` the phasors (complex [N], the
+    convention of :mod:`forcecal.signals.harmonics`) and, suffixed ``_std``, their standard
+    uncertainties (of Re and of Im) [N].
 
     Parameters
     ----------
@@ -268,14 +261,14 @@ def write_forces_uff(est: ForceEstimate, path: str | Path,
                      columns: Mapping[str, np.ndarray] | None = None) -> Path:
     """Write the force series as a Universal File of dataset-58 time records (ASCII).
 
-    One record per column of :func:`~forcecal.forces.estimate.series_columns`: function type 1 (time response), ID line
-    1 the column's name, ID line 2 what it holds (``Force``, ``Force  reactions only``,
-    ``Force  std``), ID line 4 the run, ID line 5 the fundamental; response node k + 1 for the
-    k-th force (the total after the forces, its ``_static`` and ``_std`` records on the same
-    node), direction 0 (scalar); an even abscissa in s (data type 17, time; minimum the first
-    time stamp); ordinate data type 13 (excitation force, force exponent 1), unit label ``N``.
-    ``pyuff.UFF(path).read_sets()`` reads it back, and so does
-    :func:`forcecal.io.run_files.read_run` (channels named by ID line 1). Values have 12
+    One record per column of :func:`~forcecal.forces.estimate.series_columns`: function
+    type 1 (time response), ID line 1 the column's name, ID line 2 what it holds (``Force``,
+    ``Force  reactions only``, ``Force  std``), ID line 4 the run, ID line 5 the fundamental;
+    response node k + 1 for the k-th force (the total after the forces, its ``_static`` and
+    ``_std`` records on the same node), direction 0 (scalar); an even abscissa in s (data
+    type 17, time; minimum the first time stamp); ordinate data type 13 (excitation force,
+    force exponent 1), unit label ``N``. ``pyuff.UFF(path).read_sets()`` reads it back, and so
+    does :func:`forcecal.io.run_files.read_run` (channels named by ID line 1). Values have 12
     significant digits; the abscissa minimum and increment 6 (see :mod:`forcecal.io.uff`).
 
     Parameters
@@ -298,8 +291,6 @@ def write_forces_uff(est: ForceEstimate, path: str | Path,
         A column name longer than an ID line (80 characters), or fewer than two samples.
     """
     import pyuff
-
-    from ._uff_write import _write_sets
 
     cols = dict(columns) if columns is not None else est.columns()
     time = np.asarray(est.time, dtype=float)

@@ -12,7 +12,7 @@ from ..errors import DataError, InputError
 from ..forces.estimate import Estimate
 from .result_formats import SERIES_FORMATS, SERIES_SUFFIXES, series_json, write_series
 
-__all__ = ["MAX_FORCE_N", "SERIES_FORMATS", "write_estimate"]
+__all__ = ["write_estimate"]
 
 
 MAX_FORCE_N = 1e8

@@ -24,7 +24,7 @@ from ..records import Run
 from ..rig import Rig
 from ._run_values import RunFile
 
-__all__ = ["SCALE_SLACK", "SI_UNITS", "apply_rig"]
+__all__: list[str] = []
 
 SI_UNITS: dict[str, tuple[str, float]] = {
     "N": ("force", 1.0), "kN": ("force", 1e3), "mN": ("force", 1e-3),

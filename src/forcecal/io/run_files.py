@@ -1,7 +1,6 @@
 """Run recordings: CSV, NI TDMS, HDF5 and UFF time records (INTERFACES.md section 3), and
-result tables.
-
-A run file holds uniformly sampled, named channels:
+result tables. A run holds the gauges, probes and coil current of METHOD.md section 1,
+uniformly sampled, named channels:
 
 - CSV: a header row whose first column is the time, then one numeric column per channel
   (dialects of lab exports: see :mod:`forcecal.io.csv_runs`);
@@ -16,11 +15,9 @@ Given the rig, a run's channels are renamed by its ``[channels]`` map and the un
 states are checked against the rig's scales (:mod:`forcecal.io.run_channels`). A folder stands
 for the run files in it (:func:`run_paths`).
 
-Reading checks what would silently spoil an estimate and says where, in one line: no samples,
-a non-numeric cell, NaN or infinite samples, non-uniform time stamps, fewer than
-:data:`forcecal.signals.checks.MIN_SAMPLES` samples. The checks on the data themselves (sample count,
-equal lengths, finite samples, and :func:`forcecal.signals.checks.check_clipping` for saturated
-channels) live in :mod:`forcecal.signals.checks`; the ones on the file's layout and time stamps live here.
+Reading checks the file's layout and time stamps and says where, in one line (no samples, a
+non-numeric cell, NaN or infinite samples, non-uniform time stamps, too few samples); the
+checks on the data themselves live in :mod:`forcecal.signals.checks`.
 """
 
 from __future__ import annotations
@@ -52,21 +49,14 @@ from ._run_values import (
     tdms_log,
 )
 from .csv_runs import TIME_UNITS, read_csv_columns
+from .run_channels import apply_rig
+from .table_writer import table_writer
+from .uff_runs import read_uff_run
 
 if TYPE_CHECKING:
     from ..rig import Rig
 
-__all__ = [
-    "RUN_SUFFIXES",
-    "read_run",
-    "read_table_csv",
-    "run_paths",
-    "write_run_csv",
-    "write_run_hdf5",
-    "write_run_tdms",
-    "write_table_csv",
-    "write_table_hdf5",
-]
+__all__ = ["read_run", "read_table_csv", "run_paths", "write_run_csv", "write_table_csv"]
 
 _CSV_BLOCK = 1 << 16
 """Rows formatted and written at once by :func:`write_table_csv`."""
@@ -112,8 +102,6 @@ def read_run(path: str | Path, rig: Rig | None = None, *, group: str | None = No
         channel of the rig's map missing from the file; a stated unit the rig's scale does not
         convert.
     """
-    from .uff_runs import read_uff_run
-
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in RUN_SUFFIXES:
@@ -134,8 +122,6 @@ def read_run(path: str | Path, rig: Rig | None = None, *, group: str | None = No
         loaded = RunFile(_read_hdf5_run(path, group))
     if rig is None:
         return loaded.run
-    from .run_channels import apply_rig
-
     return apply_rig(loaded, rig)
 
 
@@ -432,8 +418,6 @@ def write_table_csv(path: str | Path, time: np.ndarray, columns: Mapping[str, np
             raise InputError(
                 f"table '{path}': column {name!r} has {column.size} values, time has {time.size}"
             )
-    from .table_writer import table_writer  # the compiled formatter, imported on use
-
     n = time.size
     with table_writer(path, names, 1.0, 0.0, digits=0, rows=n) as writer:
         for start in range(0, n, _CSV_BLOCK):

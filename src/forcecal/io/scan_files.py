@@ -27,7 +27,7 @@ from ..records import Scan, ScanFRF, ScanSpectra
 from ..signals.checks import check_scan_values
 from .uff import read_scan_uff
 
-__all__ = ["SCAN_SUFFIXES", "read_scan", "write_scan_hdf5", "write_scan_npz"]
+__all__ = ["read_scan"]
 
 SCAN_SUFFIXES = (".uff", ".unv", ".h5", ".hdf5", ".npz")
 _KEYS = ("x", "response", "reference", "fs", "quantity")

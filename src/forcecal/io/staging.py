@@ -29,7 +29,7 @@ from pathlib import Path
 
 from .._atomic import write_text_atomic
 
-__all__ = ["JOURNAL", "STAGING_PREFIX", "STALE_PART_S", "clean_stale", "staged_folder"]
+__all__ = ["clean_stale", "staged_folder"]
 
 STAGING_PREFIX = ".forcecal-staging-"
 """Name prefix of a staging folder, followed by the writing process's id."""

@@ -31,7 +31,7 @@ from .._atomic import atomic_path
 from ..errors import InputError
 from .text_format import format_rows
 
-__all__ = ["CSV_DIGITS", "TableWriter", "table_writer"]
+__all__ = ["CSV_DIGITS", "table_writer"]
 
 CSV_DIGITS = 9
 """Significant digits of the columns of a streamed CSV table (``'%.9g'``)."""

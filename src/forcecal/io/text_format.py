@@ -1,11 +1,12 @@
 """Numbers to CSV text, compiled: C's ``%.{P}g`` for a block of rows at once.
 
-Formatting floats one by one in Python costs about 0.3 us each, which makes text the slowest
-part of writing a long table. :func:`format_rows` writes a whole (n_rows, n_columns) block into
-one byte buffer in compiled code (Numba, cached on disk), each column with its own number of
-significant digits P (1..17), exactly as ``'%.{P}g' % value`` spells it: fixed notation for
-decimal exponents -4 <= X < P, else d.ddde+XX, trailing zeros dropped. P = 0 asks for the value
-that reads back exactly in few digits: 15 when they do (time stamps k / fs mostly), else 17.
+Formatting floats one by one in Python makes text the slowest part of writing a long table
+(the result files of METHOD.md section 3, step 6). :func:`format_rows` writes a whole
+(n_rows, n_columns) block into one byte buffer in compiled code (Numba, cached on disk), each
+column with its own number of significant digits P (1..17), exactly as ``'%.{P}g' % value``
+spells it: fixed notation for decimal exponents -4 <= X < P, else d.ddde+XX, trailing zeros
+dropped. P = 0 asks for the value that reads back exactly in few digits: 15 when they do (time
+stamps k / fs mostly), else 17.
 
 The decimal digits are the value times 10^k rounded to an integer, the product formed in
 double-double arithmetic (10^k to 106 bits, Dekker's exact product), so that the rounding is
@@ -21,7 +22,7 @@ from fractions import Fraction
 import numba
 import numpy as np
 
-__all__ = ["format_rows"]
+__all__: list[str] = []
 
 _LOW, _HIGH = -360, 360
 """Range of the tabulated powers of ten."""

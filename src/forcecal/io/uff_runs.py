@@ -29,7 +29,7 @@ from ._uff_read import _rate_from_increment
 from ._uff_sets import TIME_ABSCISSA, TIME_RESPONSE, read_sets, set_type, type_list
 from .csv_runs import TIME_UNITS
 
-__all__ = ["read_uff_run"]
+__all__: list[str] = []
 
 _ABSENT = {"", "NONE"}  # pyuff writes NONE for an ID line or label not given
 _STEP_RTOL = 1e-6  # records' increments agree to the 6 digits a UFF writes

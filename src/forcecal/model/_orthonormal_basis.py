@@ -14,22 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.polynomial import legendre
 from numpy.typing import ArrayLike
-from scipy.linalg import solve_triangular
 
 from ..errors import ConditioningError, DataError, DimensionError
 
-__all__ = [
-    "FAMILIES",
-    "PolynomialBasis",
-    "as_domain",
-    "as_points",
-    "as_weights",
-    "legendre_vandermonde",
-    "modal_functions",
-    "n_functions",
-    "orthonormal_basis",
-    "raw_functions",
-]
+__all__ = ["FAMILIES", "n_functions"]
 
 #: Smallest |R_ii| / max |R_ii| of the Vandermonde QR accepted as full rank.
 _RANK_TOL = 1e-10
@@ -341,6 +329,8 @@ def _check_inside(pts: np.ndarray, dom: np.ndarray) -> None:
 
 def _inverse_triangular(r: np.ndarray) -> np.ndarray:
     """R^-1 of an upper-triangular R."""
+    from scipy.linalg import solve_triangular  # on use: `import forcecal` stays light
+
     return solve_triangular(r, np.eye(r.shape[0]))
 
 

@@ -1,27 +1,20 @@
 """Smooth spatial shapes fitted over scan points (METHOD.md section 3, step 2).
 
-A shape phi(x) over the structure is expanded on polynomials beta_r that are orthonormal on the
-scan points in the discrete (optionally weighted) inner product
-
-    <f, g> = sum_k w_k f(x_k) g(x_k),          so that   B^T W B = I,
-
-with B[k, r] = beta_r(x_k). They are built from the Legendre Vandermonde matrix V of the
-coordinates mapped affinely to [-1, 1] over the structure's extent (not the range of the
-scan points) and the triangular factor of its QR factorization, sqrt(W) V = Q R:
-
-    beta(x) = V(x) R^-1,
-
-which can be evaluated anywhere (sensors, gauges, quadrature nodes), not only at the scan
-points. In 2-D the Vandermonde holds the products P_i(u) P_j(v) of total degree i + j < order,
-ordered by total degree, so the basis of a lower order is always the leading columns of a
-higher one.
+A shape phi(x) over the structure is expanded on polynomials beta_r orthonormal on the scan
+points in the discrete (optionally weighted) inner product <f, g> = sum_k w_k f(x_k) g(x_k),
+so that B^T W B = I with B[k, r] = beta_r(x_k). They are built from the Legendre Vandermonde
+matrix V of the coordinates mapped affinely to [-1, 1] over the structure's extent (not the
+range of the scan points) and the triangular factor of its QR factorization,
+sqrt(W) V = Q R: beta(x) = V(x) R^-1, which can be evaluated anywhere (sensors, gauges,
+quadrature nodes), not only at the scan points. In 2-D the Vandermonde holds the products
+P_i(u) P_j(v) of total degree i + j < order, ordered by total degree, so the basis of a lower
+order is always the leading columns of a higher one.
 
 ``order`` counts polynomial degrees: order p holds every polynomial of (total) degree below p,
-that is p functions in 1-D and p (p + 1) / 2 in 2-D. Order 1 is the constant (rigid
-translation), order 2 adds the rigid rotations.
-
-Complex shapes (harmonic phasors) are fitted with Re and Im sharing the same order, since they
-describe one physical shape; the order is chosen by generalized cross-validation or BIC.
+p functions in 1-D and p (p + 1) / 2 in 2-D; order 1 is the constant (rigid translation),
+order 2 adds the rigid rotations. Complex shapes (harmonic phasors) are fitted with Re and Im
+sharing one order, since they describe one physical shape, chosen by generalized
+cross-validation or BIC.
 
 The basis itself (raw functions, orthonormalization) lives in the private module
 ``_orthonormal_basis``; its public names are re-exported here.
@@ -38,31 +31,15 @@ from numpy.typing import ArrayLike
 
 from ..errors import DataError, DimensionError
 from ._orthonormal_basis import (
-    FAMILIES,
     PolynomialBasis,
     as_domain,
     as_points,
     as_weights,
-    legendre_vandermonde,
-    modal_functions,
     n_functions,
     orthonormal_basis,
-    raw_functions,
 )
 
-__all__ = [
-    "FAMILIES",
-    "PolynomialBasis",
-    "ShapeFit",
-    "fit_shape",
-    "legendre_vandermonde",
-    "modal_functions",
-    "n_functions",
-    "orthonormal_basis",
-    "project",
-    "raw_functions",
-    "shape_similarity",
-]
+__all__ = ["ShapeFit", "fit_shape"]
 
 #: Default cap on the order tried by :func:`fit_shape`.
 _MAX_ORDER = 20

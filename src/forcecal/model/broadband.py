@@ -1,38 +1,22 @@
-"""A scan under a broadband drive (a sweep, a chirp, random): the shapes over a band.
+"""A scan under a broadband drive (a sweep, a chirp, random): the shapes over a band (METHOD.md
+section 7, "any drive").
 
-Under one load pattern (forces that keep their ratio: one magnet, or a U-core whose two poles
-share one flux) the deflection at any frequency is one operating shape, and over a band these
-shapes span a few real shapes: the rigid motions, the flexible modes in the band and the
-quasi-static part of the modes above it (METHOD.md section 7, "any drive"). Finding the span
-needs no modal parameters: the magnet's negative stiffness shifts the poles of responses
-referred to the coil current, never the shapes they mix.
+Under one load pattern (forces that keep their ratio) the deflection at any frequency is one
+operating shape, and over a band these shapes span a few real shapes: the rigid motions, the
+flexible modes in the band and the quasi-static part of the modes above it. Finding the span
+needs no modal parameters. :func:`build_broadband_model`:
 
-1. Per point, the frequency response of the displacement to the reference
-   (:mod:`forcecal.model.frf`: leakage-free on the lines of a periodic drive, Welch's H1 otherwise;
-   from time records, from the spectra SLDV software exports when the drive is periodic, or
-   from its FRFs and their coherence) and the standard uncertainty of its Re and of its Im.
-2. Over the lines of the band: every line in units of its own noise, Re and Im side by side,
-   a singular value decomposition (the rank-d least-squares fit of the lines). The span keeps
-   the shapes whose singular values stand clear of those of noise alone; the lines' reduced
-   chi-square is kept beside.
-3. The span's shapes fitted over the points with the structure's basis (one order for all:
-   the highest the span's smooth patterns make plausible; patterns no smooth field explains,
-   the lines' junk, stay in the span but do not choose it) and their mass couplings by
-   quadrature (eq. 6); every line's operating shape in the span's coordinates, with their
-   covariance from the points' noise.
-4. The operating shape's ratios a_k / a_1 over frequency, smooth where the coordinates swing
-   through a resonance (they share its denominator): a smoothing spline per ratio, every line
-   weighted by its inverse variance, its roughness penalty the one of least estimated mean
-   squared error (Mallows' C_p, the lines' variances known), its uncertainty the lines' noise
-   through the spline and the spline's bias. A line-by-line ratio carries each line's noise:
-   on the beam's chirp scan its scatter at 8-12 Hz reaches 0.01-0.03, which moves the
-   operating shape at the pole by tenths of a percent.
+1. per point, the frequency response of the displacement to the reference and the standard
+   uncertainty of its Re and of its Im (:mod:`forcecal.model.frf`);
+2. over the lines of the band, each in units of its own noise, a singular value
+   decomposition: the span keeps the shapes that stand clear of noise alone;
+3. the span's shapes fitted over the points with the structure's basis (one order for all),
+   their mass couplings (eq. 6), and every line's operating shape in their coordinates;
+4. the operating shape's ratios a_k / a_1 over frequency, smoothed (:func:`smooth_ratios`).
 
 The operating shapes over the band are then a family, phi(x, nu) = sum_k phi_k(x) a_k(nu): a
-steady run takes each harmonic's own (:func:`steady_model`, the harmonic path of
-:mod:`forcecal.forces` unchanged), and any other drive takes the first shape's coordinate from
-the probes and corrects its inertia frequency by frequency (:meth:`BroadbandModel.
-inertia_correction`, :mod:`forcecal.forces.transient`).
+steady run takes each harmonic's own (:func:`steady_model`), any other drive corrects the
+first shape's inertia frequency by frequency (:meth:`BroadbandModel.inertia_correction`).
 """
 
 from __future__ import annotations
@@ -66,8 +50,13 @@ from .spatial import (
     shape_to_json,
 )
 
-__all__ = ["STEADY_HARMONICS", "BroadbandModel", "build_broadband_model", "load_any_model",
-           "steady_model"]
+__all__ = [
+    "STEADY_HARMONICS",
+    "BroadbandModel",
+    "build_broadband_model",
+    "load_any_model",
+    "steady_model",
+]
 
 MIN_COHERENCE = 0.5
 """Lines whose median coherence over the points is below this carry too little of the drive

@@ -31,8 +31,7 @@ import scipy.signal
 from ..errors import InputError
 from ..records import Scan, ScanFRF, ScanSpectra
 
-__all__ = ["COHERENCE_RESOLUTION", "NOISE_LINES", "PERIODIC_SHARE", "SEGMENTS", "ScanResponse",
-           "periods_in_record", "scan_response"]
+__all__ = ["periods_in_record"]
 
 SEGMENTS = 8
 """Welch segments aimed at per record (half overlap): the frequency resolution is about

@@ -27,7 +27,7 @@ import numpy as np
 from ..rig import Rig
 from .relaxation import relaxation_shapes
 
-__all__ = ["acceleration", "inertia_term", "mass_coupling", "mass_weights"]
+__all__ = ["inertia_term", "mass_coupling", "mass_weights"]
 
 
 def mass_weights(rig: Rig) -> tuple[np.ndarray, np.ndarray]:

@@ -26,7 +26,7 @@ import numpy as np
 from ..errors import ConditioningError
 from ..rig import Rig
 
-__all__ = ["force_matrix", "relaxation_shapes"]
+__all__ = ["force_matrix"]
 
 _MAX_COND = 1e8
 

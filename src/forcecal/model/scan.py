@@ -27,18 +27,7 @@ from ..signals.harmonics import fit_harmonics, refine_fundamental
 from ..signals.noise import GUARD, noise_power, noise_windows
 from .screening import record_weights
 
-__all__ = [
-    "GUARD",
-    "LINE_TOLERANCE",
-    "MIN_NOISE_LINES",
-    "HarmonicShapes",
-    "LinePhasors",
-    "aligned_shapes",
-    "harmonic_shapes",
-    "spectrum_phasors",
-    "steady_scan",
-    "unusable_spectra",
-]
+__all__ = ["HarmonicShapes", "harmonic_shapes"]
 
 
 # --- from scan_spectra ---

@@ -5,22 +5,15 @@ A scan record is evidence about the shape at its point only if it agrees with it
 Three things go wrong on real rigs, and each is handled here before the shapes are kept:
 
 - **Weights.** A record's weight is its inverse noise variance, and a laser dropout (a record
-  near zero) has almost no noise: left alone it would get a hundred times the median weight
-  and pull the shape through itself. Every record's noise std is floored at
-  ``NOISE_FLOOR`` times the median over the scan (:func:`record_weights`), per harmonic and
-  per record, never pooled, so one spiky record does not lower the others' weights.
-- **Records that cannot be used at all**: a reference that shows no drive (the phase of the
-  record is unknown), a response that is clipped (saturated) or not finite. They are set aside
-  with their reason before any fit (:func:`unusable_records`).
-- **Records that contradict the shape**: after a fit, every record's leave-one-out residual
-  (the residual divided by sqrt(1 - h_kk), h the fit's hat matrix, so that a record cannot hide
-  by pulling the fit through itself) is compared with the robust scale of all of them (their
-  median over the Rayleigh median); a record beyond ``OUTLIER`` such scales in a harmonic the
-  scan resolves is set aside, the worst first, and the shapes are refit
-  (:func:`screen_records`), provided it also misses the shape by ``MIN_RELATIVE`` of its RMS
-  amplitude (a clean scan's smooth shapes leave residuals of a few % where they bend
-  sharply, which are model error, not a bad record). At most ``MAX_SET_ASIDE`` of the
-  records go, so that a scan that is wrong everywhere is not quietly thinned out.
+  near zero) has almost no noise: left alone it would pull the shape through itself. Every
+  record's noise std is floored at ``NOISE_FLOOR`` times the median over the scan
+  (:func:`record_weights`), per harmonic and per record, never pooled.
+- **Records that cannot be used at all**: a reference that shows no drive, a response that is
+  clipped or not finite, set aside with their reason before any fit (:func:`unusable_records`).
+- **Records that contradict the shape**: after a fit, a record whose leave-one-out residual
+  exceeds ``OUTLIER`` robust scales in a harmonic the scan resolves, and which misses the
+  shape by ``MIN_RELATIVE`` of its RMS amplitude, is set aside, the worst first, and the
+  shapes are refit (:func:`screen_records`); at most ``MAX_SET_ASIDE`` of the records go.
 
 Every record set aside is listed with its reason: on the terminal, in the model's JSON and on
 the report's shape figure.
@@ -39,18 +32,7 @@ from ..signals.checks import check_clipping
 from .basis import ShapeFit
 from .vector_basis import VectorShapeFit
 
-__all__ = [
-    "MAX_SET_ASIDE",
-    "MIN_RELATIVE",
-    "MODEL_ERROR_SHARE",
-    "NOISE_FLOOR",
-    "OUTLIER",
-    "Screening",
-    "loo_scores",
-    "record_weights",
-    "screen_records",
-    "unusable_records",
-]
+__all__: list[str] = []
 
 NOISE_FLOOR = 0.3
 """A record's noise std is taken as at least this fraction of the scan's median."""
@@ -95,7 +77,8 @@ class Screening:
 
 def record_weights(std: np.ndarray) -> np.ndarray:
     """Relative weights 1 / std^2 of the records, each std floored at ``NOISE_FLOOR`` times
-    the median, scaled to mean 1 (equal weights for noise-free data).
+    the median, scaled to mean 1 (equal weights for noise-free data). Per harmonic and per
+    record, never pooled, so that one spiky record does not lower the others' weights.
 
     Parameters
     ----------
@@ -185,6 +168,14 @@ def screen_records(points: np.ndarray, values: np.ndarray, std: np.ndarray,
                    fit: Callable[[np.ndarray, np.ndarray, int], Fit],
                    reasons: dict[int, str]) -> Screening:
     """Set aside, one at a time, the records that contradict the fitted shapes.
+
+    After a fit, every record's leave-one-out residual (the residual divided by
+    sqrt(1 - h_kk), h the fit's hat matrix, so that a record cannot hide by pulling the fit
+    through itself) is compared with the robust scale of all of them (their median over the
+    Rayleigh median); a record beyond ``OUTLIER`` such scales in a harmonic the scan resolves,
+    which also misses the shape by ``MIN_RELATIVE`` of its RMS amplitude, is set aside, the
+    worst first, and the shapes are refit. At most ``MAX_SET_ASIDE`` of the records go, so that
+    a scan that is wrong everywhere is not quietly thinned out.
 
     Parameters
     ----------

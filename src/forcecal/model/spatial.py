@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .._atomic import write_text_atomic
-from .._schema import check_model_document, reject_constant
+from .._schema import MAX_DOCUMENT_BYTES, check_model_document, reject_constant
 from ..errors import DataError, InputError
 from ..records import Scan, ScanFRF, ScanSpectra
 from ..rig import Rig, rig_to_dict
@@ -31,19 +31,12 @@ from .screening import Screening, record_weights, screen_records, unusable_recor
 from .vector_basis import AXES, VectorShapeFit
 
 __all__ = [
-    "SAME_SHAPE",
-    "SCAN_FREQUENCY_TOLERANCE",
     "SpatialModel",
     "build_spatial_model",
     "check_model_rig",
     "check_rig_keys",
     "load_model",
     "merge_models",
-    "read_model_document",
-    "rig_keys",
-    "set_aside_notes",
-    "shape_from_json",
-    "shape_to_json",
 ]
 
 
@@ -321,8 +314,6 @@ def read_model_document(path: str | Path) -> Any:
     InputError
         A missing or oversized file, or one that is not valid JSON.
     """
-    from .._schema import MAX_DOCUMENT_BYTES
-
     path = Path(path)
     if not path.is_file():
         raise InputError(f"model '{path}': file not found")
@@ -379,8 +370,6 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF
             raise InputError("build_spatial_model: 'scan' must be a Scan or a non-empty list of "
                              "Scans (from forcecal.read_scan)")
         if len(scans) > 1:
-            from .spatial import merge_models
-
             return merge_models(rig, [build_spatial_model(rig, s, n_harmonics, criterion,
                                                           basis=basis) for s in scans])
         scan = scans[0]

@@ -22,14 +22,12 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-import scipy.linalg
 from numpy.typing import ArrayLike
 
 from ..errors import DataError, DimensionError
 from .basis import PolynomialBasis, ShapeFit, fit_shape
 
-__all__ = ["AXES", "VectorBasis", "VectorShapeFit", "as_locations", "fit_vector_shape",
-           "record_axes"]
+__all__ = ["AXES", "VectorShapeFit", "fit_vector_shape"]
 
 AXES = ("x", "y", "z")
 _ALIGNED = 1.0 - 1e-6
@@ -170,7 +168,9 @@ class VectorShapeFit:
     @cached_property
     def coefficient_covariance(self) -> np.ndarray:
         """Block diagonal: the axes are fitted to separate records."""
-        return scipy.linalg.block_diag(*[c.coefficient_covariance for c in self.components])
+        from scipy.linalg import block_diag  # on use: `import forcecal` stays light
+
+        return block_diag(*[c.coefficient_covariance for c in self.components])
 
     @property
     def order(self) -> int:

@@ -1,4 +1,5 @@
-"""Figures and an HTML report of forcecal's results.
+"""Figures and an HTML report of forcecal's results (INTERFACES.md section 5; METHOD.md
+section 6: every estimate beside the reactions-only baseline and the truth).
 
 The core stages never import this package; it draws their results. Every figure function is
 pure, ``(data...) -> matplotlib.figure.Figure``, built without pyplot (no global figure state),
@@ -17,7 +18,6 @@ from .figures import (
     fig_shapes,
     fig_signals,
     law_harmonics,
-    png_bytes,
     save_png,
 )
 from .html import Image, Preformatted, Section, Table, build_report, estimate_table, write_report
@@ -37,7 +37,6 @@ __all__ = [
     "fig_shapes",
     "fig_signals",
     "law_harmonics",
-    "png_bytes",
     "save_png",
     "write_report",
 ]

@@ -17,7 +17,7 @@ from typing import Any
 import jinja2
 from markupsafe import Markup
 
-__all__ = ["environment", "render", "style_sheet"]
+__all__: list[str] = []
 
 _NUMBER = re.compile(r"[+\-−]?(\d[\d.]*|\.\d+)(e[+\-]?\d+)?( %)?")
 """A cell that is a number (a percentage too): aligned right, in tabular figures."""

@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["NONE", "Grid", "math_text", "num", "pct", "rel", "unc", "value"]
+__all__: list[str] = []
 
 MATH = (("mu0", "μ₀"), ("phi", "φ"), ("^2", "²"), ("^a", "ᵃ"), ("^b", "ᵇ"), (" * ", " · "))
 

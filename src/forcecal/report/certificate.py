@@ -1,25 +1,23 @@
-"""The calibration certificate of a campaign: the page a calibration laboratory signs.
+"""The calibration certificate of a campaign (METHOD.md section 5): the page a calibration
+laboratory signs.
 
 :func:`calibration_certificate` is a pure ``(rig, result, provenance) -> str``: it formats every
 number of a :class:`~forcecal.campaign.CampaignResult` here, and the package's Jinja2 template
 ``templates/calibration.html.j2`` (autoescaped, with the style sheet every report shares) only
 lays them out. The certificate states
 
-- the law, as a formula and in words, and its parameters with their combined standard
-  uncertainty u (statistical and type B), the expanded uncertainty U = k u and the coverage
-  factor k (GUM 7.2), and ``K_total = n_poles K`` beside the ideal ``mu0 N^2 A / 4``;
-- the parameters' correlation matrix;
-- the calibrated range (coil current, static and instantaneous air gap, drive frequency, flux,
-  force) as the minima and maxima over the campaign's runs, and the conditions (drive frequency,
-  the ambient temperature when the rig gives ``acquisition.temperature``, the gauges' coupling);
-- the uncertainty budget: every source's standard uncertainty of every parameter, with the
-  type-B inputs and whether the rig declares each or forcecal's documented default applies;
+- the law, as a formula and in words, its parameters with their combined standard uncertainty
+  u (statistical and type B), the expanded uncertainty U = k u and the coverage factor k
+  (GUM 7.2), ``K_total = n_poles K`` beside the ideal ``mu0 N^2 A / 4``, their correlations;
+- the calibrated range (current, static and instantaneous gap, frequency, flux, force) over the
+  campaign's runs, and the conditions (drive frequency, ambient temperature, gauges' coupling);
+- the uncertainty budget, with the type-B inputs and whether the rig declares each;
 - the candidate laws and why one was chosen, the reactions-only comparison, the repeatability
   and the runs;
 - fig. 9, the provenance (version, date, command line, SHA-256 of every input) and a sign-off.
 
-Numbers are written as GUM 7.2.6 suggests: uncertainties with two significant digits, values
-to the digit of their standard uncertainty's second; ranges with six significant digits.
+Numbers are written as GUM 7.2.6 suggests (:mod:`forcecal.report.cells`); ranges with six
+significant digits.
 """
 
 from __future__ import annotations
@@ -42,7 +40,7 @@ if TYPE_CHECKING:
     from ..campaign import CampaignResult
     from ..model.spatial import SpatialModel
 
-__all__ = ["calibration_certificate"]
+__all__: list[str] = []
 
 TEMPLATE = "calibration.html.j2"
 """The certificate's template under ``templates/``."""

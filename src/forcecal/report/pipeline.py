@@ -39,7 +39,7 @@ from .html import Image, Preformatted, Section, Table, estimate_table, write_rep
 if TYPE_CHECKING:
     from ..campaign import CampaignResult
 
-__all__ = ["calibration_report", "campaign_inputs", "run_report"]
+__all__ = ["calibration_report", "run_report"]
 
 _SHAPE_FIGURES: dict[int, Callable[[HarmonicShapes, SpatialModel], Figure]] = {
     1: fig_shapes, 2: fig_shapes_2d, 3: fig_shapes_body,

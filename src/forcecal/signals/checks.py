@@ -27,19 +27,15 @@ if TYPE_CHECKING:
     from ..rig import Rig
 
 __all__ = [
-    "ABOVE_BAND",
     "MIN_SAMPLES",
     "NOISE_BLOCK",
-    "NOISE_CHANGE",
     "AboveBand",
     "WorstHalfSecond",
-    "as_records",
     "channel_noise",
     "check_channel_noise",
     "check_clipping",
     "check_equal_lengths",
     "check_finite",
-    "check_periods",
     "check_plausible",
     "check_record_length",
     "check_run_for_rig",

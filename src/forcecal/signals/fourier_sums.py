@@ -27,19 +27,7 @@ from scipy.linalg import LinAlgError, cho_factor, cho_solve, solve_triangular
 
 from ..errors import ConditioningError, DataError, DimensionError
 
-__all__ = [
-    "CHUNK",
-    "ChunkedFit",
-    "GridBasis",
-    "QRFit",
-    "check_nyquist",
-    "checked_samples",
-    "design_matrix",
-    "fit_chunked",
-    "grid_series",
-    "qr_fit",
-    "series_at",
-]
+__all__ = ["grid_series", "series_at"]
 
 CHUNK = 4096
 """Samples per chunk of the sums [samples]."""

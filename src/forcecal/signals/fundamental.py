@@ -33,7 +33,7 @@ from .fourier_sums import (
     qr_fit,
 )
 
-__all__ = ["LONG_RECORD", "fundamental_uncertainty", "refine_fundamental"]
+__all__: list[str] = []
 
 LONG_RECORD = 1 << 16
 """Records longer than this [samples] are refined on a leading subset, then on the whole

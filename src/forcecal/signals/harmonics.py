@@ -1,30 +1,23 @@
-"""Fourier series of steady periodic signals, fitted by linear least squares.
+"""Fourier series of steady periodic signals, fitted by linear least squares (METHOD.md
+section 3, step 1, and section 6).
 
-Convention
-----------
-A steady periodic signal of fundamental frequency f0 = w0 / (2 pi) is written
-
-    x(t) = X_0 + sum_{n=1..H} Re( X_n exp(j n w0 t) ),
-
-with t the *absolute* time stamp of each sample, t = t0 + k / fs (k = 0 .. N-1), so that records
-taken at different times keep their relative phase. X_0 is real (the mean) and
-X_n = A_n exp(j phi_n) carries the amplitude A_n and the phase phi_n of harmonic n (one-sided
-amplitude: a unit cosine has X_1 = 1).
+A steady periodic signal of fundamental f0 = w0 / (2 pi) is written
+x(t) = X_0 + sum_{n=1..H} Re(X_n exp(j n w0 t)), with t the *absolute* time stamp of each
+sample, t = t0 + k / fs, so that records taken at different times keep their relative phase.
+X_0 is real (the mean) and X_n = A_n exp(j phi_n) carries the amplitude A_n and the phase phi_n
+of harmonic n (one-sided amplitude: a unit cosine has X_1 = 1).
 
 The fit is ordinary least squares on the design matrix of :func:`design_matrix`; it neither
-needs nor assumes a whole number of periods in the record, so the phasors of noise-free data are
-exact either way. Time is on the last axis: ``x`` is ``(..., n_samples)`` and every channel is
-fitted with one shared QR factorization; records longer than
-:data:`~forcecal.signals.fundamental.LONG_RECORD` samples are fitted chunk by chunk from the normal
-equations (:mod:`forcecal.signals.fourier_sums`), in memory that does not grow with their length.
-The fundamental itself is refined by :func:`refine_fundamental` (:mod:`forcecal.signals.fundamental`).
+needs nor assumes a whole number of periods in the record. Time is on the last axis: every
+channel of ``x`` (..., n_samples) is fitted with one shared QR factorization; records longer
+than :data:`~forcecal.signals.fundamental.LONG_RECORD` samples are fitted chunk by chunk from
+the normal equations (:mod:`forcecal.signals.fourier_sums`). The fundamental itself is refined
+by :func:`refine_fundamental` (:mod:`forcecal.signals.fundamental`).
 
-For white noise of standard deviation sigma over N samples spanning a whole number of periods,
-Re and Im of every harmonic n >= 1 have variance 2 sigma^2 / N and the mean has sigma^2 / N
-(METHOD.md section 6, :func:`noise_bound`); for other record lengths the exact diagonal of
-(A^T A)^-1 is used. For coloured noise sigma is the level at each harmonic's own frequency,
-read off the residual's spectrum around it, and tones leaking into it are counted
-(:mod:`forcecal.signals.noise`).
+For white noise of std sigma over N samples spanning whole periods, Re and Im of every harmonic
+n >= 1 have variance 2 sigma^2 / N and the mean sigma^2 / N (:func:`noise_bound`); otherwise
+the exact diagonal of (A^T A)^-1 is used, and for coloured noise sigma is the level at each
+harmonic's own frequency, tones leaking in counted (:mod:`forcecal.signals.noise`).
 """
 
 from __future__ import annotations
@@ -49,15 +42,7 @@ from .fourier_sums import (
 from .fundamental import LONG_RECORD, fundamental_uncertainty, refine_fundamental
 from .noise import phasor_noise
 
-__all__ = [
-    "HarmonicFit",
-    "design_matrix",
-    "fit_harmonics",
-    "fundamental_uncertainty",
-    "noise_bound",
-    "refine_fundamental",
-    "significant_harmonics",
-]
+__all__ = ["HarmonicFit", "fit_harmonics", "fundamental_uncertainty", "refine_fundamental"]
 
 @dataclass(frozen=True)
 class HarmonicFit:
@@ -181,8 +166,9 @@ def fit_harmonics(
     t0 : float
         Absolute time of the first sample [s].
     chunk : int, optional
-        Samples per chunk of the normal equations (:func:`forcecal.signals.fourier_sums.fit_chunked`).
-        Default: one QR factorization of the whole design matrix for records up to
+        Samples per chunk of the normal equations
+        (:func:`forcecal.signals.fourier_sums.fit_chunked`). Default: one QR factorization of
+        the whole design matrix for records up to
         :data:`~forcecal.signals.fundamental.LONG_RECORD` samples, chunks of
         :data:`~forcecal.signals.fourier_sums.CHUNK` beyond. Either way the results agree to
         rounding.

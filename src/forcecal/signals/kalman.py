@@ -1,25 +1,23 @@
-"""A band-limited signal and its derivatives from noisy samples: Kalman filter and smoother.
+"""A band-limited signal and its derivatives from noisy samples: Kalman filter and smoother
+(METHOD.md section 7, "any drive").
 
 Each signal (a generalized coordinate, a gauge's reaction) is modelled as white noise through
 an analog Butterworth low-pass of order p at the band's top, f_c: its state is the signal and
 its first p - 1 derivatives (an integrator chain closed by the Butterworth polynomial), so the
-acceleration is a state and has a covariance. The measurement is the signal plus white noise.
-The model is time-invariant, so the filter's and the smoother's gains reach steady values
-within a few periods of f_c; they are used from the first sample (the record is extended at
-both ends by its odd reflection, as zero-phase filters do, so the start-up is cropped off):
+acceleration is a state with a covariance. The measurement is the signal plus white noise. The
+model is time-invariant, so the gains reach steady values within a few periods of f_c; they
+are used from the first sample (the record extended at both ends by its odd reflection):
 
 - filter (real time, causal): x_k = Phi x_{k-1} + K (z_k - H Phi x_{k-1}), K from the discrete
   algebraic Riccati equation;
 - smoother (batch, Rauch-Tung-Striebel): x_k^s = x_k + G (x_{k+1}^s - Phi x_k),
   G = P Phi^T P_pred^-1, its covariance from a discrete Lyapunov equation.
 
-Both recursions are linear and time-invariant state-space recursions, compiled with Numba
-(a transfer-function form of an 8th-order model sampled 100 times faster than its cutoff loses
-its digits).
-
-The prior's level is the signal's own mean power density in the band, at most ``SNR_CAP``
-times the noise's: within the band the gain is 1 to within 1 / SNR_CAP; beyond f_c the prior
-falls as f^-2p, so noise is let through only up to f_c SNR_CAP^(1/2p).
+Both are state-space recursions compiled with Numba (a transfer-function form of a high order
+loses its digits when sampled far faster than its cutoff). The prior's level is the signal's
+own mean power density in the band, at most ``SNR_CAP`` times the noise's: within the band the
+gain is 1 to within 1 / SNR_CAP; beyond f_c the prior falls as f^-2p, so noise is let through
+only up to f_c SNR_CAP^(1/2p).
 """
 
 from __future__ import annotations
@@ -31,7 +29,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
-__all__ = ["ORDER", "SNR_CAP", "BandModel", "band_model", "filter_states", "smooth_states"]
+__all__ = ["BandModel", "band_model", "smooth_states"]
 
 ORDER = 8
 """The prior's Butterworth order p: states are the signal and p - 1 derivatives."""

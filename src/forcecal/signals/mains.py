@@ -23,7 +23,7 @@ from ..errors import ForcecalError
 from .harmonics import fit_harmonics
 from .noise import GUARD
 
-__all__ = ["MAINS_HARMONICS", "hum_tones", "hum_variance", "near_mains", "on_mains"]
+__all__ = ["hum_tones", "hum_variance", "near_mains", "on_mains"]
 
 MAINS_HARMONICS = 10
 """The mains harmonics a drive harmonic is checked against."""

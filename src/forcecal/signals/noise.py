@@ -5,31 +5,18 @@ Two parts, added in variance:
 
 1. **The noise at the harmonic's frequency.** Re and Im of X_n have the variance
    sigma_n^2 diag (A^T A)^-1 of the least-squares fit, sigma_n the level of the residual's
-   spectrum around n f0 (:mod:`forcecal.signals.noise`: the lines within half a harmonic spacing,
-   clear of every harmonic, at least :data:`MIN_NOISE_LINES`, of the periodogram with the
-   tones of part 2 taken out, whose skirts would lift the lines around them). A record's
-   level is the median of all its noise lines; the harmonic's profile, relative to it, is
-   pooled over the records of one fit (a scan's points share their noise's colour). 1/f
-   noise and hum away from n f0 do not count: they do not disturb X_n; an impulse anywhere
-   in the record does, and lifts every line. For white noise sigma_n is the residual's
-   standard deviation. The mean (n = 0) takes at least the level of the lowest
-   :data:`LOWEST` lines: the noise at 0 Hz is not in the residual (its line 0 is the fitted
-   mean), and 1/f noise rises towards it.
-2. **Tones leaking into it.** A record that does not span a whole number of periods of both a
-   harmonic and a tone (a mains line, a harmonic of the drive above the last fitted) lets the
-   tone leak into the harmonic's phasor: the fit's response to a cosine and to a sine at the
-   tone's frequency, P_c and P_s, gives, for a tone of amplitude a and random phase, the
-   variance a^2 (|P_c,n|^2 + |P_s,n|^2) / 4 on Re and on Im of X_n (a^2 (P_c,0^2 + P_s,0^2) / 2
-   on the mean). The tones are the residual's lines that stand :data:`~.line_noise.STRONG`
-   times above the local level (:func:`~forcecal.signals.noise.strong_lines`). A record longer
-   than :data:`~forcecal.signals.fundamental.LONG_RECORD` samples is read in segments of
-   :data:`SEGMENT` samples (up to 16, spread over it), which tell the
-   tone's frequency only to a segment's line, not to the whole record's: there the fit's
-   response is taken as the Dirichlet kernel's envelope averaged over its oscillation,
-   a^2 / (4 (pi (f - n f0) T)^2) on Re and on Im (at most a^2 / 4).
+   spectrum around n f0 (at least :data:`MIN_NOISE_LINES` lines clear of every harmonic, the
+   tones of part 2 taken out; the harmonic's profile pooled over the records of one fit, a
+   record's level the median of all its noise lines). The mean (n = 0) takes at least the
+   level of the lowest :data:`LOWEST` lines: 1/f noise rises towards 0 Hz.
+2. **Tones leaking into it** (a mains line, a harmonic of the drive above the last fitted):
+   the residual's lines that stand :data:`STRONG` times above the local level
+   (:func:`strong_lines`), each through the fit's response to a tone of random phase
+   (:func:`_leakage`); a record longer than :data:`~forcecal.signals.fundamental.LONG_RECORD`
+   samples is read in segments of :data:`SEGMENT` samples.
 
-A tone within :data:`~forcecal.signals.noise.GUARD` lines of a harmonic cannot be told from it and
-is not counted (a drive on a mains harmonic; see the guide's section on lab conditions).
+A tone within :data:`GUARD` lines of a harmonic cannot be told from it and is not counted (a
+drive on a mains harmonic; see the guide's section on lab conditions).
 """
 
 from __future__ import annotations
@@ -41,21 +28,7 @@ from scipy.special import gammaincinv
 
 from .fundamental import LONG_RECORD
 
-__all__ = [
-    "GUARD",
-    "LOWEST",
-    "MIN_NOISE_LINES",
-    "RUNNING",
-    "SEGMENT",
-    "STRONG",
-    "clear_lines",
-    "expected_median",
-    "line_power",
-    "noise_power",
-    "noise_windows",
-    "phasor_noise",
-    "strong_lines",
-]
+__all__ = ["GUARD", "noise_power", "noise_windows"]
 
 
 # --- from line_noise ---
@@ -381,7 +354,16 @@ def phasor_noise(segment_of: Callable[[int, int], np.ndarray], n_samples: int, f
 def _leakage(tones: list[list[tuple[float, float]]], segment: int, n_samples: int, fs: float,
              f0: float, n_h: int, respond: Respond | None) -> np.ndarray:
     """(n_records, H+1) variance on Re and on Im of every harmonic from the records' tones
-    (part 2 of the module docstring)."""
+    (part 2 of the module docstring).
+
+    A record that does not span a whole number of periods of both a harmonic and a tone lets
+    the tone leak into the harmonic's phasor: the fit's response to a cosine and to a sine at
+    the tone's frequency, P_c and P_s (``respond``), gives, for a tone of amplitude a and
+    random phase, the variance a^2 (|P_c,n|^2 + |P_s,n|^2) / 4 on Re and on Im of X_n
+    (a^2 (P_c,0^2 + P_s,0^2) / 2 on the mean). A long record's segments tell the tone's
+    frequency only to a segment's line, not to the whole record's: there (``respond`` None)
+    the fit's response is taken as the Dirichlet kernel's envelope averaged over its
+    oscillation, a^2 / (4 (pi (f - n f0) T)^2) on Re and on Im (at most a^2 / 4)."""
     var = np.zeros((len(tones), n_h + 1))
     if not any(tones):
         return var

@@ -1,28 +1,23 @@
 """The record's ends: every channel carried past them by linear prediction (METHOD.md
 section 7, "any drive").
 
-The reactions' transfer to the motion has a pole on the right of the imaginary axis (where the
-reactions vanish for a force, above the first mode: :mod:`forcecal.forces.reaction_transfer`), so each
-sample's inertia takes the reactions of about a millisecond after it; the smoothers likewise
-take both sides of every sample. At a record's last samples that future is missing. Extended by
-an odd reflection, the last 2 ms of a sweep ending at 150 Hz lost up to half of the force (the
-record's last 0.5 s window 4 % off, against 0.5 % inside).
+The reactions' transfer to the motion has a pole on the right of the imaginary axis
+(:mod:`forcecal.forces.reaction_transfer`), so each sample's inertia takes the reactions of a
+little while after it, and the smoothers take both sides of every sample: at a record's ends
+that future is missing, and an odd reflection loses much of the force there.
 
 Each channel is instead carried past both ends by an autoregressive model fitted to the
 samples next to that end (covariance method: least squares on the channel's own past, of an
 order spanning ``ORDER_PERIODS`` periods of the band's top), run forward from the end and,
 on the reversed channel, backward from the start, and faded to the fitted samples' mean over
-its length by a raised cosine (what lies beyond, which the smoothers reflect, stays quiet; on
-the ``sweep`` rig the fade took the last window from 0.55 % to 0.51 %). A channel whose
-prediction grows unstable is carried by its odd reflection instead. The estimate then runs
-over the extended stretch and keeps the record's samples; each pad is a whole number of the
-Wiener frames' hops, whose grid then stays the record's (a pad of another length moved every
-frame and the estimate inside the record by up to 0.2 of its uncertainty).
+its length by a raised cosine (what lies beyond, which the smoothers reflect, stays quiet). A
+channel whose prediction grows unstable is carried by its odd reflection instead. The
+estimate then runs over the extended stretch and keeps the record's samples; each pad is a
+whole number of the Wiener frames' hops, so that their grid stays the record's.
 
 What the prediction misses is measured on the channel itself: the same model, run from a few
-cuts before the end, against the samples that follow them (:attr:`Extension.missed`). The share it
-misses, over the reach of the record's ends, scales the inertia the ends could lose
-(:mod:`forcecal.forces.transient` states it sample by sample).
+cuts before the end, against the samples that follow them (:attr:`Extension.missed`); that
+share scales the inertia the ends could lose (:mod:`forcecal.forces.transient`).
 """
 
 from __future__ import annotations
@@ -34,8 +29,7 @@ import numpy as np
 import scipy.linalg
 import scipy.signal
 
-__all__ = ["CUTS", "EXTEND_PERIODS", "FIT_ORDERS", "MAX_ORDER", "ORDER_PERIODS", "Extension",
-           "extend"]
+__all__ = ["extend"]
 
 ORDER_PERIODS = 2.0
 """The prediction's order spans this many periods of the band's top (100 samples at 10 kHz

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["PENALTIES", "SplineFamily"]
+__all__ = ["SplineFamily"]
 
 PENALTIES = 400
 """Penalties tried between those that leave every basis vector whole and those that take every

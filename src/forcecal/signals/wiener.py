@@ -1,4 +1,5 @@
-"""Short-time Wiener smoothing of force estimates whose noise spectrum is known.
+"""Short-time Wiener smoothing of force estimates whose noise spectrum is known (METHOD.md
+section 7, "any drive").
 
 A drive that moves (a sweep, a chirp, a multi-tone, random) holds, at any instant, a few hertz
 of the band the smoother of :mod:`forcecal.signals.kalman` lets through; the acceleration's noise,
@@ -10,12 +11,11 @@ smoothers' frequency responses, |Z|^2 the bin's power averaged with its neighbou
 (power subtraction with over-subtraction; Boll 1979, Berouti et al. 1979). Every sample keeps
 a standard uncertainty, summed bin by bin over its frames: the noise the gains let through,
 G^2 N, and the signal they take, (1 - G)^2 S with S = G |Z|^2 the power they keep (a bin near
-its noise loses part of its signal: on a swept tone the observed error is then 0.86 of the
-stated, 1.14 without that part; inside a random force's record 0.87-0.95, 1.01-1.13 without).
-The signals smoothed may be any orthonormal combination of the estimates (the forces' total
-and its complement): the estimates come back as combinations of them, each source's parts
-added with their phases. A steady tone of known power (mains hum) joins the noise as its
-window's transform at the frame's bins (:func:`tone_density`).
+its noise loses part of its signal). The signals smoothed may be any orthonormal combination
+of the estimates (the forces' total and its complement): the estimates come back as
+combinations of them, each source's parts added with their phases. A steady tone of known
+power (mains hum) joins the noise as its window's transform at the frame's bins
+(:func:`tone_density`).
 """
 
 from __future__ import annotations
@@ -28,8 +28,13 @@ import scipy.signal
 
 from .kalman import BandModel, smooth_states
 
-__all__ = ["FRAME_SECONDS", "ShortTimeWiener", "short_time_variance", "smoother_response",
-           "stft_frame", "tone_density", "wiener_smooth"]
+__all__ = [
+    "short_time_variance",
+    "smoother_response",
+    "stft_frame",
+    "tone_density",
+    "wiener_smooth",
+]
 
 FRAME_SECONDS = 0.2
 """Frame length aimed at: a sweep of tens of hertz per second moves a few bins within it."""

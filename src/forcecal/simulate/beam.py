@@ -16,14 +16,7 @@ import scipy.linalg
 
 from .modal import ModalModel
 
-__all__ = [
-    "BeamModel",
-    "assemble_beam",
-    "hermite_row",
-    "natural_frequencies",
-    "pinned_pinned_frequencies",
-    "pinned_static_deflection",
-]
+__all__: list[str] = []
 
 
 def _element_matrices(ei: float, rho_a: float, h: float) -> tuple[np.ndarray, np.ndarray]:

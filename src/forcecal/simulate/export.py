@@ -4,23 +4,12 @@
 is scanned under more than one load), ``OUT/runs/*.csv``, ``OUT/manifest.csv`` for the user's
 side; ``OUT/truth/NAME.forces.csv``, ``OUT/truth/NAME.npz`` and ``OUT/truth/simulator.json``
 (the parameters the lab would not know, every scan's and run's drives, reference coil and static
-gaps) for checking any estimate against the truth.
+gaps) for checking any estimate against the truth: the data sets of the virtual rig (METHOD.md
+section 6) whose true forces are known.
 
-A ``lab`` rig (``realism``, :class:`.realism.Realism`) adds a zero-current tare run when the
-preset has none, declares its type-B uncertainties in ``rig.toml``, and states every drawn error
-in the truth: ``simulator.json``'s ``realism`` (the settings, every channel's sensitivity, every
-gauge's preload, offset and zero-current reading, each run's drive drift and chirp, each scan's
-drive level and frequency at every acquisition), and each run's NPZ (its ``imperfections``,
-:class:`.virtual_rig.Truth`).
-
-A rig under broadband drives (``Preset.band``: a sweep, random) writes its scan's ``band = [lo,
-hi]`` [Hz] and ``drive = "any"`` in the rig file's ``[acquisition]``; its runs that are not
-listed (``RunSpec.manifest`` false: the swept and random ones) are written with their truth but
-left out of ``manifest.csv``. A magnet whose core lags (eddy currents) has its ``eddy_time_s``
-and the law it gives stated in ``simulator.json``'s ``eddy``. Such a rig's scans may be written
-as SLDV software exports FRFs (``scan_export="frfs"``, :mod:`.sldv_frf`): per point H1 and its
-coherence up to the acquisition's bandwidth (fs / 2.56), the averages behind them stated as
-``acquisition.scan_averages``.
+A ``lab`` rig also states every drawn error in the truth; a rig under broadband drives writes
+its band and ``drive = "any"`` in the rig file, and its scans may be written as SLDV software
+exports FRFs (:func:`write_simulation` tells both).
 """
 
 from __future__ import annotations
@@ -43,21 +32,13 @@ from ..rig import rig_to_dict
 from .beam import natural_frequencies
 from .lab import draw_errors, record_lab_scan
 from .magnet import Drive
+from .physics import Model, Truth, build_model, scan_file, static_gaps
 from .presets import BodySpec, PlateSpec, Preset, get_preset, with_tare
 from .realism import Realism
 from .sldv_frf import frf_export
-from .virtual_rig import (
-    Model,
-    Truth,
-    build_model,
-    public_rig,
-    record_run,
-    record_scan,
-    scan_file,
-    static_gaps,
-)
+from .virtual_rig import public_rig, record_run, record_scan
 
-__all__ = ["BANDWIDTH", "SCAN_EXPORTS", "check_scan_export", "write_simulation", "write_truth"]
+__all__ = ["check_scan_export", "write_simulation"]
 
 SCAN_EXPORTS = ("time", "frfs")
 """How a simulation writes its scans: time records, or (a broadband rig) FRFs and coherences."""
@@ -250,6 +231,23 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     The noise of the first scan is drawn first, then the runs', then any further scan's, so
     a preset's first scan and runs do not depend on how many scans it has. A ``lab`` rig's
     errors are drawn before all of them.
+
+    A ``lab`` rig (``realism``, :class:`.realism.Realism`) adds a zero-current tare run when
+    the preset has none, declares its type-B uncertainties in ``rig.toml``, and states every
+    drawn error in the truth: ``simulator.json``'s ``realism`` (the settings, every channel's
+    sensitivity, every gauge's preload, offset and zero-current reading, each run's drive
+    drift and chirp, each scan's drive level and frequency at every acquisition), and each
+    run's NPZ (its ``imperfections``, :class:`.virtual_rig.Truth`).
+
+    A rig under broadband drives (``Preset.band``: a sweep, random) writes its scan's
+    ``band = [lo, hi]`` [Hz] and ``drive = "any"`` in the rig file's ``[acquisition]``; its
+    runs that are not listed (``RunSpec.manifest`` false: the swept and random ones) are
+    written with their truth but left out of ``manifest.csv``. A magnet whose core lags (eddy
+    currents) has its ``eddy_time_s`` and the law it gives stated in ``simulator.json``'s
+    ``eddy``. Such a rig's scans may be written as SLDV software exports FRFs
+    (``scan_export="frfs"``, :mod:`.sldv_frf`): per point H1 and its coherence up to the
+    acquisition's bandwidth (fs / 2.56), the averages behind them stated as
+    ``acquisition.scan_averages``.
     """
     preset = get_preset(preset_name, realism)
     check_scan_export(preset, scan_export)

@@ -12,13 +12,12 @@ rig starts at rest a lead time before the record (:func:`lead_time`).
 
 The trapezoidal rule steps a sine as if at a slightly higher frequency, so a coarse step makes
 the rig's inertia heavier than its mass says; under steady sines the step is cut until that
-error is negligible (:func:`steady_oversample`).
-
-A magnet with eddy currents in its core (``eddy_time``) carries its magnetising current as a
-state, stepped by the same trapezoidal rule as the flux linkage.
+error is negligible (:func:`steady_oversample`). A magnet with eddy currents in its core
+(``eddy_time``) carries its magnetising current as a state, stepped by the same rule.
 
 The time loop itself is compiled (:mod:`.newmark`); this module sets it up in modal
-coordinates, finds the steady state and samples the record.
+coordinates, finds the steady state and samples the record of the virtual rig (METHOD.md
+section 6).
 """
 
 from __future__ import annotations
@@ -35,8 +34,7 @@ from .plate import PlateModel
 from .response import Record, Response, _finish_record, _new_record
 from .solid import SolidModel
 
-__all__ = ["INERTIA_TOLERANCE", "LEAD_TIME_CONSTANTS", "MAX_LEAD", "Response", "SimulationError",
-           "drive_oversample", "integrate", "lead_time", "pole_points", "steady_oversample"]
+__all__: list[str] = []
 
 Model = BeamModel | PlateModel | SolidModel
 """A finite-element model of the structure: beam, plate or body."""

@@ -24,10 +24,7 @@ import numpy as np
 from ..records import Run, Scan
 from ..signals.harmonics import fit_harmonics
 from .integrate import Response
-from .presets import Preset, RunSpec
-from .realism import Realism, coloured
-from .solid import SolidModel
-from .virtual_rig import (
+from .physics import (
     Model,
     Truth,
     _gauge_forces,
@@ -42,10 +39,11 @@ from .virtual_rig import (
     scan_response,
     simulate_response,
 )
+from .presets import Preset, RunSpec
+from .realism import Realism, coloured
+from .solid import SolidModel
 
-__all__ = ["LabErrors", "ScanTable", "ScanWalk", "draw_errors", "draw_run_drift",
-           "gravity_preload", "measure_lab_run", "measure_lab_scan", "read_channel",
-           "record_lab_run", "record_lab_scan", "scan_table"]
+__all__: list[str] = []
 
 MAX_HARMONICS = 40
 """Most harmonics kept of a steady state to interpolate a scan's records from."""

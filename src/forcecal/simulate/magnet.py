@@ -26,7 +26,7 @@ from numpy.typing import ArrayLike
 
 from .waveforms import Waveform
 
-__all__ = ["MU0", "Drive", "Magnet", "Pole"]
+__all__: list[str] = []
 
 MU0 = 4e-7 * math.pi
 """Permeability of free space [H/m] (the classical value, as in every textbook formula)."""

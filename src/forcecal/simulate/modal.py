@@ -12,7 +12,7 @@ from functools import cached_property
 import numpy as np
 import scipy.linalg
 
-__all__ = ["ModalModel"]
+__all__: list[str] = []
 
 
 class ModalModel:

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["CLOSED_GAP", "NO_CONVERGENCE", "march"]
+__all__: list[str] = []
 
 CLOSED_GAP = 1
 """:func:`march`'s status when a pole closed its air gap (pull-in)."""

@@ -30,15 +30,7 @@ from numpy.typing import ArrayLike
 
 from .modal import ModalModel
 
-__all__ = [
-    "PlateModel",
-    "assemble_plate",
-    "bfs_row",
-    "flexural_rigidity",
-    "simply_supported_dofs",
-    "simply_supported_frequencies",
-    "simply_supported_static_deflection",
-]
+__all__: list[str] = []
 
 # local DOF k of an element: corner (ix, iy) = _CORNERS[k // 4], nodal DOF d = k % 4
 # (w, w_x, w_y, w_xy); its shape function is X[kx] * Y[ky] with the 1-D Hermite functions

@@ -18,12 +18,12 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
+from ..errors import InputError
 from .magnet import Drive, Magnet, Pole
 from .realism import Realism, resolve_realism
 from .waveforms import BandLimitedRandom, PeriodicChirp, SweptSine
 
-__all__ = ["PRESETS", "BeamSpec", "BodySpec", "NoiseSpec", "PlateSpec", "Preset", "RunSpec",
-           "ScanSpec", "get_preset", "with_tare"]
+__all__ = ["get_preset"]
 
 
 @dataclass(frozen=True)
@@ -494,8 +494,6 @@ def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
     InputError
         An unknown name or realism.
     """
-    from ..errors import InputError
-
     if name not in PRESETS:
         raise InputError(f"preset '{name}' is unknown (choose from {', '.join(PRESETS)})")
     chosen = resolve_realism(realism)

@@ -19,10 +19,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..errors import InputError
 from ..rig import TypeB
 
-__all__ = ["LAB_TYPE_B", "REALISMS", "Adc", "AdcSpec", "Realism", "hum", "pink_noise",
-           "resolve_realism"]
+__all__: list[str] = []
 
 
 @dataclass(frozen=True)
@@ -205,8 +205,6 @@ def resolve_realism(realism: str | Realism | None) -> Realism | None:
     InputError
         Another name.
     """
-    from ..errors import InputError
-
     if realism is None or isinstance(realism, Realism):
         return realism
     if realism == "ideal":

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Record", "Response"]
+__all__: list[str] = []
 
 Record = dict[str, np.ndarray]
 """Kept samples by name: ``q``, ``qd``, ``qdd`` (modal state) and ``lam``, ``i``, ``f``, ``d``

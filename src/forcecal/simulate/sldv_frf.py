@@ -16,7 +16,7 @@ import scipy.signal
 from ..model.frf import periods_in_record
 from ..records import Scan, ScanFRF
 
-__all__ = ["SEGMENT", "frf_export"]
+__all__: list[str] = []
 
 SEGMENT = 8
 """A drive not periodic in the record is averaged over Hann segments of 1 / SEGMENT of it."""

@@ -4,24 +4,19 @@ The box ``origin + [0, a] x [0, b] x [0, c]`` is cut into an nx x ny x nz mesh o
 boxes. Node (i, j, k) at (xs[i], ys[j], zs[k]) is node number ``(k * (ny + 1) + j) * (nx + 1) + i``
 and owns DOFs ``3 * node + (0, 1, 2)``: the displacements (u_x, u_y, u_z) [m]. Inside an element
 the displacement is the trilinear interpolation of its eight corners, so every linear field, in
-particular each rigid motion ``t + theta x (x - origin)``, is represented exactly.
-
-Stiffness: isotropic Hooke's law (E, nu) with Wilson-Taylor incompatible modes. Each displacement
-component gets the three element-internal bubbles (1 - xi^2), (1 - eta^2), (1 - zeta^2) in the
-natural coordinates xi, eta, zeta in [-1, 1]; these 9 internal DOFs are condensed out statically.
-They let an element bend without the parasitic shear that locks the plain trilinear brick. On a
-box the Jacobian is constant and the bubbles' strains integrate to zero over the element, so
-the element passes the patch test without Taylor's correction. 2 x 2 x 2 Gauss quadrature.
-Consistent mass from the trilinear shape functions, by the same (exact) quadrature.
+particular each rigid motion ``t + theta x (x - origin)``, is represented exactly. Stiffness
+from Hooke's law with Wilson-Taylor incompatible modes, consistent mass, both by Gauss
+quadrature (:func:`hex8_element`).
 
 Every place where the displacement is evaluated is a *location*: a row (x, y, z, dx, dy, dz) of a
 point [m] and a measuring direction (normalised here); its displacement is d . u(x). Point springs
 (the force gauges), lumped masses and poles all use this convention.
 
-This model is the simulator's own physics: it knows nothing of the estimator's bases. It offers
-the interface :func:`forcecal.simulate.integrate.integrate` uses of a beam (``stiffness``,
-``mass``, ``damping = beta K``, ``bending_stiffness``, ``beta``, ``row``, ``modes``,
-``rigid_mode``), with ``dim = 3``: ``row`` takes (n, 6) locations.
+This model is the simulator's own physics (the virtual rig, METHOD.md section 6): it knows
+nothing of the estimator's bases. It offers the interface
+:func:`forcecal.simulate.integrate.integrate` uses of a beam (``stiffness``, ``mass``,
+``damping = beta K``, ``bending_stiffness``, ``beta``, ``row``, ``modes``, ``rigid_mode``),
+with ``dim = 3``: ``row`` takes (n, 6) locations.
 """
 
 from __future__ import annotations
@@ -34,13 +29,7 @@ from numpy.typing import ArrayLike
 
 from .modal import ModalModel
 
-__all__ = [
-    "SolidModel",
-    "assemble_solid",
-    "clamped_dofs",
-    "hex8_element",
-    "solid_row",
-]
+__all__: list[str] = []
 
 # local node n of an element sits at corner (ix, iy, iz) = _CORNERS[n], n = ix + 2 iy + 4 iz,
 # i.e. the global node ordering restricted to one element; local DOF 3 n + c is component c.
@@ -72,6 +61,15 @@ def hex8_element(youngs_modulus: float, poisson: float, density: float, hx: floa
 
     Local DOF ``3 n + c`` is component c (x, y, z) at local node n = ix + 2 iy + 4 iz, the corner
     (ix, iy, iz) in {0, 1}^3 (the global ordering restricted to one element).
+
+    Stiffness: isotropic Hooke's law (E, nu) with Wilson-Taylor incompatible modes. Each
+    displacement component gets the three element-internal bubbles (1 - xi^2), (1 - eta^2),
+    (1 - zeta^2) in the natural coordinates xi, eta, zeta in [-1, 1]; these 9 internal DOFs are
+    condensed out statically. They let an element bend without the parasitic shear that locks
+    the plain trilinear brick. On a box the Jacobian is constant and the bubbles' strains
+    integrate to zero over the element, so the element passes the patch test without Taylor's
+    correction. 2 x 2 x 2 Gauss quadrature. Consistent mass from the trilinear shape functions,
+    by the same (exact) quadrature.
 
     Parameters
     ----------

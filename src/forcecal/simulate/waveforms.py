@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["BandLimitedRandom", "MultiTone", "PeriodicChirp", "SweptSine", "Waveform"]
+__all__: list[str] = []
 
 _TWO_PI = 2 * math.pi
 TABLE_OVERSAMPLING = 256

@@ -1,28 +1,23 @@
-"""Forces under any drive in real time: the batch estimate of :mod:`forcecal.forces.transient` over a
-window that slides with the stream.
+"""Forces under any drive in real time (METHOD.md section 7, "any drive"): the batch estimate
+of :mod:`forcecal.forces.transient` over a window that slides with the stream.
 
 A smoother needs the future a causal filter lacks: the best causal estimate of an acceleration
-from displacements lags it (on the ``sweep`` rig the steady Kalman filter's acceleration is
-off the smoother's by 87 % of its RMS). So the stream gives every sample once the samples a
-fixed ``latency`` after it have arrived, computed over a window that also keeps ``history``
-before the samples it gives:
+from displacements lags it. So the stream gives every sample once the samples a fixed
+``latency`` after it have arrived, computed over a window that also keeps ``history`` before
+the samples it gives:
 
-- the first ``warmup`` seconds set what the batch estimate takes from the whole record: every
-  channel's noise, the probes' weights, the band models (:func:`forcecal.forces.transient
-  .any_drive_setup`); nothing is given before they have arrived;
-- then, whenever ``step`` seconds can be given, the window from ``history`` before them to
-  the newest sample goes through :func:`forcecal.forces.transient.window_forces` (the smoothers, the
-  inertia's correction to the operating shapes, the short-time Wiener gains) and the samples
-  at least ``latency`` old are given. The window starts on the Wiener frames' hop, as the
+- the first ``warmup`` seconds set what the batch estimate takes from the whole record
+  (:func:`forcecal.forces.transient.any_drive_setup`); nothing is given before they arrive;
+- then, whenever ``step`` seconds can be given, the window from ``history`` before them to the
+  newest sample goes through :func:`forcecal.forces.transient.window_forces` and the samples
+  at least ``latency`` old are given; the window starts on the Wiener frames' hop, as the
   batch's frames do, so that inside the record the two use the same frames;
 - at the end of the record the rest is given at once.
 
-Memory and work per sample stay flat in the record's length. With the batch's setup the
-stream matches the batch estimate inside the record to a small part of its uncertainty (the
-windows' edges are ``history`` and ``latency`` away); with its own, from the first seconds,
-to what those seconds tell of the noise, its gauges' smoothers set again in every window from
-the window's own gauges (:func:`forcecal.forces.transient.with_reaction_priors`: a sweep's first
-seconds hold only its bottom).
+Memory and work per sample stay flat in the record's length. A stream set up from its own
+first seconds sets its gauges' smoothers again in every window from the window's own gauges
+(:func:`forcecal.forces.transient.with_reaction_priors`: a sweep's first seconds hold only its
+bottom).
 """
 
 from __future__ import annotations
@@ -64,8 +59,7 @@ from ..signals.checks import NOISE_BLOCK, AboveBand, check_channel_noise
 from ..signals.wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
 
-__all__ = ["HISTORY", "LATENCY", "STEP", "WARMUP", "AnyDriveStream", "StreamChunk",
-           "stream_any", "stream_any_table", "stream_arrays"]
+__all__ = ["stream_any", "stream_any_table"]
 
 LATENCY = 0.5
 """[s] every sample is given once this much of the record after it has arrived (at least two

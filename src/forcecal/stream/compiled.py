@@ -21,7 +21,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-__all__ = ["demodulate", "solve_information", "steady_readout"]
+__all__: list[str] = []
 
 _jit = numba.njit(nogil=True, cache=True, error_model="numpy", fastmath={"reassoc", "contract"})
 """Compiled, cached on disk; reassociation and fused multiply-adds allowed (no assumption about

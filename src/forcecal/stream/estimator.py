@@ -1,41 +1,13 @@
 """Forces in real time: the streaming estimator (METHOD.md section 3, step 7).
 
-The recursive least-squares kernel it runs is :mod:`forcecal.stream.rls`; its readout from
-the tracked phasors to the forces is built from the same formulas as the batch estimate
-(:func:`forcecal.forces.coordinates.coordinate_map`, :func:`forcecal.model.inertia.inertia_term`,
-:func:`forcecal.forces.force_solve`, :func:`forcecal.forces.kept_harmonics`).
-
-Latency and noise
------------------
-The exponential window has memory 1 / (1 - lambda) samples and mean age (group delay)
-lambda / (1 - lambda) samples: :attr:`StreamEstimator.latency_periods` in drive periods. The
-default is a memory of ``DEFAULT_MEMORY_PERIODS`` = 2 periods, so a latency of 2 periods (100 ms
-at 20 Hz). A step settles to a fraction eps of its size within ln(eps) / ln(lambda) samples
-(:meth:`StreamEstimator.settling_periods`): 13.8 periods to 1e-3 by default. For
-white noise of std sigma each phasor has var(Re) = var(Im) ~ (1 - lambda) / (1 + lambda)
-2 sigma^2, the batch fit's 2 sigma^2 / N with N -> (1 + lambda) / (1 - lambda); the exact
-value for the forces is :meth:`StreamEstimator.noise_std`.
-
-Frequency tracking
-------------------
-The regressor's phase advances by w / fs per sample. Once per grid step (one period) the phase
-of the current's fundamental phasor X_1 (referred to theta) is read; a drive faster than w makes
-it rotate at (w_true - w). Since the window's phase lags by its mean age, the loop adds that lead
-(the last advance times lambda / (1 - lambda) / grid) and feeds a proportional-integral
-correction of w (a type-2 phase-locked loop: no steady frequency error even along a linear
-drift) of bandwidth min(1 / (``LOOP_MEMORIES`` memory), ``LOOP_MAX_STEP`` / period) and damping
-``LOOP_DAMPING``; by default about 5 periods. The loop starts after one memory and two periods,
-stays within ``FREQUENCY_RANGE`` of the guess, and holds while |X_1| is below ``LOCK_SNR``
-times its noise (no drive, a tare record). Changing w changes M_k and the readout with it: the
-estimate is then the RLS estimate with the window's regressors taken at the current frequency.
-
-Several shapes per harmonic
----------------------------
-With a model built from several scans (:mod:`forcecal.model.spatial`) each harmonic's readout starts on
-its first shape; once the window is engaged, every grid step the probes' phasors choose the
-members of the span as the batch estimate does (:func:`forcecal.forces.coordinates.choose_members`),
-and the readout switches when another set's information criterion is lower by more than
-``SPAN_SWITCH`` (no flicker between two sets that explain the probes equally well).
+:class:`StreamEstimator` runs the recursive least-squares kernel of :mod:`forcecal.stream.rls`
+on every channel; its readout from the tracked phasors to the forces is built from the same
+formulas as the batch estimate (:func:`forcecal.forces.coordinates.coordinate_map`,
+:func:`forcecal.model.inertia.inertia_term`, :func:`forcecal.forces.force_solve`,
+:func:`forcecal.forces.kept_harmonics`). The exponential window sets the latency, the settling
+and the noise; a phase-locked loop on the current's fundamental follows a drifting drive; with
+a model built from several scans the probes choose each harmonic's members as the batch
+estimate does. The class's notes tell all three.
 """
 
 from __future__ import annotations
@@ -160,6 +132,34 @@ class StreamEstimator:
     kept in small bounded caches. The probes' weights are fixed (``sensor_std``), where the
     batch estimate takes them from each probe's fit residual; with probes of equal noise the
     two agree.
+
+    *Latency and noise.* The exponential window has memory 1 / (1 - lambda) samples and mean
+    age (group delay) lambda / (1 - lambda) samples (:attr:`latency_periods`, in drive
+    periods; the default memory is ``DEFAULT_MEMORY_PERIODS`` periods). A step settles to a
+    fraction eps of its size within ln(eps) / ln(lambda) samples (:meth:`settling_periods`).
+    For white noise of std sigma each phasor has var(Re) = var(Im) ~ (1 - lambda) /
+    (1 + lambda) 2 sigma^2, the batch fit's 2 sigma^2 / N with N -> (1 + lambda) /
+    (1 - lambda); the exact value for the forces is :meth:`noise_std`.
+
+    *Frequency tracking.* The regressor's phase advances by w / fs per sample. Once per grid
+    step (one period) the phase of the current's fundamental phasor X_1 (referred to theta) is
+    read; a drive faster than w makes it rotate at (w_true - w). Since the window's phase lags
+    by its mean age, the loop adds that lead (the last advance times lambda / (1 - lambda) /
+    grid) and feeds a proportional-integral correction of w (a type-2 phase-locked loop: no
+    steady frequency error even along a linear drift) of bandwidth
+    min(1 / (``LOOP_MEMORIES`` memory), ``LOOP_MAX_STEP`` / period) and damping
+    ``LOOP_DAMPING``. The loop starts after one memory and two periods, stays within
+    ``FREQUENCY_RANGE`` of the guess, and holds while |X_1| is below ``LOCK_SNR`` times its
+    noise (no drive, a tare record). Changing w changes M_k and the readout with it: the
+    estimate is then the RLS estimate with the window's regressors taken at the current
+    frequency.
+
+    *Several shapes per harmonic.* With a model built from several scans
+    (:mod:`forcecal.model.spatial`) each harmonic's readout starts on its first shape; once
+    the window is engaged, every grid step the probes' phasors choose the members of the span
+    as the batch estimate does (:func:`forcecal.forces.coordinates.choose_members`), and the
+    readout switches when another set's information criterion is lower by more than
+    ``SPAN_SWITCH`` (no flicker between two sets that explain the probes equally well).
     """
 
     def __init__(self, rig: Rig, model: SpatialModel, f0_guess: float, fs: float, *,
@@ -265,7 +265,7 @@ class StreamEstimator:
         self._retune()
 
     def _loop_settings(self) -> None:
-        """The frequency loop's grid, gains and start (see the module docstring)."""
+        """The frequency loop's grid, gains and start (see the class's notes)."""
         lam, fs = self.lam, self.fs
         self.grid = max(1, round(fs / self.f0_guess))
         self._piece = min(self.grid, chunk_limit(lam))

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..errors import DimensionError
 
-__all__ = ["PRIOR", "RlsState", "rls_start", "rls_update"]
+__all__: list[str] = []
 
 PRIOR = 1.0
 """r0: information of the prior at the start (P_0 = I / r0), in samples' worth of regressor."""

@@ -29,26 +29,20 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import DimensionError
+from . import compiled as jit
 from .reference import PRIOR, RlsState, rls_start, rls_update
 
 __all__ = [
     "PRIOR",
-    "STEADY_TOL",
     "HarmonicState",
     "RlsState",
     "chunk_limit",
     "harmonic_information",
     "harmonic_start",
     "harmonic_update",
-    "last_coefficients",
-    "mixing",
     "rls_start",
     "rls_update",
-    "stationary",
     "steady_count",
-    "to_complex",
-    "to_real",
-    "window_tables",
 ]
 
 STEADY_TOL = 1e-16
@@ -454,8 +448,6 @@ def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
     last = tables.power[c - 1]
     steady = state.count >= steady_count(lam)
     if compiled:
-        from . import compiled as jit  # here, not at the top: Numba loads on first use
-
         if kap is not None and steady:
             offset = lam * np.sum(kap * state.demod.T, axis=-1) * start.conj()
             out, dsum, esum = jit.steady_readout(y, tables.planes, tables.power, kap, offset)

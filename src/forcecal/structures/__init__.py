@@ -1,14 +1,15 @@
-"""The structure kinds, one class each behind the :class:`Structure` protocol.
+"""The structure kinds (METHOD.md section 1), one class each behind the :class:`Structure`
+protocol.
 
 The rig parser picks the class from ``structure.kind`` (:data:`KINDS`); every other module
 asks the structure, never its kind. A new kind (a ring, a shaft) is one new module here and
 one entry in :data:`KINDS`.
 """
 
-from .base import UP, Frame, LumpedMass, OutOfPlane, Structure, locations
+from .base import UP, LumpedMass, Structure, locations
 from .beam import Beam
-from .body import Body, block_quadrature
-from .plate import Plate, inside_polygon, polygon_quadrature, triangulate
+from .body import Body
+from .plate import Plate, inside_polygon
 
 KINDS: dict[str, type[Structure]] = {cls.kind: cls for cls in (Beam, Plate, Body)}
 """The rig file's ``structure.kind`` -> the class that reads and answers for it."""
@@ -18,14 +19,9 @@ __all__ = [
     "UP",
     "Beam",
     "Body",
-    "Frame",
     "LumpedMass",
-    "OutOfPlane",
     "Plate",
     "Structure",
-    "block_quadrature",
     "inside_polygon",
     "locations",
-    "polygon_quadrature",
-    "triangulate",
 ]

@@ -27,13 +27,14 @@ from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 import numpy as np
 
 from ..errors import InputError
+from ..model.basis import fit_shape
 
 if TYPE_CHECKING:
     from .._toml import TableReader
     from ..model.basis import ShapeFit
     from ..model.vector_basis import VectorShapeFit
 
-__all__ = ["UP", "Frame", "Located", "LumpedMass", "OutOfPlane", "Structure", "locations"]
+__all__ = ["UP", "Frame", "LumpedMass", "OutOfPlane", "Structure", "locations"]
 
 UP = (0.0, 0.0, 1.0)
 """The measuring direction of beams and plates: +w, out of their plane."""
@@ -294,8 +295,6 @@ class OutOfPlane(Structure, ABC):
 
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
                   weights: np.ndarray, basis: str, min_order: int = 1) -> ShapeFit:
-        from ..model.basis import fit_shape
-
         return fit_shape(coordinates, values, self.extent(), criterion=criterion,
                          weights=weights, family="modes" if basis == "modes" else "legendre",
                          min_order=min_order)

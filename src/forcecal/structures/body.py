@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from ..errors import InputError
+from ..model.vector_basis import AXES, VectorShapeFit, fit_vector_shape
 from .base import Frame, Located, LumpedMass, Structure, locations
 
 if TYPE_CHECKING:
@@ -25,7 +26,7 @@ if TYPE_CHECKING:
     from ..model.basis import ShapeFit
     from ..model.vector_basis import VectorShapeFit
 
-__all__ = ["Block", "Body", "block_quadrature"]
+__all__ = ["Body", "block_quadrature"]
 
 Corner = tuple[float, float, float]
 Block = tuple[Corner, Corner]
@@ -112,14 +113,10 @@ class Body(Structure):
 
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
                   weights: np.ndarray, basis: str, min_order: int = 1) -> VectorShapeFit:
-        from ..model.vector_basis import fit_vector_shape
-
         return fit_vector_shape(coordinates, values, self.extent(), criterion, weights,
                                 min_order)
 
     def model_notes(self, fits: Sequence[ShapeFit | VectorShapeFit]) -> tuple[str, ...]:
-        from ..model.vector_basis import AXES, VectorShapeFit
-
         first = fits[0]
         measured = first.axes if isinstance(first, VectorShapeFit) else (0, 1, 2)
         missing = [AXES[a] for a in range(3) if a not in measured]

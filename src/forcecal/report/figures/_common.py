@@ -21,22 +21,7 @@ from ...records import Run
 from ...rig import Rig
 from ...signals.harmonics import HarmonicFit, fit_harmonics
 
-__all__ = [
-    "DEFAULT_PERIODS",
-    "check_run",
-    "fourier_series",
-    "law_argument",
-    "law_cycle",
-    "law_harmonics",
-    "legend_right",
-    "measured_width",
-    "panel_title",
-    "prefixed_unit",
-    "quantity",
-    "running_max",
-    "sensor_fit",
-    "time_window",
-]
+__all__ = ["DEFAULT_PERIODS"]
 
 DEFAULT_PERIODS = 3.0
 """Periods of the fundamental drawn by the time-history figures."""

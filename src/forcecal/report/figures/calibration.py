@@ -28,7 +28,7 @@ from ._common import MARKERS, law_argument, law_cycle, law_harmonics, panel_titl
 if TYPE_CHECKING:
     from ...campaign import CampaignResult
 
-__all__ = ["CalibrationPoints", "CampaignSamples", "fig_calibration", "law_harmonics"]
+__all__ = ["CalibrationPoints", "fig_calibration", "law_harmonics"]
 
 _DASHES = ("-", "--", "-.", ":")
 

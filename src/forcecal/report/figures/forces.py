@@ -27,7 +27,7 @@ from ._common import (
     time_window,
 )
 
-__all__ = ["fig_forces", "force_sigma"]
+__all__ = ["fig_forces"]
 
 _MARKS_PER_PERIOD = 8
 

@@ -15,7 +15,7 @@ from ...actuator import FrequencyLaw
 from ...errors import InputError
 from ._common import MARKERS, legend_right, panel_title
 
-__all__ = ["fig_frequency_law"]
+__all__: list[str] = []
 
 COVERAGE = 2.0
 """Error bars and bands span this many standard uncertainties."""

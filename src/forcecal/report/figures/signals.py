@@ -40,9 +40,9 @@ def fig_signals(run: Run, rig: Rig, estimate: ForceEstimate,
                 periods: float = DEFAULT_PERIODS) -> Figure:
     """Measured current and probe displacements with their fitted Fourier series (fig. 6).
 
-    The series are fitted over the whole record with :func:`forcecal.signals.harmonics.fit_harmonics`
-    at the estimate's fundamental and harmonic count, with the run's t0, and drawn over the
-    first ``periods`` periods.
+    The series are fitted over the whole record with
+    :func:`forcecal.signals.harmonics.fit_harmonics` at the estimate's fundamental and harmonic
+    count, with the run's t0, and drawn over the first ``periods`` periods.
 
     Parameters
     ----------
