@@ -232,8 +232,8 @@ def stream_study(seconds: float) -> dict:
     periods), the steady mode (100 periods) and the batch estimate of the whole record."""
     import dataclasses
 
-    from forcecal.stream.estimator import StreamEstimator
-    from forcecal.stream.replay import stream_forces
+    from forcecal.realtime.estimator import StreamEstimator
+    from forcecal.realtime.replay import stream_forces
 
     preset = get_preset("paper")
     fe = build_model(preset)

@@ -20,7 +20,7 @@ compares:
   (content above the scan's band reaches it as far as the gauges' smoother lets through); the
   stated uncertainty is compared with the error against it; the worst windows again at seeds
   1 and 2;
-- ``forcecal stream`` on the same runs (real time, :mod:`forcecal.stream.any_drive`): its
+- ``forcecal stream`` on the same runs (real time, :mod:`forcecal.realtime.any_drive`): its
   windows beside the batch's, how far it is from the batch in units of the batch's stated
   uncertainty, and its wall time;
 - the ``lab`` rig (seeds 0 and 1): the same runs with coloured noise, mains hum, sensitivities

@@ -43,12 +43,12 @@ from forcecal.forces.steady import ForceEstimate, implied_phasors, reconstruct  
 from forcecal.io.run_files import read_run, write_run_hdf5  # noqa: E402
 from forcecal.io.uff import read_scan_uff  # noqa: E402
 from forcecal.model.spatial import SpatialModel, build_spatial_model  # noqa: E402
+from forcecal.realtime import StreamEstimator, harmonic_update, steady_count  # noqa: E402
 from forcecal.records import Run, Scan  # noqa: E402
 from forcecal.rig import Rig, load_rig  # noqa: E402
 from forcecal.signals.harmonics import fit_harmonics  # noqa: E402
 from forcecal.simulate.export import write_simulation  # noqa: E402
 from forcecal.simulate.presets import NoiseSpec  # noqa: E402
-from forcecal.stream import StreamEstimator, harmonic_update, steady_count  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "speed.json"
 FS_STREAM = 51_200.0          # [Hz] streaming rate of the benchmark

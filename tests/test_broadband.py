@@ -16,11 +16,11 @@ from forcecal.errors import InputError
 from forcecal.forces.transient import reconstruct_any
 from forcecal.model.broadband import BroadbandModel, build_broadband_model, steady_model
 from forcecal.model.relaxation import force_matrix
+from forcecal.realtime.any_drive import stream_any
 from forcecal.records import Run, Scan
 from forcecal.signals.kalman import band_model, filter_states, smooth_states
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import _gauge_forces, _points, build_model, public_rig
-from forcecal.stream.any_drive import stream_any
 
 FS = 10_000.0
 
@@ -369,7 +369,7 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     RMS (achieved 0.088, its gauges' smoothers set in every window; test 0.25) and within 0.17 %
     of the true total's AC RMS (achieved 0.058 %, the batch 0.056 %)."""
     from forcecal.forces.transient import any_drive_setup, run_channels
-    from forcecal.stream.any_drive import stream_arrays
+    from forcecal.realtime.any_drive import stream_arrays
 
     rig = beam[3]
     run, u, _ = random_run
@@ -926,7 +926,7 @@ def test_the_streams_smoothers_follow_a_sweep(beam, bb_model, monkeypatch):
     gauges, its last 0.5 s is the batch's to 0.5 of the batch's stated uncertainty RMS (achieved
     0.18; with the first seconds' smoothers kept, 2.67) and its error over its own stated
     uncertainty there is below 1.6 RMS (achieved 1.32, a halved variance 1.87; kept, 3.45)."""
-    import forcecal.stream.any_drive as live
+    import forcecal.realtime.any_drive as live
     from forcecal.forces.transient import run_channels
 
     n = int(4.0 * FS)

@@ -29,7 +29,7 @@ NEEDS = {
     "calibrate": ["forcecal.campaign", "forcecal.report.pipeline"],
     "predict": ["forcecal.campaign"],
     "report": ["forcecal.report.pipeline"],
-    "stream": ["forcecal.stream"],
+    "stream": ["forcecal.realtime"],
     "demo": ["forcecal.campaign", "forcecal.report.pipeline"],
 }
 

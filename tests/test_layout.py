@@ -32,7 +32,7 @@ the API, the report's figures, the package's lazy top)."""
 CORE = ("structures", "signals", "model", "forces", "actuator", "rig.py", "records.py",
         "errors.py", "_schema.py", "_toml.py", "_atomic.py", "_version.py")
 """The method's own stages and data: they never read files by format, stream or draw."""
-OUTSIDE_CORE = ("io", "stream", "report", "cli", "simulate", "drives", "campaign", "cluster",
+OUTSIDE_CORE = ("io", "realtime", "report", "cli", "simulate", "drives", "campaign", "cluster",
                 "api")
 DRIVE_READERS = ("rig.py", "drives/")
 """The rig parser (and its writer) and the drives' chooser are the only readers of the drive."""
@@ -272,3 +272,11 @@ def test_the_public_api_is_small():
         assert getattr(forcecal, name) is not None
     exported = sum(len(_all(p)) for p in modules())
     assert exported <= MAX_EXPORTED, f"{exported} names exported package-wide"
+
+
+def test_the_command_line_entry_point_is_callable():
+    """``[project.scripts] forcecal = "forcecal.cli:main"`` and ``python -m forcecal``."""
+    from forcecal.cli import main
+
+    assert callable(main)
+    assert "forcecal.cli:main" in (ROOT / "pyproject.toml").read_text(encoding="utf-8")

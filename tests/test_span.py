@@ -19,6 +19,7 @@ from forcecal.forces.uncertainty import combinations, inertia_variance, shape_op
 from forcecal.model.inertia import inertia_term
 from forcecal.model.relaxation import force_matrix
 from forcecal.model.spatial import SpatialModel, build_spatial_model, load_model
+from forcecal.realtime.estimator import StreamEstimator
 from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import (
@@ -30,7 +31,6 @@ from forcecal.simulate.virtual_rig import (
     scan_response,
     simulate_response,
 )
-from forcecal.stream.estimator import StreamEstimator
 
 
 def rms(x: np.ndarray) -> float:

@@ -1,4 +1,4 @@
-"""The real-time estimator (forcecal.stream) against exact RLS, the batch estimate and known
+"""The real-time estimator (forcecal.realtime) against exact RLS, the batch estimate and known
 synthetic truths (a step in drive amplitude, a drifting drive frequency)."""
 
 from __future__ import annotations
@@ -17,10 +17,7 @@ from forcecal.forces.steady import channels_si, implied_phasors, reconstruct
 from forcecal.io.run_files import read_run, read_table_csv
 from forcecal.model.inertia import inertia_term
 from forcecal.model.relaxation import force_matrix
-from forcecal.records import Run
-from forcecal.signals.harmonics import design_matrix, fit_harmonics
-from forcecal.simulate.presets import NoiseSpec
-from forcecal.stream import (
+from forcecal.realtime import (
     StreamEstimator,
     harmonic_start,
     harmonic_update,
@@ -30,6 +27,9 @@ from forcecal.stream import (
     steady_count,
     write_stream_csv,
 )
+from forcecal.records import Run
+from forcecal.signals.harmonics import design_matrix, fit_harmonics
+from forcecal.simulate.presets import NoiseSpec
 
 NOISE = NoiseSpec()
 NOISE_STD = {"R1": NOISE.gauge, "R2": NOISE.gauge, "s1": NOISE.probe, "s2": NOISE.probe,
@@ -395,7 +395,7 @@ def test_stream_csv_has_the_reconstruct_columns(paper, tmp_path):
 def _stream_file(paper, source, target, block=256, **kwargs):
     """``forcecal stream``'s path: the run opened in blocks, checked, streamed to a table."""
     from forcecal.io.blocks import check_run_blocks, open_run_blocks
-    from forcecal.stream.replay import stream_table
+    from forcecal.realtime.replay import stream_table
 
     rig, _, model, _ = paper
     blocks = check_run_blocks(rig, open_run_blocks(source, rig, **kwargs))
@@ -504,7 +504,7 @@ def test_stream_writes_csv_to_stdout_and_nothing_on_error(paper, paper_dir, tmp_
     leaves no file and no temporary beside it."""
     from forcecal.cli.main import main
     from forcecal.io.blocks import check_run_blocks, open_run_blocks
-    from forcecal.stream.replay import stream_table
+    from forcecal.realtime.replay import stream_table
 
     rig, _, model, _ = paper
     path = tmp_path / "model.json"
@@ -543,7 +543,7 @@ def test_stream_writes_csv_to_stdout_and_nothing_on_error(paper, paper_dir, tmp_
         if len(calls) == 2:
             raise DataError("stop")
 
-    replay_module = sys.modules["forcecal.stream.replay"]   # the package's `replay` shadows it
+    replay_module = sys.modules["forcecal.realtime.replay"]   # the package's `replay` shadows it
     monkeypatch.setattr(replay_module, "STREAM_READ", 2000)
     blocks = check_run_blocks(rig, open_run_blocks(run, rig))
     with blocks, pytest.raises(DataError, match="stop"):
@@ -558,7 +558,7 @@ def test_stream_writes_csv_to_stdout_and_nothing_on_error(paper, paper_dir, tmp_
 def test_the_streamed_std_describes_the_streamed_error(paper, paper_dir):
     """The stream's per-sample standard uncertainty against its error from the truth."""
     from forcecal.io.run_files import read_table_csv
-    from forcecal.stream.replay import stream_forces
+    from forcecal.realtime.replay import stream_forces
 
     rig, _, model, run = paper
     _, truth = read_table_csv(paper_dir / "truth" / "paper.forces.csv")

@@ -10,6 +10,10 @@ The public names are re-exported here; internals live in the stage modules. The 
     est = forcecal.reconstruct(rig, model, forcecal.read_run("runs/r01.csv"))
     print(est)                      # run, f0, the forces' fundamentals, the inertia share
     est.to_dataframe()              # the force series (pandas)
+    live = forcecal.stream(rig, model, forcecal.read_run("runs/r01.csv"))   # in real time
+
+``reconstruct`` and ``stream`` answer for the rig's drive (:mod:`forcecal.drives`): harmonic
+estimates under a steady drive, forces sample by sample under any drive.
 """
 
 from __future__ import annotations
@@ -40,11 +44,12 @@ if TYPE_CHECKING:
         read_run,
         read_scan,
         reconstruct,
+        stream,
         write_calibration,
     )
 
 _LAZY = ("build_spatial_model", "calibrate", "load_calibration", "load_model", "predict",
-         "predict_flux", "read_run", "read_scan", "reconstruct", "write_calibration")
+         "predict_flux", "read_run", "read_scan", "reconstruct", "stream", "write_calibration")
 """Names of :mod:`forcecal.api` imported on first use (they import SciPy's statistics)."""
 
 __all__ = [
@@ -71,6 +76,7 @@ __all__ = [
     "read_run",
     "read_scan",
     "reconstruct",
+    "stream",
     "write_calibration",
 ]
 

@@ -11,6 +11,7 @@ was found and what was expected.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from typing import Any
 
 from .errors import InputError
@@ -309,7 +310,7 @@ def _check_scalar_shape(d: _Doc, s: dict, key: str) -> None:
 # calibration
 
 
-def check_calibration_document(doc: Any, source: str) -> None:
+def check_calibration_document(doc: Any, source: str, get_law: Callable[[str], Any]) -> None:
     """Check a decoded calibration file against its schema (see the module docstring).
 
     Parameters
@@ -318,14 +319,15 @@ def check_calibration_document(doc: Any, source: str) -> None:
         What :func:`json.loads` gave.
     source : str
         The file, for the messages.
+    get_law : callable
+        The law of a name (:func:`forcecal.actuator.laws.get_law`), to check the parameters'
+        names and count.
 
     Raises
     ------
     InputError
         Naming the file and the first key at fault.
     """
-    from .actuator.laws import get_law
-
     d = _Doc("calibration", source)
     if not isinstance(doc, dict):
         raise InputError(f"calibration '{source}': expected a JSON object, found {_short(doc)}")

@@ -9,7 +9,7 @@ from typing import Any
 
 from .errors import RigError
 
-__all__ = ["TableReader", "channel_map", "check_numbers", "node_channel", "parse_node_channel"]
+__all__ = ["TableReader", "channel_map", "check_numbers", "node_channel"]
 
 MAX_NUMBER = 1e12
 """Largest magnitude of any number in a rig file: no key of a laboratory rig comes near it."""

@@ -12,7 +12,7 @@ import numpy as np
 
 from ..errors import DataError, DimensionError
 
-__all__ = ["FLOOR_FRACTION", "GAP_TOLERANCE", "CalibrationData"]
+__all__ = ["CalibrationData"]
 
 FLOOR_FRACTION = 0.01
 """The relative residual divides by ``max(|F|, floor)`` with ``floor = FLOOR_FRACTION *

@@ -21,7 +21,7 @@ from ..errors import FitError
 from .data import CalibrationData
 from .laws import Law
 
-__all__ = ["LawFit", "check_identifiable", "fit_law"]
+__all__ = ["LawFit", "fit_law"]
 
 
 def _total(law: Law, params: np.ndarray, data: CalibrationData) -> np.ndarray:

@@ -32,7 +32,7 @@ from .._schema import _covariance, _Doc
 from ..errors import DimensionError, InputError
 from .gaps import fourier_series
 
-__all__ = ["FrequencyLaw", "FrequencyStep", "SteadyRecord"]
+__all__ = ["FrequencyLaw", "SteadyRecord"]
 
 FREQUENCY_PARAM_NAMES = ("K", "s_fe", "tau")
 """The parameters of a :class:`FrequencyLaw`, in the order of its covariance."""

@@ -29,7 +29,6 @@ __all__ = [
     "MU0",
     "POWER",
     "Law",
-    "get_law",
     "ideal_k",
 ]
 

@@ -29,14 +29,7 @@ from .laws import Law, get_law
 if TYPE_CHECKING:
     from .fitting import LawFit
 
-__all__ = [
-    "FREQUENCY_EXTRAPOLATION",
-    "Calibration",
-    "ExtrapolationWarning",
-    "Prediction",
-    "predict",
-    "predict_flux",
-]
+__all__ = ["Calibration", "ExtrapolationWarning", "predict", "predict_flux"]
 
 _CALIBRATION_FORMAT = "forcecal-calibration"
 _CALIBRATION_VERSION = 1
@@ -264,7 +257,7 @@ class Calibration:
         InputError
             Naming ``source`` and the key at fault.
         """
-        check_calibration_document(obj, source)  # format, version, types, finite numbers
+        check_calibration_document(obj, source, get_law)  # format, version, types, finite numbers
         fl = obj.get("frequency_law")
         frequency_law = None if fl is None else FrequencyLaw.from_json(fl, source)
         for key in _REQUIRED_KEYS:

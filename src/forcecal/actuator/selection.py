@@ -20,17 +20,7 @@ from .fitting import LawFit, check_identifiable, fit_law
 from .laws import ALL_LAWS, Law
 from .prediction import Calibration
 
-__all__ = [
-    "HELD_OUT_ABS_TOL",
-    "HELD_OUT_REL_TOL",
-    "N_FOLDS",
-    "Candidate",
-    "HeldOutError",
-    "Selection",
-    "held_out_error",
-    "report_text",
-    "select_law",
-]
+__all__ = ["Candidate", "Selection", "held_out_error", "report_text", "select_law"]
 
 N_FOLDS = 5
 """Folds of the k-fold scheme used when the campaign has fewer than three groups."""

@@ -49,7 +49,7 @@ from .runs import RunResult, reconstruct_campaign
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, calibration_data
 from .statistics import ParameterUncertainty, noise_columns, parameter_uncertainty
 
-__all__ = ["CURRENT_GAP_LAWS", "calibrate_campaign", "calibrate_runs"]
+__all__ = ["calibrate_campaign", "calibrate_runs"]
 
 CURRENT_GAP_LAWS: tuple[Law, ...] = (K_I2_S2, K_I2_SFE2, K_I0_SFE2, POWER)
 """The laws tried by default: those predicting from (current, gap), which is what

@@ -33,7 +33,7 @@ from ..records import Run
 from ..rig import Rig
 from ..signals.harmonics import HarmonicFit, fit_harmonics
 
-__all__ = ["RunNoise", "run_noise"]
+__all__ = ["RunNoise"]
 
 FORCE_NOISE_SOURCES = ("gauge noise", "unresolved harmonics", "probe noise")
 """The estimate's budget sources carried by :attr:`RunNoise.force_std` (``probe noise`` only

@@ -15,7 +15,7 @@ import numpy as np
 from ..io.manifest import ManifestEntry
 from .runs import RunResult
 
-__all__ = ["Repeatability"]
+__all__: list[str] = []
 
 _Setpoint = tuple[Any, ...]
 """``(gap, sorted per-pole gaps, sorted labels but repeat)`` of a manifest row."""

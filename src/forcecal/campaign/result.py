@@ -24,13 +24,7 @@ from .repeatability import Repeatability
 from .runs import RunResult
 from .statistics import ParameterUncertainty
 
-__all__ = [
-    "CampaignResult",
-    "ReactionsOnly",
-    "load_calibration",
-    "report_text",
-    "write_calibration",
-]
+__all__ = ["CampaignResult", "load_calibration", "report_text", "write_calibration"]
 
 
 def k_total_of(law: Law, params: np.ndarray, n_poles: int) -> float | None:

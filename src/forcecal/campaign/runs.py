@@ -28,7 +28,7 @@ from ..rig import Rig
 from ..signals.checks import check_run_for_rig
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, run_samples
 
-__all__ = ["PARALLEL_MIN_RUNS", "RunResult", "reconstruct_campaign", "rig_for_entry"]
+__all__ = ["RunResult", "reconstruct_campaign", "rig_for_entry"]
 
 PARALLEL_MIN_RUNS = 3
 """Campaigns with fewer runs than this are reconstructed serially whatever ``workers`` says."""

@@ -37,13 +37,7 @@ from .noise import SharedEffect
 if TYPE_CHECKING:
     from .runs import RunResult
 
-__all__ = [
-    "COVERAGE_FACTOR",
-    "TYPE_B_SOURCES",
-    "ParameterUncertainty",
-    "noise_columns",
-    "parameter_uncertainty",
-]
+__all__ = ["COVERAGE_FACTOR", "TYPE_B_SOURCES", "noise_columns", "parameter_uncertainty"]
 
 COVERAGE_FACTOR = 2.0
 """k of the expanded uncertainties (about 95 % for a normal distribution)."""

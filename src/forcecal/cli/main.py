@@ -368,7 +368,7 @@ def _cmd_stream(args) -> int:
     from ..drives import drive_of
     from ..io.blocks import check_run_blocks, open_run_blocks
     from ..io.staging import clean_stale
-    from ..stream.replay import bounded_forces
+    from ..realtime.replay import bounded_forces
 
     to_stdout = args.output == "-"
     suffix = Path(args.output).suffix.lower()

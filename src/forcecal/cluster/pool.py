@@ -34,7 +34,7 @@ from typing import Any, TypeVar
 
 from ..errors import InputError
 
-__all__ = ["pool_map", "run_jobs", "single_threaded_workers"]
+__all__ = ["pool_map", "run_jobs"]
 
 T = TypeVar("T")
 R = TypeVar("R")

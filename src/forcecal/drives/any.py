@@ -14,9 +14,9 @@ from ..errors import InputError
 from ..forces.transient import TransientEstimate, reconstruct_any
 from ..io.blocks import RunBlocks
 from ..model.broadband import BroadbandModel, build_broadband_model
+from ..realtime.any_drive import stream_any, stream_any_table
 from ..records import Run
 from ..rig import Rig
-from ..stream.any_drive import stream_any, stream_any_table
 from .base import Note, refuse_report, refuse_scans
 from .steady import band_line
 

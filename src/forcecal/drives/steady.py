@@ -19,10 +19,10 @@ from ..forces.transient import TransientEstimate
 from ..io.blocks import RunBlocks
 from ..model.broadband import BroadbandModel, build_broadband_model
 from ..model.spatial import SpatialModel, build_spatial_model, merge_models
+from ..realtime.any_drive import stream_any, stream_any_table
+from ..realtime.replay import StreamedForces, stream_steady, stream_table
 from ..records import Run
 from ..rig import Rig
-from ..stream.any_drive import stream_any, stream_any_table
-from ..stream.replay import StreamedForces, stream_steady, stream_table
 from .base import Note, refuse_report, refuse_scans
 
 __all__ = ["SteadyDrive"]

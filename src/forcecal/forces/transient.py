@@ -16,7 +16,7 @@ instead. With the span of shapes of a broadband scan (:mod:`forcecal.model.broad
 :func:`any_drive_setup` fixes what the estimate needs before its first sample (the channels'
 noise, band models, transfer, probe checks, type-B moves, hum); :func:`window_forces` runs
 steps 1-4 over a stretch whose ends are carried past by :mod:`forcecal.signals.record_ends`;
-:func:`reconstruct_any` over a whole run, :mod:`forcecal.stream.any_drive` over a sliding window.
+:func:`reconstruct_any` over a whole run, :mod:`forcecal.realtime.any_drive` over a sliding window.
 """
 
 from __future__ import annotations

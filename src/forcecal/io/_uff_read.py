@@ -15,13 +15,7 @@ import numpy as np
 from ..errors import DataError, InputError
 from ..records import FRF_PHASE, Scan, ScanFRF, ScanSpectra
 from ._uff_frf import COHERENCE, FRF, frfs_from_sets
-from ._uff_pairs import (
-    Row,
-    record_values,
-    scan_quantity,
-    scan_rows,
-    split_records,
-)
+from ._uff_pairs import Row, record_values, scan_quantity, scan_rows, split_records
 from ._uff_sets import (
     RATE_DIGITS,
     SPECTRUM,

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from ..model.basis import ShapeFit
     from ..model.vector_basis import VectorShapeFit
 
-__all__ = ["UP", "Frame", "LumpedMass", "OutOfPlane", "Structure", "locations"]
+__all__ = ["UP", "LumpedMass", "Structure", "locations"]
 
 UP = (0.0, 0.0, 1.0)
 """The measuring direction of beams and plates: +w, out of their plane."""

@@ -26,7 +26,7 @@ if TYPE_CHECKING:
     from ..model.basis import ShapeFit
     from ..model.vector_basis import VectorShapeFit
 
-__all__ = ["Body", "block_quadrature"]
+__all__ = ["Body"]
 
 Corner = tuple[float, float, float]
 Block = tuple[Corner, Corner]

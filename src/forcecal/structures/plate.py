@@ -14,7 +14,7 @@ from .base import LumpedMass, OutOfPlane
 if TYPE_CHECKING:
     from .._toml import TableReader
 
-__all__ = ["Plate", "inside_polygon", "polygon_quadrature", "triangulate"]
+__all__ = ["Plate", "inside_polygon"]
 
 _N_TRI = 12
 """Gauss points per direction on each triangle (exact for degree <= 22)."""

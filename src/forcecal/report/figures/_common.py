@@ -21,7 +21,7 @@ from ...records import Run
 from ...rig import Rig
 from ...signals.harmonics import HarmonicFit, fit_harmonics
 
-__all__ = ["DEFAULT_PERIODS"]
+__all__: list[str] = []
 
 DEFAULT_PERIODS = 3.0
 """Periods of the fundamental drawn by the time-history figures."""

@@ -1,6 +1,6 @@
 """Forces in real time: the streaming estimator (METHOD.md section 3, step 7).
 
-:class:`StreamEstimator` runs the recursive least-squares kernel of :mod:`forcecal.stream.rls`
+:class:`StreamEstimator` runs the recursive least-squares kernel of :mod:`forcecal.realtime.rls`
 on every channel; its readout from the tracked phasors to the forces is built from the same
 formulas as the batch estimate (:func:`forcecal.forces.coordinates.coordinate_map`,
 :func:`forcecal.model.inertia.inertia_term`, :func:`forcecal.forces.force_solve`,
@@ -41,7 +41,7 @@ from .rls import (
     window_tables,
 )
 
-__all__ = ["DEFAULT_MEMORY_PERIODS", "StreamEstimator"]
+__all__ = ["StreamEstimator"]
 
 DEFAULT_MEMORY_PERIODS = 2.0
 """Default memory 1 / (1 - lambda) of the forgetting, in drive periods."""

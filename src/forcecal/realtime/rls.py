@@ -16,7 +16,7 @@ channel: in the frame that rotates with the drive the information matrix has a c
 averaged signal (derived in their docstrings). A block is processed in pieces that end on
 a fixed grid of sample counts (``grid``, one drive period) and the frequency tracker acts only
 there, so the result does not depend on how the samples were split into blocks (to rounding).
-The per-sample loops run compiled (:mod:`forcecal.stream.compiled`); ``compiled=False`` runs
+The per-sample loops run compiled (:mod:`forcecal.realtime.compiled`); ``compiled=False`` runs
 them as whole-array NumPy, the reference they are tested against.
 """
 
@@ -30,20 +30,9 @@ import numpy as np
 
 from ..errors import DimensionError
 from . import compiled as jit
-from .reference import PRIOR, RlsState, rls_start, rls_update
+from .reference import PRIOR, rls_start, rls_update
 
-__all__ = [
-    "PRIOR",
-    "HarmonicState",
-    "RlsState",
-    "chunk_limit",
-    "harmonic_information",
-    "harmonic_start",
-    "harmonic_update",
-    "rls_start",
-    "rls_update",
-    "steady_count",
-]
+__all__ = ["harmonic_start", "harmonic_update", "rls_start", "rls_update", "steady_count"]
 
 STEADY_TOL = 1e-16
 """lambda^k below which the information matrix is its stationary value (to rounding)."""
@@ -429,7 +418,7 @@ def kernel(state: HarmonicState, y: np.ndarray, lam: float, tables: _Tables,
         r0.
     compiled : bool
         Demodulation, cumulative sums and (stationary) readout by the compiled loops of
-        :mod:`forcecal.stream.compiled`; False: by whole-array NumPy, the reference.
+        :mod:`forcecal.realtime.compiled`; False: by whole-array NumPy, the reference.
 
     Returns
     -------

@@ -301,7 +301,7 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     blocks : RunBlocks
         The run, open and checked.
     target : str or Path
-        As :func:`forcecal.stream.replay.stream_table`, with its columns.
+        As :func:`forcecal.realtime.replay.stream_table`, with its columns.
     check : callable, optional
         Called with (time, forces, static) of every chunk before it is written.
     digits : int

@@ -1,4 +1,4 @@
-"""Compiled loops of the streaming kernel (:func:`forcecal.stream.rls.kernel`).
+"""Compiled loops of the streaming kernel (:func:`forcecal.realtime.rls.kernel`).
 
 The per-sample work of exact RLS on the harmonic regressor, as :mod:`.rls` derives it, is a
 demodulation (every channel times lambda^-i exp(-j n theta_i)), cumulative sums of the
@@ -8,7 +8,7 @@ and the readout at every sample, runs here in one pass per pair of harmonics, co
 (machine code cached on disk, so that a new process pays no compilation), where NumPy would
 build and walk several temporaries as long as the piece.
 
-The per-sample factors are those of :func:`forcecal.stream.rls.window_tables` split into real
+The per-sample factors are those of :func:`forcecal.realtime.rls.window_tables` split into real
 planes, ``planes`` (4, H+1, L) = [Re w, Im w, Re b, Im b] with w = lambda^-i rotor and
 b = lambda^i conj(rotor), referred to the phase before the piece's first sample; the rotation
 by the piece's start phase is left to the caller (a factor per harmonic on the piece's sums).
@@ -141,11 +141,11 @@ def steady_readout(y: np.ndarray, planes: np.ndarray, power: np.ndarray, kap: np
     y : (n_channels, c) ndarray
         The piece's samples.
     planes : (4, H+1, L) ndarray, L >= c
-        [Re w, Im w, Re b, Im b] of :func:`forcecal.stream.rls.window_tables`.
+        [Re w, Im w, Re b, Im b] of :func:`forcecal.realtime.rls.window_tables`.
     power : (L,) ndarray
         lambda^i.
     kap : (n_out, H+1, n_channels) complex ndarray
-        The readout folded into the channel mixing (:func:`forcecal.stream.rls.mixing`).
+        The readout folded into the channel mixing (:func:`forcecal.realtime.rls.mixing`).
     offset : (n_out, H+1) complex ndarray
         The mixed state before the piece, lambda sum_c kappa_c d_c, rotated back by the
         start phase.
@@ -253,7 +253,7 @@ def solve_information(parts: np.ndarray, rows: np.ndarray, weights: np.ndarray,
     Parameters
     ----------
     parts : (c, 2 (2H+1)) ndarray
-        [Re g, Im g], the window sums of every sample (:func:`forcecal.stream.rls`).
+        [Re g, Im g], the window sums of every sample (:func:`forcecal.realtime.rls`).
     rows, weights : (2, p^2) ndarray
         The two terms of every entry of M in ``parts`` (the assembly map's nonzeros).
     diag : (c,) ndarray

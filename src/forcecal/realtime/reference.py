@@ -1,5 +1,5 @@
 """The reference form of the streaming kernel: textbook recursive least squares with
-forgetting in information form, for any regressor (:mod:`forcecal.stream.rls` derives the
+forgetting in information form, for any regressor (:mod:`forcecal.realtime.rls` derives the
 fast exact form for the harmonic regressor and checks itself against this one)."""
 
 from __future__ import annotations
