@@ -2,7 +2,7 @@
 
 A campaign is a manifest (INTERFACES.md section 4) listing runs at several static gaps and
 currents, and zero-current tare records. :func:`reconstruct_campaign` reconstructs every run
-(:func:`forcecal.forces.reconstruct`) with its calibration samples
+(:func:`forcecal.forces.steady.reconstruct`) with its calibration samples
 (:func:`forcecal.campaign.run_samples`), in a ``spawn`` process pool when there are many.
 """
 
@@ -247,7 +247,8 @@ def reconstruct_campaign(
         Worker processes; default ``min(2, os.cpu_count())``. Campaigns of fewer than
         ``PARALLEL_MIN_RUNS`` runs, or ``workers <= 1``, run serially.
     ac_coupled : bool
-        The gauges do not measure DC (piezoelectric): see :func:`forcecal.forces.reconstruct`.
+        The gauges do not measure DC (piezoelectric): see
+        :func:`forcecal.forces.steady.reconstruct`.
     samples_per_period : int
         Calibration samples per run.
 

@@ -65,7 +65,8 @@ class AnyDrive:
                                  "sample by sample with their stated uncertainty")
 
     def reconstruct(self, rig: Rig, model: Any, run: Run, *, n_harmonics: int | None = None,
-                    tare: Run | None = None, ac_coupled: bool = False, monte_carlo: int = 0) -> TransientEstimate:
+                    tare: Run | None = None, ac_coupled: bool = False,
+                    monte_carlo: int = 0) -> TransientEstimate:
         """The batch estimate of a run's forces, sample by sample."""
         self.check_options(rig, n_harmonics=n_harmonics, ac_coupled=ac_coupled,
                            monte_carlo=monte_carlo)

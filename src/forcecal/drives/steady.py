@@ -83,7 +83,8 @@ class SteadyDrive:
         """Every option serves a steady drive."""
 
     def reconstruct(self, rig: Rig, model: Any, run: Run, *, n_harmonics: int | None = None,
-                    tare: Run | None = None, ac_coupled: bool = False, monte_carlo: int = 0) -> ForceEstimate:
+                    tare: Run | None = None, ac_coupled: bool = False,
+                    monte_carlo: int = 0) -> ForceEstimate:
         """A run's harmonic estimate, with a Monte Carlo of its inputs when ``monte_carlo``
         draws are asked (GUM S1)."""
         harmonic = model.harmonic(rig, rig.drive_frequency)

@@ -153,8 +153,69 @@ class Parameter:
     """d -> (rig, inputs, whether the couplings must be recomputed)."""
 
 
+@dataclass(frozen=True)
+class TypeBSource:
+    """One type-B parameter of the rig, whichever drive propagates it.
+
+    Attributes
+    ----------
+    name : str
+        Its dotted key, e.g. ``gauges[0].scale``, ``sensors[1].x``, ``structure.masses[0].mass``.
+    source : str
+        The budget's source it belongs to (:data:`SOURCES`).
+    std : float
+        Its standard uncertainty [1 or m].
+    channel : str or None
+        "gauges" or "sensors" for a sensitivity (it scales channel ``index``), else None.
+    index : int
+        The channel of a sensitivity.
+    rig_at : callable or None
+        d -> the rig with the parameter moved by d (positions and masses), else None.
+    """
+
+    name: str
+    source: str
+    std: float
+    channel: str | None = None
+    index: int = -1
+    rig_at: Callable[[float], Rig] | None = None
+
+
+def type_b_sources(rig: Rig) -> list[TypeBSource]:
+    """Every type-B parameter of the rig with a non-zero standard uncertainty, in the order
+    both drives propagate them: gauge and probe sensitivities, the positions of gauges, forces
+    and probes, the distributed and the lumped masses."""
+    tb = rig.type_b
+    out: list[TypeBSource] = []
+    if tb.gauge_scale > 0:
+        out += [TypeBSource(f"gauges[{i}].scale", "gauge sensitivity", tb.gauge_scale,
+                            "gauges", i) for i in range(len(rig.gauges))]
+    if tb.probe_scale > 0:
+        out += [TypeBSource(f"sensors[{i}].scale", "probe sensitivity", tb.probe_scale,
+                            "sensors", i) for i in range(len(rig.sensors))]
+    if tb.position > 0:
+        out += [TypeBSource(f"{group}[{i}].{axis}", "positions", tb.position, None, i,
+                            partial(moved_rig, rig, group, i, axis))
+                for group in ("gauges", "forces", "sensors")
+                for i in range(len(getattr(rig, group))) for axis in rig.structure.axes]
+    if tb.mass > 0:
+        out += [TypeBSource(name, "masses", tb.mass, None, -1, partial(massed_rig, rig, k))
+                for name, k in (("structure (distributed mass)", None),
+                                *((f"structure.masses[{k}].mass", k)
+                                  for k in range(len(rig.structure.masses))))]
+    return out
+
+
+def central_difference(plus: np.ndarray, minus: np.ndarray) -> np.ndarray:
+    """The linear propagation of a type-B parameter (GUM 5.1.3): half the change of a result
+    between the parameter moved by +u and by -u."""
+    out: np.ndarray = 0.5 * (plus - minus)
+    return out
+
+
 def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
-    """Every type-B parameter of the rig with a non-zero standard uncertainty.
+    """Every type-B parameter of the rig with a non-zero standard uncertainty
+    (:func:`type_b_sources`), as it moves the steady estimate's rig and inputs.
 
     Parameters
     ----------
@@ -166,9 +227,6 @@ def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
     -------
     list of Parameter
     """
-    tb = rig.type_b
-    out: list[Parameter] = []
-
     def scaled(field: str, i: int) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
         def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
             arr = getattr(inputs, field).copy()
@@ -180,32 +238,18 @@ def parameters(rig: Rig, inputs: SolveInputs) -> list[Parameter]:
             return rig, dataclasses.replace(inputs, **changes), False
         return apply
 
-    def moved(group: str, i: int, axis: str) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
+    def moved(source: TypeBSource) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
+        rig_at = source.rig_at
+        assert rig_at is not None
+        recouple = source.source == "masses" or source.name.startswith("gauges[")
+
         def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
-            return moved_rig(rig, group, i, axis, d), inputs, group == "gauges"
+            return rig_at(d), inputs, recouple
         return apply
 
-    def massed(k: int | None) -> Callable[[float], tuple[Rig, SolveInputs, bool]]:
-        def apply(d: float) -> tuple[Rig, SolveInputs, bool]:
-            return massed_rig(rig, k, d), inputs, True
-        return apply
-
-    if tb.gauge_scale > 0:
-        out += [Parameter(f"gauges[{i}].scale", "gauge sensitivity", tb.gauge_scale,
-                          scaled("gauges", i)) for i in range(len(rig.gauges))]
-    if tb.probe_scale > 0:
-        out += [Parameter(f"sensors[{i}].scale", "probe sensitivity", tb.probe_scale,
-                          scaled("sensors", i)) for i in range(len(rig.sensors))]
-    if tb.position > 0:
-        for group in ("gauges", "forces", "sensors"):
-            for i in range(len(getattr(rig, group))):
-                out += [Parameter(f"{group}[{i}].{axis}", "positions", tb.position,
-                                  moved(group, i, axis)) for axis in rig.structure.axes]
-    if tb.mass > 0:
-        out.append(Parameter("structure (distributed mass)", "masses", tb.mass, massed(None)))
-        out += [Parameter(f"structure.masses[{k}].mass", "masses", tb.mass, massed(k))
-                for k in range(len(rig.structure.masses))]
-    return out
+    return [Parameter(s.name, s.source, s.std,
+                      scaled(s.channel, s.index) if s.channel is not None else moved(s))
+            for s in type_b_sources(rig)]
 
 
 def moved_rig(rig: Rig, group: str, i: int, axis: str, d: float) -> Rig:
@@ -253,7 +297,7 @@ def type_b_variance(rig: Rig, model: SpatialModel, inputs: SolveInputs
             rig_p, inp_p, recouple = p.apply(d)
             ends.append(combination_phasors(rig_p, model, inp_p,
                                             model_couplings(rig_p, model) if recouple else None))
-        delta = 0.5 * (ends[0] - ends[1])
+        delta = central_difference(ends[0], ends[1])
         out[p.source] += np.stack([delta.real**2, delta.imag**2], axis=-1)
     return out
 
@@ -375,9 +419,6 @@ def type_b_moves(rig: Rig, model: BroadbandModel) -> TypeBMoves | None:
     """Every type-B parameter with a non-zero standard uncertainty, as it moves Psi^+, the
     couplings and the shapes at the probes (central differences over +-u for positions and
     masses); None when the rig declares none."""
-    tb = rig.type_b
-    n_g, n_p = len(rig.gauges), len(rig.sensors)
-
     def solved(r: Rig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         at = r.structure.coordinates(r.sensor_points, source=f"rig '{r.source}'")
         return (np.linalg.pinv(force_matrix(r)), np.real(mass_coupling(r, model.values)),
@@ -396,25 +437,18 @@ def type_b_moves(rig: Rig, model: BroadbandModel) -> TypeBMoves | None:
         scale.append(s)
 
     zero = tuple(np.zeros_like(b) for b in base)
-    for i in range(n_g if tb.gauge_scale > 0 else 0):
-        add(f"gauges[{i}].scale", zero, i, tb.gauge_scale)
-    for j in range(n_p if tb.probe_scale > 0 else 0):
-        probes = np.zeros_like(base[2])
-        probes[j] = tb.probe_scale * base[2][j]
-        add(f"sensors[{j}].scale", (zero[0], zero[1], probes))
-    variants: list[tuple[str, float, Callable[[float], Rig]]] = []
-    if tb.position > 0:
-        variants += [(f"{group}[{i}].{axis}", tb.position,
-                      partial(moved_rig, rig, group, i, axis))
-                     for group in ("gauges", "forces", "sensors")
-                     for i in range(len(getattr(rig, group))) for axis in rig.structure.axes]
-    if tb.mass > 0:
-        variants += [(name, tb.mass, partial(massed_rig, rig, k)) for name, k in (
-            ("structure (distributed mass)", None),
-            *((f"structure.masses[{k}].mass", k) for k in range(len(rig.structure.masses))))]
-    for name, u, apply in variants:
-        plus, minus = solved(apply(u)), solved(apply(-u))
-        add(name, tuple(0.5 * (a - b) for a, b in zip(plus, minus, strict=True)))
+    for source in type_b_sources(rig):
+        if source.channel == "gauges":
+            add(source.name, zero, source.index, source.std)
+        elif source.channel == "sensors":
+            probes = np.zeros_like(base[2])
+            probes[source.index] = source.std * base[2][source.index]
+            add(source.name, (zero[0], zero[1], probes))
+        else:
+            assert source.rig_at is not None
+            plus, minus = solved(source.rig_at(source.std)), solved(source.rig_at(-source.std))
+            add(source.name, tuple(central_difference(a, b)
+                                   for a, b in zip(plus, minus, strict=True)))
     if not names:
         return None
     return TypeBMoves(names=tuple(names), pinv=np.array([r[0] for r in rows]),

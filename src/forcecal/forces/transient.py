@@ -51,6 +51,7 @@ from .budget import TypeBMoves, series_type_b_variance, type_b_moves, type_b_not
 from .estimate import inertia_share_of, series_summary
 from .inertia_errors import ScanNoiseShare, inertia_error_weights
 from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
+from .solve import force_solve, reactions_only
 from .steady import channels_si
 from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
 
@@ -523,7 +524,7 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     by_probes, by_gauges = inertia_of(np.vstack([acc_probes, acc_gauges]))   # (n_gauges, N)
     inertia = by_probes + by_gauges
     pinv = setup.pinv
-    force = pinv @ (inertia - reactions)
+    force = force_solve(pinv, inertia, reactions)
     if not np.all(np.isfinite(force)):
         raise DataError(f"run '{source}': the forces are not finite (a channel holds "
                         "non-finite samples?)")
@@ -546,7 +547,7 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                           force_std=np.sqrt(inner(sw.std[:-1] ** 2) + var[:-1]),
                           total=inner(sw.total), total_std=np.sqrt(inner(sw.total_std**2)
                                                                    + var[-1]),
-                          static=-pinv @ gauges, inertia=inner(inertia),
+                          static=reactions_only(pinv, gauges), inertia=inner(inertia),
                           reactions=inner(reactions), coordinate=inner(q), passed=sw.passed,
                           scan_noise=inner(scan[-1]))
 

@@ -59,7 +59,7 @@ class LinePhasors:
     drive_std : (n_points,) array [A]
         Standard uncertainty of Re and of Im of ``drive``.
     offset : float [lines]
-        The drive's offset from its line (step 2 of the module docstring).
+        The drive's offset from its line (step 2 of :func:`spectrum_phasors`).
     """
 
     f0: float
@@ -72,7 +72,7 @@ class LinePhasors:
 
 def spectrum_phasors(scan: ScanSpectra, f0_nominal: float, n_harmonics: int) -> LinePhasors:
     """Read harmonics 1..H of every response and the fundamental of every reference off the
-    lines (the method of the module docstring).
+    lines (the method in the notes below).
 
     Parameters
     ----------
@@ -93,6 +93,43 @@ def spectrum_phasors(scan: ScanSpectra, f0_nominal: float, n_harmonics: int) -> 
         The nominal frequency outside the lines; the drive at the band's edge; a harmonic
         beyond the last line or off its line by more than :data:`LINE_TOLERANCE`; lines too
         coarse for :data:`MIN_NOISE_LINES` noise lines beside a harmonic.
+
+    Notes
+    -----
+    1. **Amplitude.** Lines in the "rms" convention are multiplied by sqrt 2, so that every line
+       holds the one-sided peak phasor of :mod:`forcecal.signals.harmonics` (a unit cosine on a
+       line reads 1). The displacement amplitude in metres depends on this; the referencing
+       does not.
+    2. **Fundamental.** Its line is the peak of the reference power, each record's normalized and
+       summed over the records, within +-5 % of the nominal frequency. The drive's offset
+       ``delta`` from that line, in lines, is Jacobsen's three-line estimate
+       ``Re[(X[k-1] - X[k+1]) / (2 X[k] - X[k-1] - X[k+1])]``, the median over the records whose
+       reference shows the drive (exact for the rectangular window of a synchronous export; a Hann
+       window reads half the offset). f0 = (first line) + (k + delta) * (line spacing).
+    3. **Harmonics on lines.** Harmonic n is the line nearest n f0. It must lie within
+       :data:`LINE_TOLERANCE` of a line spacing of n f0, else the scan is refused (DataError): a
+       line beside a tone holds neither its amplitude nor, in a zoomed band, its phase, and the
+       window that would say by how much is not in the file. Within the tolerance a rectangular or
+       Hann window loses at most 0.1 % of the amplitude; the line is multiplied by
+       exp(-j pi eps_n), eps_n the offset of n f0 from it, the phase of a symmetric window's kernel
+       (from lines starting at 0 Hz this shift is n times the fundamental's and cancels in the
+       referencing anyway). What the other harmonics, off their lines, leak onto the line is
+       bounded by the rectangular window's kernel, sum_m |A_m sinc(k_n - p_m)| over the other
+       harmonics and the images of all at -m f0 (p_m the tone's position in lines), and added to
+       the line's uncertainty as a phase-random error (variance bound^2 / 2 in Re and in Im);
+       on a line it is zero. Export spectra whose line spacing divides the drive frequency (a
+       whole number of periods per record), as SLDV software does with its own generator.
+    4. **Noise.** The standard uncertainty of Re and of Im of a harmonic's line, per record and
+       harmonic, comes from the noise lines around it: those within half a harmonic spacing of
+       the harmonic's line, leaving out :data:`GUARD` lines either side of every harmonic's line
+       (a Hann window spreads a tone over +-1 line; a flat-top window spreads it wider and
+       inflates the estimate). Noise of locally flat spectrum has at every line
+       var Re = var Im = E|X|^2 / 2. E|X|^2 is modelled as the record's level times the
+       harmonic's profile (the noise's colour, common to the records), each estimated by the median
+       of |X|^2 over its lines divided by the expected median of as many unit exponential
+       variables: unbiased for Gaussian noise, hardly moved by a stray line such as the mains, and
+       pooled so that a few lines per harmonic still give a steady estimate (as the residual of a
+       time record's fit pools the whole record).
     """
     where = f"scan '{scan.source}'"
     factor = PEAK_FACTOR[scan.amplitude]
@@ -200,7 +237,7 @@ def _leakage(amplitude: np.ndarray, lines: np.ndarray, f0_lines: float, first_li
              ) -> np.ndarray:
     """(n_records, H) bound of what the other harmonics (and the images of all, at -n f0) put
     on every harmonic's line when they lie off their lines: sum_m |A_m sinc(k_n - p_m)|, p_m
-    the position of tone m in lines (step 3 of the module docstring; the rectangular
+    the position of tone m in lines (step 3 of :func:`spectrum_phasors`; the rectangular
     window's kernel, whose sidelobes no common window exceeds).
 
     Parameters
@@ -246,7 +283,7 @@ def _noise_windows(harmonics: np.ndarray, spacing: float, n_lines: int, source: 
 
 def _noise_std(lines: np.ndarray, windows: list[np.ndarray]) -> np.ndarray:
     """(n_records, H) standard uncertainty of Re and of Im of every record's line of every
-    harmonic, from the noise lines ``windows`` (step 4 of the module docstring)."""
+    harmonic, from the noise lines ``windows`` (step 4 of :func:`spectrum_phasors`)."""
     std: np.ndarray = np.sqrt(noise_power(np.abs(lines) ** 2, windows) / 2)
     return std
 

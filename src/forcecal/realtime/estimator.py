@@ -3,11 +3,11 @@
 :class:`StreamEstimator` runs the recursive least-squares kernel of :mod:`forcecal.realtime.rls`
 on every channel; its readout from the tracked phasors to the forces is built from the same
 formulas as the batch estimate (:func:`forcecal.forces.coordinates.coordinate_map`,
-:func:`forcecal.model.inertia.inertia_term`, :func:`forcecal.forces.force_solve`,
-:func:`forcecal.forces.kept_harmonics`). The exponential window sets the latency, the settling
-and the noise; a phase-locked loop on the current's fundamental follows a drifting drive; with
-a model built from several scans the probes choose each harmonic's members as the batch
-estimate does. The class's notes tell all three.
+:func:`forcecal.model.inertia.inertia_term`, :func:`forcecal.forces.solve.force_solve`,
+:func:`forcecal.forces.steady.kept_harmonics`). The exponential window sets the latency, the
+settling and the noise; a phase-locked loop on the current's fundamental follows a drifting
+drive; with a model built from several scans the probes choose each harmonic's members as the
+batch estimate does. The class's notes tell all three.
 """
 
 from __future__ import annotations
@@ -120,7 +120,7 @@ class StreamEstimator:
     extra_harmonics : sequence of int
         Harmonics without a shape that enter the force from the start (reactions only); the
         others join once the reactions show them above their noise over the window
-        (:func:`forcecal.forces.kept_harmonics`, checked once per drive period).
+        (:func:`forcecal.forces.steady.kept_harmonics`, checked once per drive period).
 
     Notes
     -----
@@ -248,7 +248,7 @@ class StreamEstimator:
 
     def _update_kept(self) -> None:
         """Add the harmonics without a shape that the reactions now show above their noise:
-        the batch estimate's policy (:func:`forcecal.forces.kept_harmonics`) applied to the
+        the batch estimate's policy (:func:`forcecal.forces.steady.kept_harmonics`) applied to the
         window. A harmonic once kept stays kept (no flicker at the threshold)."""
         h, n_g = self.n_harmonics, self._n_g
         cov = np.diag(stationary(self.lam, self._state.step, h)[2])

@@ -7,7 +7,7 @@ phase, on the regressor of :func:`forcecal.signals.harmonics.design_matrix`. The
 sample k minimize sum_{i <= k} lambda^(k-i) (y_i - phi_i^T x)^2 + lambda^k r0 |x|^2: RLS with
 forgetting factor lambda from the prior P_0 = I / r0 (``PRIOR``). Every channel shares the
 regressor, hence one information matrix; the forces follow from the phasors at every sample
-as in the batch :func:`forcecal.forces.reconstruct`.
+as in the batch :func:`forcecal.forces.steady.reconstruct`.
 
 :func:`rls_update` is the textbook information form, the reference (O(p^3) per sample,
 p = 2H+1). :func:`harmonic_update` computes the same estimate, exactly, in O(p) per sample and

@@ -15,7 +15,7 @@ blocks:
 - :class:`Preformatted` text (e.g. :func:`forcecal.actuator.report_text`);
 - a nested :class:`Section` (one heading level down).
 
-:func:`estimate_table` formats a :class:`~forcecal.forces.ForceEstimate` as table rows.
+:func:`estimate_table` formats a :class:`~forcecal.forces.estimate.ForceEstimate` as table rows.
 """
 
 from __future__ import annotations

@@ -90,7 +90,18 @@ def noise_windows(centres: np.ndarray, avoid: np.ndarray, spacing: float, n_line
 def noise_power(power: np.ndarray, windows: list[np.ndarray], segments: int = 1,
                 level_lines: np.ndarray | None = None) -> np.ndarray:
     """(n_records, m) expected power E|X|^2 of every record's noise at every harmonic, from the
-    power of its noise lines (the model of the module docstring).
+    power of its noise lines.
+
+    A harmonic's phasor is disturbed by the noise at its own frequency (1/f noise is stronger
+    near 0 Hz; mains hum sits on a few lines), so its noise lines lie around its own line,
+    leaving out :data:`GUARD` lines either side of every harmonic. Their power is modelled as
+    a record's level times a harmonic's profile, var(k, n) = a_k b_n: the level (the record's
+    gain, a spot's speckle) from the record's lines at every harmonic, the profile (the
+    noise's colour, common to the records of one fit) from every record's lines at that
+    harmonic; each a median over its lines divided by the expected median of as many
+    exponential variables (of as many averages of exponentials, when the lines are averaged
+    over segments): unbiased for Gaussian noise, hardly moved by a hum line or its leakage,
+    and pooled, so that a few lines per harmonic still give a steady estimate.
 
     Parameters
     ----------
