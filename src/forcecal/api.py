@@ -23,6 +23,7 @@ Like the command line, this module sits outside the core: it reads files (:mod:`
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 
 from .actuator import Calibration, Law, predict, predict_flux
@@ -35,6 +36,7 @@ from .io.run_files import read_run
 from .io.scan_files import read_scan as _read_scan
 from .model.broadband import BroadbandModel, load_any_model
 from .model.spatial import SpatialModel
+from .provenance import provenance
 from .records import Run, Scan, ScanFRF, ScanSpectra
 from .rig import Rig
 
@@ -263,8 +265,9 @@ def reconstruct(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
     >>> est = forcecal.reconstruct(rig, model, forcecal.read_run("runs/r01.csv"))  # doctest: +SKIP
     >>> est.to_dataframe()[["total", "total_static"]]                             # doctest: +SKIP
     """
-    return drive_of(rig).reconstruct(rig, model, run, n_harmonics=n_harmonics, tare=tare,
-                                     ac_coupled=ac_coupled, monte_carlo=monte_carlo)
+    est = drive_of(rig).reconstruct(rig, model, run, n_harmonics=n_harmonics, tare=tare,
+                                    ac_coupled=ac_coupled, monte_carlo=monte_carlo)
+    return replace(est, provenance=_origin(rig, model, run, tare))
 
 
 def stream(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
@@ -290,4 +293,11 @@ def stream(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
     --------
     >>> live = forcecal.stream(rig, model, forcecal.read_run("runs/r01.csv"))  # doctest: +SKIP
     """
-    return drive_of(rig).stream_run(rig, model, run, tare)
+    est = drive_of(rig).stream_run(rig, model, run, tare)
+    return replace(est, provenance=_origin(rig, model, run, tare))
+
+
+def _origin(rig: Rig, model: SpatialModel | BroadbandModel, run: Run, tare: Run | None) -> dict:
+    """The provenance of an estimate made in Python: the rig, the model's source, the run and
+    the tare, and this process's command line."""
+    return provenance([str(x.source) for x in (rig, model, run, tare) if x is not None])

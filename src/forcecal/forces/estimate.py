@@ -54,6 +54,11 @@ class Estimate(Protocol):
         ...
 
     @property
+    def provenance(self) -> dict | None:
+        """Where it comes from (:func:`forcecal.provenance.provenance`), when known."""
+        ...
+
+    @property
     def inertia_share(self) -> float:
         """The inertia term's share of the total's AC RMS [1]."""
         ...
@@ -184,6 +189,7 @@ class ForceEstimate:
     type_b: TypeB | None = None
     monte_carlo_std: np.ndarray | None = None
     monte_carlo_draws: int = 0
+    provenance: dict | None = None
 
     formats: ClassVar[tuple[str, ...]] = SERIES_FORMATS
 

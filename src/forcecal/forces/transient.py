@@ -366,6 +366,7 @@ class TransientEstimate:
     band: tuple[float, float]
     smoothed: bool = True
     notes: tuple[str, ...] = ()
+    provenance: dict | None = None
 
     @classmethod
     def from_window(cls, rig: Rig, run_name: str, t0: float, fs: float,

@@ -46,7 +46,8 @@ def write_estimate(est: Estimate, out_dir: str | Path, source: str | None = None
         (dataset-58 time records); see :mod:`forcecal.io.result_formats`. An estimate under
         any drive is written as CSV.
     provenance : dict, optional
-        Written as the JSON's ``provenance``: version, date, command line, input digests.
+        Written as the JSON's ``provenance``: version, date, command line, input digests
+        (default: the estimate's own, when it has one).
 
     Returns
     -------
@@ -77,8 +78,9 @@ def write_estimate(est: Estimate, out_dir: str | Path, source: str | None = None
     try:
         doc = est.summary()
         doc["series"] = series_json(est, fmt, cols)
-        if provenance is not None:
-            doc["provenance"] = provenance
+        origin = provenance if provenance is not None else est.provenance
+        if origin is not None:
+            doc["provenance"] = origin
         text = json.dumps(doc, indent=1, allow_nan=False)
     except ValueError:
         raise DataError(f"{where}: the estimate's summary holds non-finite values; nothing "

@@ -306,6 +306,7 @@ class StreamedForces:
     static: np.ndarray
     std: np.ndarray
     notes: tuple[str, ...] = ()
+    provenance: dict | None = None
     formats: ClassVar[tuple[str, ...]] = ("csv",)
 
     def columns(self) -> dict[str, np.ndarray]:
