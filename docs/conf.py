@@ -112,7 +112,8 @@ def prepare_docstring(app: Any, what: str, name: str, obj: Any, options: Any,
 def skip_reexport(app: Any, what: str, name: str, obj: Any, skip: bool,
                   options: Any) -> bool | None:
     """Document an object once, on the page of the public module that defines it: a module that
-    re-exports it (``forcecal.forces`` the ``ForceEstimate`` of ``forcecal.forces.estimate``) skips it.
+    re-exports it (``forcecal.io.uff`` the ``read_scan_uff`` of ``forcecal.io._uff_read``)
+    skips it.
     What a module re-exports from a private one (``_uff_read``) is documented with it."""
     home = getattr(obj, "__module__", None)
     if skip or what != "module" or not isinstance(home, str) or not home.startswith("forcecal"):

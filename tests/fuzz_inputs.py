@@ -5,7 +5,7 @@ Shared by ``tests/test_fuzz.py`` (a few hundred seeded cases, hypothesis) and
 command either
 
 - exits 0 with outputs that are finite, valid JSON (no NaN/Infinity) and physically bounded
-  (forces within ``FORCE_FACTOR`` times the clean run's peak), or
+  (forces within ``FORCE_FACTOR`` times the clean run's peak: :mod:`fuzz_oracle`), or
 - exits 2 with exactly one line on stderr that names the file at fault (or another input file
   of the command, when the combination is at fault; for an argument, the option), and leaves
   no output file behind;
@@ -13,8 +13,8 @@ command either
 never exit 1, never an exception.
 
 A case is ``(kind, seed)``: :func:`make_case` draws one mutation of that kind's input with
-``random.Random(seed)`` and :func:`run_case` runs it through :func:`forcecal.cli.main` in
-process and classifies the outcome (:data:`OUTCOMES`).
+``random.Random(seed)`` (the mutators are in :mod:`fuzz_mutations`) and :func:`run_case` runs
+it through :func:`forcecal.cli.main` in process and classifies the outcome (:data:`OUTCOMES`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,6 @@ from __future__ import annotations
 import contextlib
 import io
 import json
-import math
 import random
 import shutil
 import traceback
@@ -34,6 +33,8 @@ from typing import Any
 
 import h5py
 import numpy as np
+from fuzz_mutations import extreme, mutate_doc, text_mutation, write_file
+from fuzz_oracle import check_outputs
 
 OK, REFUSED, UNCLEAN, INTERNAL, SILENT = "ok", "refused", "unclean", "internal", "silent"
 OUTCOMES = (OK, REFUSED, UNCLEAN, INTERNAL, SILENT)
@@ -43,11 +44,6 @@ internal: exit 1 or an exception; silent: exit 0 with non-finite or absurd outpu
 
 KINDS = ("rig", "scan_uff", "scan_frf", "scan_h5", "scan_npz", "run_csv", "run_tdms",
          "run_h5", "manifest", "model", "calibration", "arguments")
-
-FORCE_FACTOR = 100.0
-"""An output force beyond this many times the clean run's peak is absurd."""
-PREDICT_LIMIT_N = 1e6
-"""An actuator force beyond this (N) from ``predict`` is absurd."""
 
 _RUN_DECIMATE = 4      # the lab's run: 10 kHz -> 2.5 kHz, 1 s (20 periods)
 _SCAN_DECIMATE = 2     # the lab's scan: 10 kHz -> 5 kHz, 0.5 s
@@ -199,128 +195,6 @@ class Outcome:
     detail: str
 
 
-BIG = [0.0, -1.0, 1e300, -1e300, 1e-300, 1e308, float("nan"), float("inf"), float("-inf"),
-       1e6, 1e12, -1e-3]
-
-
-def _extreme(rng: random.Random, value: float | None = None) -> float:
-    choices = list(BIG)
-    if value is not None and value != 0:
-        choices += [value * 1e3, value * 1e-3, value * 1e300, -value, value * 1e30]
-    return rng.choice(choices)
-
-
-def _leaves(obj: Any, path: tuple = ()) -> list[tuple]:
-    """Paths of every leaf (number, string, bool, None) of a JSON/TOML document."""
-    out: list[tuple] = []
-    if isinstance(obj, dict):
-        for k, v in obj.items():
-            out += _leaves(v, (*path, k))
-    elif isinstance(obj, list):
-        for k, v in enumerate(obj):
-            out += _leaves(v, (*path, k))
-    else:
-        out.append(path)
-    return out
-
-
-def _containers(obj: Any, path: tuple = ()) -> list[tuple]:
-    out: list[tuple] = [path]
-    if isinstance(obj, dict):
-        for k, v in obj.items():
-            out += _containers(v, (*path, k)) if isinstance(v, dict | list) else []
-    elif isinstance(obj, list):
-        for k, v in enumerate(obj):
-            out += _containers(v, (*path, k)) if isinstance(v, dict | list) else []
-    return out
-
-
-def _get(obj: Any, path: tuple) -> Any:
-    for p in path:
-        obj = obj[p]
-    return obj
-
-
-def _set(obj: Any, path: tuple, value: Any) -> None:
-    _get(obj, path[:-1])[path[-1]] = value
-
-
-def _mutate_doc(doc: Any, rng: random.Random, numeric_bias: float = 0.7) -> str:
-    """Mutate a parsed document in place; returns a description."""
-    leaves = _leaves(doc)
-    numeric = [p for p in leaves if isinstance(_get(doc, p), int | float)
-               and not isinstance(_get(doc, p), bool)]
-    r = rng.random()
-    if numeric and r < numeric_bias:
-        p = rng.choice(numeric)
-        old = _get(doc, p)
-        new = _extreme(rng, float(old))
-        if isinstance(old, int) and rng.random() < 0.5:
-            new = rng.choice([0, -1, 999, 10**6, -(10**6), 2**62])
-        _set(doc, p, new)
-        return f"{'.'.join(map(str, p))} = {new!r} (was {old!r})"
-    if r < 0.8 and leaves:
-        p = rng.choice(leaves)
-        new = rng.choice(["text", "", None, True, [], {}, [1.0, 2.0], "nan", -0.0])
-        _set(doc, p, new)
-        return f"{'.'.join(map(str, p))} = {new!r}"
-    cont = [c for c in _containers(doc) if c and isinstance(_get(doc, c[:-1]), dict | list)]
-    if r < 0.9 and cont:
-        p = rng.choice(cont)
-        parent = _get(doc, p[:-1])
-        if isinstance(parent, dict):
-            del parent[p[-1]]
-            return f"deleted {'.'.join(map(str, p))}"
-        value = _get(doc, p)
-        if isinstance(value, list):
-            if value and rng.random() < 0.5:
-                value.append(value[-1])
-                return f"{'.'.join(map(str, p))}: last item repeated"
-            value.clear()
-            return f"{'.'.join(map(str, p))} = []"
-        return "no-op"
-    paths = [p for p in leaves if p]
-    if paths:
-        p = rng.choice(paths)
-        parent = _get(doc, p[:-1])
-        if isinstance(parent, dict):
-            del parent[p[-1]]
-            return f"deleted {'.'.join(map(str, p))}"
-        parent.pop(p[-1])
-        return f"removed item {'.'.join(map(str, p))}"
-    return "no-op"
-
-
-def _text_mutation(data: bytes, rng: random.Random) -> tuple[bytes, str]:
-    """Byte-level damage: flips, truncation, deep nesting, a huge number."""
-    r = rng.random()
-    if r < 0.3:
-        n = rng.choice([1, 5, 50])
-        buf = bytearray(data)
-        for _ in range(n):
-            k = rng.randrange(len(buf))
-            buf[k] = rng.randrange(256)
-        return bytes(buf), f"{n} random bytes"
-    if r < 0.5:
-        cut = rng.randrange(len(data))
-        return data[:cut], f"truncated at byte {cut}"
-    if r < 0.6:
-        return data + b"\n" + b"[" * 100_000 + b"\n", "100000 brackets appended"
-    if r < 0.7:
-        return b"x = " + b"[" * 100_000 + b"\n", "100000 nested brackets"
-    if r < 0.8:
-        return data.replace(b"0.", b"9" * 5000 + b".", 1), "a 5000-digit number"
-    if r < 0.9:
-        return b"", "empty file"
-    return data + b"\xff\xfe garbage \x00", "trailing binary garbage"
-
-
-def _write(path: Path, data: bytes) -> Path:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_bytes(data)
-    return path
-
-
 # ---------------------------------------------------------------------------- per kind
 
 
@@ -333,14 +207,14 @@ def _case_rig(lab: Lab, d: Path, rng: random.Random) -> Case:
     text = lab.files["rig"].read_bytes()
     if rng.random() < 0.75:
         doc = tomllib.loads(text.decode())
-        what = _mutate_doc(doc, rng)
+        what = mutate_doc(doc, rng)
         try:
             data = tomli_w.dumps(doc).encode()
         except (TypeError, ValueError):
             data, what = text.replace(b"0.6", b"1e300", 1), "length = 1e300"
     else:
-        data, what = _text_mutation(text, rng)
-    _write(target, data)
+        data, what = text_mutation(text, rng)
+    write_file(target, data)
     # the rig is read before the scan: reconstruct from the NPZ scan (its model is rebuilt)
     out = d / "out"
     argv = ["reconstruct", str(target), str(lab.files["scan_npz"]),
@@ -364,10 +238,10 @@ def _case_scan_arrays(lab: Lab, d: Path, rng: random.Random, fmt: str) -> Case:
         if key == "quantity":
             arrays[key] = np.str_(rng.choice(["", "acceleration", "Velocity", "x" * 1000]))
         elif key == "fs" or q < 0.15:
-            arrays[key] = np.asarray(_extreme(rng, float(np.ravel(a)[0]) if a.size else 1.0))
+            arrays[key] = np.asarray(extreme(rng, float(np.ravel(a)[0]) if a.size else 1.0))
         elif q < 0.45:
             b = np.array(a, dtype=float)
-            b.flat[rng.randrange(b.size)] = _extreme(rng)
+            b.flat[rng.randrange(b.size)] = extreme(rng)
             arrays[key] = b
         elif q < 0.6:
             arrays[key] = np.asarray(a, dtype=float) * rng.choice([1e300, 1e-300, 0.0, -1.0])
@@ -390,8 +264,8 @@ def _case_scan_arrays(lab: Lab, d: Path, rng: random.Random, fmt: str) -> Case:
                     h5.create_dataset(k, data=v.astype("S") if v.dtype.kind == "U" else v)
     else:
         base = (lab.files["scan_npz"] if fmt == "npz" else lab.files["scan_h5"]).read_bytes()
-        data, what = _text_mutation(base, rng)
-        _write(target, data)
+        data, what = text_mutation(base, rng)
+        write_file(target, data)
     out = d / "model.json"
     argv = ["scan", str(lab.files["rig"]), str(target), "-o", str(out)]
     return Case(f"scan_{fmt}", 0, what, argv, (str(target), target.name), [out], "scan")
@@ -424,8 +298,8 @@ def _case_scan_uff(lab: Lab, d: Path, rng: random.Random, kind: str = "scan_uff"
         data = b"\n".join(lines[: ends[i]] + lines[ends[i + 1] + 1:])
         what = f"dataset at line {ends[i] + 1} removed"
     else:
-        data, what = _text_mutation(text, rng)
-    _write(target, data)
+        data, what = text_mutation(text, rng)
+    write_file(target, data)
     out = d / "model.json"
     argv = ["scan", str(lab.files[rig]), str(target), "-o", str(out)]
     return Case(kind, 0, what, argv, (str(target), target.name), [out], "scan")
@@ -476,10 +350,10 @@ def _case_run_csv(lab: Lab, d: Path, rng: random.Random) -> Case:
         lines[0] = ",".join(header)
         what = f"header cell {j} = {header[j][:10]!r}"
     else:
-        data, what = _text_mutation(text.encode(), rng)
-        _write(target, data)
+        data, what = text_mutation(text.encode(), rng)
+        write_file(target, data)
         return _run_case(lab, d, rng, target, "run_csv", what)
-    _write(target, ("\n".join(lines) + "\n").encode())
+    write_file(target, ("\n".join(lines) + "\n").encode())
     return _run_case(lab, d, rng, target, "run_csv", what)
 
 
@@ -510,7 +384,7 @@ def _mutate_channels(channels: dict[str, np.ndarray], rng: random.Random) -> str
     q = rng.random()
     if q < 0.4:
         k = rng.randrange(v.size)
-        v[k] = _extreme(rng)
+        v[k] = extreme(rng)
         return f"channel {name!r} sample {k} = {v[k]!r}"
     if q < 0.6:
         f = rng.choice([1e300, 1e-300, 0.0, 1e30, 1e150])
@@ -550,8 +424,8 @@ def _case_run_tdms(lab: Lab, d: Path, rng: random.Random) -> Case:
         with TdmsWriter(str(target)) as w:
             w.write_segment(objects)
     else:
-        data, what = _text_mutation(lab.files["run_tdms"].read_bytes(), rng)
-        _write(target, data)
+        data, what = text_mutation(lab.files["run_tdms"].read_bytes(), rng)
+        write_file(target, data)
     return _run_case(lab, d, rng, target, "run_tdms", what)
 
 
@@ -580,7 +454,7 @@ def _case_run_h5(lab: Lab, d: Path, rng: random.Random) -> Case:
             k = rng.randrange(len(data) // 2, len(data))
             data[k] = rng.randrange(256)
         what = f"{n} flipped bytes"
-        _write(target, bytes(data))
+        write_file(target, bytes(data))
     return _run_case(lab, d, rng, target, "run_h5", what)
 
 
@@ -609,11 +483,11 @@ def _case_manifest(lab: Lab, d: Path, rng: random.Random) -> Case:
         rows[1][1] = rng.choice(["true", "maybe", "2"])
         what = f"tare = {rows[1][1]!r}"
     else:
-        data, what = _text_mutation(b"\n".join(b",".join(c.encode() for c in row)
+        data, what = text_mutation(b"\n".join(b",".join(c.encode() for c in row)
                                                for row in rows) + b"\n", rng)
-        _write(target, data)
+        write_file(target, data)
         return _manifest_case(lab, d, target, what)
-    _write(target, ("\n".join(",".join(row) for row in rows) + "\n").encode())
+    write_file(target, ("\n".join(",".join(row) for row in rows) + "\n").encode())
     return _manifest_case(lab, d, target, what)
 
 
@@ -632,7 +506,7 @@ def _case_json(lab: Lab, d: Path, rng: random.Random, kind: str) -> Case:
     r = rng.random()
     if r < 0.75:
         doc = json.loads(text)
-        what = _mutate_doc(doc, rng, numeric_bias=0.6)
+        what = mutate_doc(doc, rng, numeric_bias=0.6)
         if kind == "model" and rng.random() < 0.3:
             q = rng.choice(["f0", "shapes", "harmonics", "order", "format"])
             if q == "f0":
@@ -648,8 +522,8 @@ def _case_json(lab: Lab, d: Path, rng: random.Random, kind: str) -> Case:
             what = f"model {q} mutated"
         data = json.dumps(doc).encode()  # NaN/Infinity as Python writes them
     else:
-        data, what = _text_mutation(text, rng)
-    _write(target, data)
+        data, what = text_mutation(text, rng)
+    write_file(target, data)
     if kind == "model":
         out = d / "out"
         argv = ["reconstruct", str(lab.files["rig"]), str(target), str(lab.files["run_csv"]),
@@ -737,138 +611,7 @@ def make_case(lab: Lab, folder: Path, kind: str, seed: int) -> Case:
 
 
 # --------------------------------------------------------------------------------------------
-# the oracle
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"non-JSON constant {name}")
-
-
-def _json_numbers(obj: Any) -> list[float]:
-    if isinstance(obj, dict):
-        return [x for v in obj.values() for x in _json_numbers(v)]
-    if isinstance(obj, list):
-        return [x for v in obj for x in _json_numbers(v)]
-    if isinstance(obj, int | float) and not isinstance(obj, bool):
-        return [float(obj)]
-    return []
-
-
-def _check_json(path: Path, limit: float | None) -> str | None:
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=_reject_constant)
-    except (ValueError, UnicodeDecodeError) as exc:
-        return f"{path.name}: not valid JSON ({exc})"
-    nums = np.array(_json_numbers(doc))
-    if nums.size and not np.all(np.isfinite(nums)):
-        return f"{path.name}: non-finite number"
-    if limit is not None and isinstance(doc, dict) and "forces" in doc:
-        amps = [row.get("amplitude_n", 0.0) for rows in doc["forces"].values() for row in rows]
-        if amps and max(abs(a) for a in amps) > limit:
-            return f"{path.name}: force amplitude {max(amps):.3g} N is absurd"
-    return None
-
-
-def _check_table(path: Path, limit: float) -> str | None:
-    from forcecal.io.run_files import read_run, read_table_csv
-
-    try:
-        if path.suffix in (".h5", ".hdf5"):
-            run = read_run(path)
-            cols = dict(run.channels)
-        else:
-            _, cols = read_table_csv(path)
-    except Exception as exc:
-        return f"{path.name}: unreadable output ({exc})"
-    for name, v in cols.items():
-        if not np.all(np.isfinite(v)):
-            return f"{path.name}: column {name!r} not finite"
-        if np.max(np.abs(v)) > limit:
-            return f"{path.name}: column {name!r} reaches {np.max(np.abs(v)):.3g} N (absurd)"
-    return None
-
-
-def _check_outputs(case: Case, lab: Lab, stdout: str) -> str | None:
-    """None when every output is sound, else what is wrong."""
-    limit = FORCE_FACTOR * lab.force_peak
-    files: list[Path] = []
-    for o in case.outputs:
-        if o.is_dir():
-            files += [p for p in o.rglob("*") if p.is_file()]
-        elif o.is_file():
-            files.append(o)
-    for p in files:
-        if p.name.endswith((".forces.csv", ".stream.csv")) or (
-                case.command == "stream" and p.suffix in (".csv", ".h5", ".hdf5")):
-            bad = _check_table(p, limit)
-        elif p.suffix == ".json":
-            bad = _check_json(p, limit)
-            if bad is None and p.name == "calibration.json":
-                bad = _check_calibration(p, lab)
-            if bad is None and case.command == "scan":
-                bad = _check_model(p)
-        else:
-            bad = None
-        if bad:
-            return bad
-    if case.command == "predict":
-        return _check_predict(stdout, "--json" in case.argv)
-    return None
-
-
-def _check_calibration(path: Path, lab: Lab) -> str | None:
-    from forcecal.actuator import predict
-    from forcecal.campaign import load_calibration
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        try:
-            f = float(predict(load_calibration(path), [1.0], 0.0009).total[0])
-        except Exception as exc:
-            return f"{path.name}: not usable ({exc})"
-    if not math.isfinite(f) or abs(f) > FORCE_FACTOR * lab.predict_force:
-        return f"{path.name}: predicts {f:.3g} N at 1 A, 0.9 mm"
-    return None
-
-
-def _check_model(path: Path) -> str | None:
-    from forcecal.model.broadband import BroadbandModel, load_any_model
-
-    try:
-        model = load_any_model(path)
-    except Exception as exc:
-        return f"{path.name}: the written model is not readable ({exc})"
-    if isinstance(model, BroadbandModel):
-        lines = model.frequencies
-        if not (len(lines) >= 3 and model.band[0] - 5 <= lines[0] <= lines[-1]
-                <= model.band[1] + 5):
-            return f"{path.name}: lines {lines[:1]}..{lines[-1:]} Hz outside the band"
-        std = model.ratio_std if model.ratio_std is not None else np.zeros(1)
-        if not np.all(np.isfinite(std)) or np.max(std) > 1e6:
-            return f"{path.name}: ratio uncertainty up to {np.max(std):.3g}"
-        return None
-    if not (0 < model.f0 < 1e6):
-        return f"{path.name}: fundamental {model.f0} Hz"
-    return None
-
-
-def _check_predict(stdout: str, as_json: bool) -> str | None:
-    text = stdout.strip()
-    try:
-        if as_json:
-            doc = json.loads(text, parse_constant=_reject_constant)
-            value = float(doc["total_n"])
-            nums = _json_numbers(doc)
-        else:
-            value = float(text.splitlines()[-1])
-            nums = [value]
-    except (ValueError, KeyError, IndexError, TypeError) as exc:
-        return f"stdout {text[:80]!r} is not a prediction ({exc})"
-    if not all(math.isfinite(x) for x in nums):
-        return f"stdout {text[:80]!r}: not finite"
-    if abs(value) > PREDICT_LIMIT_N:
-        return f"stdout {text[:80]!r}: {value:.3g} N is absurd"
-    return None
+# running a case (the oracle that judges its outputs is fuzz_oracle)
 
 
 def _leftovers(case: Case) -> list[Path]:
@@ -908,7 +651,7 @@ def run_case(case: Case, lab: Lab) -> Outcome:
              if ln.strip() and not ln.startswith(("  [", "  simulating"))]
     text = " | ".join(lines)[:300]
     if code == 0:
-        bad = _check_outputs(case, lab, stdout)
+        bad = check_outputs(case, lab, stdout)
         if bad:
             return Outcome(case.kind, case.seed, case.what, SILENT, code, bad)
         return Outcome(case.kind, case.seed, case.what, OK, code, text)

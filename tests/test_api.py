@@ -18,7 +18,7 @@ from forcecal.model import spatial
 
 STEPS = ("load_rig", "read_scan", "read_run", "build_spatial_model", "load_model",
          "reconstruct", "calibrate", "write_calibration", "load_calibration", "predict",
-         "predict_flux")
+         "predict_flux", "stream")
 MAX_REPR = 400
 """A repr longer than this is a dump, not a summary."""
 

@@ -9,7 +9,6 @@ wrote. A command must exit with status 0, unless the document marks it with a tr
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import re
 import shlex
@@ -22,16 +21,6 @@ from forcecal.cli.main import main
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 FAILS = re.compile(r"#\s*exits\s+(\d+)\s*$")
-
-# modules a command needs beyond the core, written concurrently with the docs: a command whose
-# module is not there yet is skipped, and so is every later command of its document
-NEEDS = {
-    "calibrate": ["forcecal.campaign", "forcecal.report.pipeline"],
-    "predict": ["forcecal.campaign"],
-    "report": ["forcecal.report.pipeline"],
-    "stream": ["forcecal.realtime"],
-    "demo": ["forcecal.campaign", "forcecal.report.pipeline"],
-}
 
 
 @dataclass(frozen=True)
@@ -132,10 +121,6 @@ def test_documented_command(command, workspaces, monkeypatch, capsys):
     space = workspaces(command.doc)
     if space[1]:
         pytest.skip(space[1])
-    missing = [m for m in NEEDS.get(command.argv[0], []) if importlib.util.find_spec(m) is None]
-    if missing:
-        space[1] = f"an earlier command of {command.doc} needs {', '.join(missing)}"
-        pytest.skip(f"needs {', '.join(missing)}")
     monkeypatch.chdir(space[0])
     space[1] = f"{command.id} failed"
     status = main(list(command.argv))

@@ -216,10 +216,24 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
 def load_model(path: str | Path) -> SpatialModel | BroadbandModel:
     """Read a ``MODEL.json`` written by ``forcecal scan``: a harmonic model or a broadband one.
 
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    SpatialModel or BroadbandModel
+        The model, with the rig it was built for (a model is refused for another rig).
+
     Raises
     ------
     InputError
         Naming the file, when it is missing, not JSON, or not a model.
+
+    Examples
+    --------
+    >>> model = forcecal.load_model("model.json")                # doctest: +SKIP
     """
     return load_any_model(path)
 

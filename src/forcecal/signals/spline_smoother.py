@@ -8,7 +8,7 @@ spacings; Green and Silverman, *Nonparametric Regression and Generalized Linear 
 section 2.1). In the eigenvectors of W^-1/2 K W^-1/2 (the Demmler-Reinsch basis) every
 penalty's map is diagonal, 1 / (1 + lam alpha_i): its trace, its residuals and the penalty of
 least risk cost O(n) each once the basis is known. scipy's fit gives a spline's values, not
-its map, its trace or its risk; ``tests/test_broadband.py`` checks the map against it.
+its map, its trace or its risk; ``tests/signals/test_band_smoother.py`` checks the map against it.
 
 The penalty of least risk minimises Mallows' C_p, the unbiased estimate of the spline's mean
 squared error when the values' variances are known (the weights their inverses): the weighted

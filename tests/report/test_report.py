@@ -46,7 +46,6 @@ from forcecal.report import (
 from forcecal.report.figures.forces import force_sigma
 from forcecal.rig import load_rig
 from forcecal.signals.harmonics import fit_harmonics
-from forcecal.simulate.export import write_simulation
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 PERIODS = 3.0
@@ -55,10 +54,9 @@ _FACTOR = {"m": 1.0, "mm": 1e3, "µm": 1e6, "nm": 1e9, "A": 1.0, "N": 1.0}
 
 
 @pytest.fixture(scope="session")
-def case(tmp_path_factory):
+def case(paper_dir):
     """The simulated 'paper' rig: rig, shapes, model, run, estimate and truth."""
-    out = tmp_path_factory.mktemp("report_paper")
-    write_simulation(out, "paper", seed=0)
+    out = paper_dir                     # the session's 'paper' preset, seed 0 (conftest.py)
     rig = load_rig(out / "rig.toml")
     scan = read_scan_uff(out / "scan.uff")
     shapes = harmonic_shapes(scan, rig.frequency, 6)

@@ -1,6 +1,6 @@
-"""The type-B part of the uncertainty budget (forcecal.forces.budget): the rig's [uncertainty] table,
-linear propagation against a Monte Carlo of the same parameters, and coverage when the sensors'
-true sensitivities differ from the rig's by draws of the declared uncertainties."""
+"""The type-B part of the uncertainty budget (forcecal.forces.budget): the rig's [uncertainty]
+table, linear propagation against a Monte Carlo of the same parameters, and coverage when the
+sensors' true sensitivities differ from the rig's by draws of the declared uncertainties."""
 
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ Cases, each aimed at one term of the propagation (:mod:`forcecal.forces.uncertai
 Then the linear propagation of one seed against a Monte Carlo of its inputs.
 
 Achieved statistics (seeds 0..39) are written beside every bound; they were measured with
-``python tests/test_uncertainty.py``, which prints them all.
+``python tests/forces/test_uncertainty.py``, which prints them all.
 """
 
 from __future__ import annotations
@@ -414,7 +414,7 @@ def test_propagation_matches_monte_carlo(draws, case):
 # --------------------------------------------------------------------------- report
 
 def main() -> None:
-    """Print every statistic the tests check (``python tests/test_uncertainty.py``)."""
+    """Print every statistic the tests check (``python tests/forces/test_uncertainty.py``)."""
     d = simulate_draws()
 
     def line(label: str, z: np.ndarray) -> str:

@@ -18,7 +18,7 @@ from forcecal.io.scan_files import read_scan, write_scan_hdf5, write_scan_npz
 from forcecal.io.uff import read_scan_uff, read_uff_geometry, write_scan_uff
 from forcecal.records import Scan
 
-THIRD_PARTY = Path(__file__).resolve().parents[2] / "shared" / "data" / "third-party-uff"
+THIRD_PARTY = Path(__file__).resolve().parents[3] / "shared" / "data" / "third-party-uff"
 
 # pyuff writes ASCII dataset-58 values as %20.11e: 12 significant digits, so a value comes back
 # within half a unit in the 12th digit, 5e-12 relative. Measured on the round trip below:

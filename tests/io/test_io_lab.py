@@ -27,7 +27,7 @@ from forcecal.errors import DataError, InputError, RigError
 from forcecal.io.run_files import read_run, read_table_csv, run_paths
 from forcecal.rig import load_rig, parse_rig, rig_to_dict
 
-THIRD_PARTY = Path(__file__).resolve().parents[2] / "shared" / "data" / "third-party-uff"
+THIRD_PARTY = Path(__file__).resolve().parents[3] / "shared" / "data" / "third-party-uff"
 SHORT_SECONDS = 0.4
 FORCE_COLUMNS = ["F1", "F2", "total", "F1_static", "F2_static", "total_static"]
 UFF_RTOL = 5e-12  # pyuff's ASCII values: %20.11e

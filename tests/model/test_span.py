@@ -1,5 +1,6 @@
-"""Several scans under different loads: a span of shapes per harmonic (forcecal.model.spatial), the
-members each run needs (forcecal.forces.coordinates.choose_members), against the virtual rig's truth.
+"""Several scans under different loads: a span of shapes per harmonic (forcecal.model.spatial),
+the members each run needs (forcecal.forces.coordinates.choose_members), against the virtual
+rig's truth.
 
 The `two-coil` preset: the paper beam pulled by two magnets on their own coils, scanned with
 coil A dominant and again with coil B dominant; its runs change coil B since the scans.

@@ -23,7 +23,7 @@ from uff_files import retype
 import forcecal
 from forcecal.errors import DataError, InputError, RigError
 
-LABS = Path(__file__).resolve().parents[1] / "docs" / "labs"
+LABS = Path(__file__).resolve().parents[2] / "docs" / "labs"
 PAGES = ("polytec.md", "ni-tdms.md", "testlab-uff.md")
 FS = 2000.0            # Hz
 F0 = 20.0              # Hz, the pages' [acquisition] frequency
