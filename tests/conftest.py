@@ -41,6 +41,19 @@ def paper_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def campaign_dir(tmp_path_factory):
+    """The 'campaign' preset written in the public formats (seed 0), and beside its manifest
+    ``manifest_small.csv``: its runs at 0.6 A DC and 0.2 A AC, one per static gap (0.8, 1.0
+    and 1.2 mm), and its tare (a campaign of three runs, calibrated in seconds)."""
+    out = tmp_path_factory.mktemp("campaign")
+    write_simulation(out, "campaign", seed=0)
+    header, *rows = (out / "manifest.csv").read_text(encoding="utf-8").splitlines()
+    keep = [r for r in rows if r.split(",")[0].endswith("_dc06_ac02.csv") or "runs/tare" in r]
+    (out / "manifest_small.csv").write_text("\n".join([header, *keep]) + "\n", encoding="utf-8")
+    return out
+
+
+@pytest.fixture(scope="session")
 def paper(paper_dir):
     """(rig, scan, model, run) of the simulated 'paper' rig."""
     rig = load_rig(paper_dir / "rig.toml")

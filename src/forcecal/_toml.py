@@ -242,7 +242,8 @@ def channel_map(r: TableReader, table: dict[str, Any],
     table : dict
         The parsed ``[channels]`` table (empty when the rig has none).
     names : sequence of str
-        The rig's channels (gauges, sensors, ``actuator.current``, ``actuator.flux``).
+        The rig's channels (gauges, sensors, ``actuator.current``, ``actuator.flux``) and
+        ``time``, the run files' time column.
 
     Returns
     -------
@@ -262,7 +263,8 @@ def channel_map(r: TableReader, table: dict[str, Any],
         key = f"channels.{name}"
         if name not in names:
             raise r.fail(key, f"is not a channel of the rig; expected one of {', '.join(names)} "
-                         "(the gauges, sensors, actuator.current and actuator.flux)")
+                         "(the gauges, sensors, actuator.current, actuator.flux and the "
+                         "run files' time column)")
         ref = _channel_ref(r, value, key)
         if ref in taken:
             raise r.fail(key, f"= {ref!r} is also the channel of '{taken[ref]}'")

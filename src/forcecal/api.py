@@ -121,9 +121,10 @@ def calibrate(
     progress : callable, optional
         Called as ``progress(done, total, run_name)`` after each run.
     workers : int, optional
-        Processes reconstructing the runs (default: by the number of runs and cores). With
+        Processes reconstructing the runs (default 1: serially, safe in any script). With
         more than one, a calling script must guard its top level with
-        ``if __name__ == "__main__":``.
+        ``if __name__ == "__main__":`` (every worker process imports the script again); a
+        script without the guard is refused with an InputError naming its line.
     laws : sequence of Law, optional
         Candidate laws (default: the (current, gap) laws,
         :data:`forcecal.campaign.CURRENT_GAP_LAWS`).
@@ -142,6 +143,9 @@ def calibrate(
     ------
     FitError
         When no candidate law is identifiable from the campaign.
+    InputError
+        A bad manifest or run; workers asked for from a script without
+        ``if __name__ == "__main__":``.
 
     Examples
     --------
@@ -150,8 +154,9 @@ def calibrate(
     """
     model = (scan_or_model if isinstance(scan_or_model, SpatialModel | BroadbandModel)
              else build_spatial_model(rig, scan_or_model))
-    return calibrate_campaign(rig, model, manifest_path, progress=progress, workers=workers,
-                              laws=laws, ac_only=ac_only, samples_per_period=samples_per_period)
+    return calibrate_campaign(rig, model, manifest_path, progress=progress,
+                              workers=1 if workers is None else workers, laws=laws,
+                              ac_only=ac_only, samples_per_period=samples_per_period)
 
 
 def load_calibration(path: str | Path) -> Calibration:

@@ -238,7 +238,8 @@ class Rig:
     source: str = "<rig>"
     channel_map: tuple[tuple[str, str], ...] = ()
     """``[channels]``: (rig channel name, the file's channel) pairs; a UFF record is named
-    ``"node 12 +Z"`` (see :func:`node_channel`)."""
+    ``"node 12 +Z"`` (see :func:`node_channel`); ``("time", NAME)`` names the run files' time
+    column."""
     run_group: str | None = None
     """``acquisition.group``: the TDMS group, or the HDF5 group's path, the runs are read
     from."""
@@ -388,6 +389,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     _check_statics(r, structure, gauges, forces, sensors)
     names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
     names += [actuator.flux] if actuator.flux is not None else []
+    names += ["time"]                   # the run files' time column
     channels = channel_map(r, r.table(doc, "channels", required=False), names)
     type_b = _type_b(r, r.table(doc, "uncertainty", required=False), "uncertainty" in doc)
     return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,

@@ -228,7 +228,7 @@ def test_too_few_samples(tmp_path):
 @pytest.mark.parametrize(
     ("text", "error", "message"),
     [
-        ("t,a\n0,1\n", InputError, "the first column is 't'; expected 'time'"),
+        ("sample,a\n0,1\n", InputError, "the first column is 'sample'; expected 'time'"),
         ("time\n0\n", DataError, "no channel columns after 'time'"),
         ("time,a,a\n0,1,2\n", InputError, "column 'a' appears twice"),
         ("time,,b\n0,1,2\n", InputError, "column 2 has no name"),

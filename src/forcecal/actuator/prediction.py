@@ -29,7 +29,8 @@ from .laws import Law, get_law
 if TYPE_CHECKING:
     from .fitting import LawFit
 
-__all__ = ["Calibration", "ExtrapolationWarning", "predict", "predict_flux"]
+__all__ = ["Calibration", "ExtrapolationWarning", "check_current_and_gaps", "predict",
+           "predict_flux"]
 
 _CALIBRATION_FORMAT = "forcecal-calibration"
 _CALIBRATION_VERSION = 1
@@ -40,6 +41,10 @@ MAX_GAP_M = 0.1
 MAX_FLUX_WB = 10.0
 """Largest pole flux accepted by :func:`predict_flux` [Wb]."""
 _REQUIRED_KEYS = ("law", "params", "covariance", "n_poles", "current_range", "gap_range")
+EXTRAPOLATION = 10.0
+"""A current or gap more than this many times outside the calibrated range is refused by
+:func:`predict` (and ``forcecal predict``); within it, a prediction extrapolates with a
+warning."""
 FREQUENCY_EXTRAPOLATION = 10.0
 """A frequency above this many times the highest calibrated one is refused: the first-order lag
 is a low-frequency model of the eddy currents, not to be carried that far."""
@@ -82,9 +87,12 @@ class Calibration:
     n_poles : int
         Number of poles the total force sums over.
     current_range : (float, float) [A]
-        Currents the law was fitted on; predictions outside warn.
+        Currents the law was fitted on; predictions outside warn, and more than
+        :data:`EXTRAPOLATION` times beyond are refused.
     gap_range : (float, float) [m]
-        Pole gaps the law was fitted on; predictions outside warn.
+        Pole gaps the law was fitted on (a campaign's: its runs' instantaneous and static
+        gaps); predictions outside warn, and more than :data:`EXTRAPOLATION` times outside are
+        refused.
     flux_range : (float, float) [Wb] or None
         Fluxes the law was fitted on, when measured.
     candidates : tuple of dict
@@ -404,7 +412,8 @@ def _propagate(
 def _current_and_gaps(
     calibration: Calibration, current: Any, gaps: Any
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Current (n,) [A] and gaps (n, n_poles) [m] broadcast to one another, and finite."""
+    """Current (n,) [A] and gaps (n, n_poles) [m] broadcast to one another, and within the
+    limits of :func:`check_current_and_gaps`."""
     i = np.atleast_1d(np.asarray(current, dtype=float))
     g = np.asarray(gaps, dtype=float)
     if i.ndim != 1:
@@ -418,16 +427,65 @@ def _current_and_gaps(
             f"current {i.shape} and gaps {g.shape} do not fit {calibration.n_poles} poles; "
             "expected gaps as a scalar, (n_poles,), (n, 1) or (n, n_poles)"
         ) from None
-    if not (np.all(np.isfinite(i)) and np.all(np.isfinite(s))):
-        raise InputError("current and gaps must be finite")
-    if np.any(np.abs(i) > MAX_CURRENT_A):
-        raise InputError(f"current {float(i[np.argmax(np.abs(i))]):.6g} A is beyond "
-                         f"{MAX_CURRENT_A:g} A in magnitude; not a coil's current")
-    if np.any(s < 0) or np.any(s > MAX_GAP_M):
-        bad = float(s.flat[int(np.argmax((s < 0) | (s > MAX_GAP_M)))])
-        raise InputError(f"gap {bad:.6g} m is outside 0 to {MAX_GAP_M:g} m; an air gap in m "
-                         "(0.001 for 1 mm)")
+    check_current_and_gaps(calibration, i, s)
     return i, s
+
+
+def _named(calibration: Calibration) -> str:
+    """The calibration as the messages name it: its file, else its law."""
+    return (f"calibration '{calibration.source}'" if calibration.source
+            else f"calibration (law '{calibration.law}')")
+
+
+def check_current_and_gaps(calibration: Calibration, current: Any, gaps: Any,
+                           names: tuple[str, str] = ("current", "gaps")) -> None:
+    """Refuse the currents and gaps :func:`predict` does not extrapolate to.
+
+    The one place of these checks, for :func:`predict` and ``forcecal predict``.
+
+    Parameters
+    ----------
+    calibration : Calibration
+        Its ``current_range`` and ``gap_range`` bound the extrapolation.
+    current : float or array [A]
+        Coil currents.
+    gaps : float or array [m]
+        Air gaps.
+    names : (str, str)
+        How the messages name the currents and the gaps: the API's parameters (default), or
+        the command line's options (``"argument --current:"``).
+
+    Raises
+    ------
+    InputError
+        Naming the parameter and the value: a current not finite or beyond
+        :data:`MAX_CURRENT_A` in magnitude; a gap not finite, not positive or beyond
+        :data:`MAX_GAP_M` (a gap in mm); a current more than :data:`EXTRAPOLATION` times the
+        largest calibrated one, or a gap more than :data:`EXTRAPOLATION` times below or above
+        the calibrated gaps (naming the calibration's file).
+    """
+    i = np.asarray(current, dtype=float).ravel()
+    s = np.asarray(gaps, dtype=float).ravel()
+    bad = ~(np.isfinite(i) & (np.abs(i) <= MAX_CURRENT_A))
+    if np.any(bad):
+        raise InputError(f"{names[0]} {float(i[bad][0])!r} A is not a finite current within "
+                         f"{MAX_CURRENT_A:g} A")
+    bad = ~(np.isfinite(s) & (s > 0) & (s <= MAX_GAP_M))
+    if np.any(bad):
+        raise InputError(f"{names[1]} {float(s[bad][0])!r} m is not an air gap between 0 and "
+                         f"{MAX_GAP_M:g} m (0.0008 for 0.8 mm)")
+    top = max(abs(v) for v in calibration.current_range)
+    bad = np.abs(i) > EXTRAPOLATION * top
+    if np.any(bad):
+        raise InputError(f"{names[0]} {float(i[bad][0]):g} A is more than {EXTRAPOLATION:g} "
+                         f"times the largest calibrated current {top:.4g} A "
+                         f"({_named(calibration)})")
+    lo, hi = calibration.gap_range
+    bad = (s < lo / EXTRAPOLATION) | (s > hi * EXTRAPOLATION)
+    if np.any(bad):
+        raise InputError(f"{names[1]} {float(s[bad][0]):g} m is more than {EXTRAPOLATION:g} "
+                         f"times outside the calibrated gaps {lo:.4g} to {hi:.4g} m "
+                         f"({_named(calibration)})")
 
 
 def predict(calibration: Calibration, current: Any, gaps: Any,
@@ -456,8 +514,11 @@ def predict(calibration: Calibration, current: Any, gaps: Any,
     Raises
     ------
     InputError
-        When the law predicts from flux, the inputs are not finite, or a gap plus ``s_fe`` is
-        not positive; when a frequency is given to a calibration without a frequency law, or
+        When the law predicts from flux; when a current or gap is not finite, beyond
+        :data:`MAX_CURRENT_A` or :data:`MAX_GAP_M`, or more than :data:`EXTRAPOLATION` times
+        outside the calibrated range (:func:`check_current_and_gaps`, naming ``current`` or
+        ``gaps`` and the calibration's file); when a gap plus ``s_fe`` is not positive; when a
+        frequency is given to a calibration without a frequency law, or
         is negative or above :data:`FREQUENCY_EXTRAPOLATION` times the highest calibrated
         one.
     DimensionError
@@ -466,7 +527,8 @@ def predict(calibration: Calibration, current: Any, gaps: Any,
     Warns
     -----
     ExtrapolationWarning
-        When a current, gap or frequency lies outside the calibrated range.
+        When a current, gap or frequency lies outside the calibrated range (within
+        :data:`EXTRAPOLATION` times it for a current or gap).
     """
     law = calibration.law_object
     if law.needs_flux:
@@ -500,10 +562,9 @@ def _frequency(calibration: Calibration, frequency: Any, n: int
     without a law, for a frequency that is not finite, negative or far above the range."""
     fl = calibration.frequency_law
     if fl is None:
-        name = f"calibration '{calibration.source}'" if calibration.source else \
-            f"calibration (law '{calibration.law}')"
-        raise InputError(f"{name} was calibrated at one frequency and has no frequency law; "
-                         "predict without a frequency, or calibrate a stepped-sine campaign")
+        raise InputError(f"{_named(calibration)} was calibrated at one frequency and has no "
+                         "frequency law; predict without a frequency, or calibrate a "
+                         "stepped-sine campaign")
     f = np.asarray(frequency, dtype=float)
     try:
         f = np.array(np.broadcast_to(f, (n,)), dtype=float)

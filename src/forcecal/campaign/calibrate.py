@@ -165,6 +165,22 @@ def _calibration(selection: Selection, uncertainty: ParameterUncertainty,
                                covariance=uncertainty.covariance, candidates=tuple(rows))
 
 
+def _with_static_gaps(calibration: Calibration, results: Sequence[RunResult]) -> Calibration:
+    """The calibration whose gap range (and its frequency law's) spans the runs' static gaps
+    as well as their instantaneous ones: an attracting force keeps a run's instantaneous gaps
+    below its static gap, yet a campaign's own gap is no extrapolation."""
+    static = np.concatenate([np.ravel(r.samples.motion.static_gap) for r in results])
+
+    def span(lo_hi: tuple[float, float]) -> tuple[float, float]:
+        return min(lo_hi[0], float(static.min())), max(lo_hi[1], float(static.max()))
+
+    fl = calibration.frequency_law
+    if fl is not None:
+        fl = dataclasses.replace(fl, gap_range=span(fl.gap_range))
+    return dataclasses.replace(calibration, gap_range=span(calibration.gap_range),
+                               frequency_law=fl)
+
+
 FREQUENCY_STEPS = 3
 """Fundamentals (1 % apart) a campaign needs for the law over frequency (K, s_fe and the
 eddy-current time constant tau, :func:`forcecal.actuator.fit_frequency_law`)."""
@@ -218,7 +234,9 @@ def calibrate_runs(
         The chosen law's calibration with the campaign's scores and comparisons. Its
         covariance is propagated (:func:`forcecal.campaign.statistics.parameter_uncertainty`):
         the noise of every run's phasors (the samples of a run are not independent) plus the
-        rig's type-B uncertainties applied to all runs at once.
+        rig's type-B uncertainties applied to all runs at once. Its ``gap_range`` spans the
+        runs' instantaneous and static gaps (the manifest's), so that none of the campaign's
+        own gaps is an extrapolation.
 
     Raises
     ------
@@ -247,6 +265,7 @@ def calibrate_runs(
         if any(rec.force_std is None for rec in records):      # then weighted by the residual
             records = [dataclasses.replace(rec, force_std=None) for rec in records]
         calibration = calibration.with_frequency_law(fit_frequency_law(records))
+    calibration = _with_static_gaps(calibration, results)
     run_k, run_res = _per_run(chosen, data, len(results))
     return CampaignResult(
         runs=results,
@@ -316,9 +335,10 @@ def calibrate_campaign(
     With ``workers`` > 1 and at least ``PARALLEL_MIN_RUNS`` runs, the runs are reconstructed in
     a ``spawn`` process pool: every worker starts a fresh interpreter that imports the calling
     script's main module. A script that calls this function must therefore guard its top level
-    with ``if __name__ == "__main__":``, else each worker runs the script again. The workers end
-    with the call (on an error or Ctrl-C they are terminated; each also exits by itself when
-    its parent process dies).
+    with ``if __name__ == "__main__":``, else each worker runs the script again: without the
+    guard the default is serial, and workers asked for are refused with an InputError naming
+    the script's line. The workers end with the call (on an error or Ctrl-C they are
+    terminated; each also exits by itself when its parent process dies).
     """
     results = reconstruct_campaign(
         rig,

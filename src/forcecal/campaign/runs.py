@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from ..actuator.gaps import static_gaps
-from ..cluster.pool import pool_map
+from ..cluster.pool import pool_map, unguarded_script
 from ..errors import InputError
 from ..forces.steady import ForceEstimate, reconstruct
 from ..io.manifest import GAP_RATIO, ManifestEntry, read_manifest
@@ -244,7 +244,8 @@ def reconstruct_campaign(
     progress : callable or None
         Called as ``progress(done, total, run name)`` after each run.
     workers : int or None
-        Worker processes; default ``min(2, os.cpu_count())``. Campaigns of fewer than
+        Worker processes; default ``min(2, os.cpu_count())``, or 1 when called from the top
+        level of a script without ``if __name__ == "__main__":``. Campaigns of fewer than
         ``PARALLEL_MIN_RUNS`` runs, or ``workers <= 1``, run serially.
     ac_coupled : bool
         The gauges do not measure DC (piezoelectric): see
@@ -267,13 +268,15 @@ def reconstruct_campaign(
     With ``workers`` > 1 and at least ``PARALLEL_MIN_RUNS`` runs, the runs are reconstructed in
     a ``spawn`` process pool: every worker starts a fresh interpreter that imports the calling
     script's main module. A script that calls this function must therefore guard its top level
-    with ``if __name__ == "__main__":``, else each worker runs the script again. The workers end
-    with the call (on an error or Ctrl-C they are terminated; each also exits by itself when
-    its parent process dies).
+    with ``if __name__ == "__main__":``, else each worker runs the script again: such a script
+    asking for workers is refused with an InputError naming its line
+    (:func:`forcecal.cluster.pool.check_main_guard`). The workers end with the call (on an
+    error or Ctrl-C they are terminated; each also exits by itself when its parent process
+    dies).
     """
     tasks = _campaign_tasks(rig, model, manifest_path, ac_coupled, samples_per_period)
-    if workers is None:
-        workers = min(2, os.cpu_count() or 1)
+    if workers is None:      # serially in a script that every worker would run again
+        workers = 1 if unguarded_script() else min(2, os.cpu_count() or 1)
     done: dict[int, RunResult] = {}
 
     def finish(index: int, result: RunResult, caught: _Caught) -> None:

@@ -2,6 +2,7 @@
 
 ``main(argv=None) -> int``: 0 on success, 2 for bad input or arguments (one line on stderr that
 names the file, key or channel), 130 when interrupted. Output files are written atomically.
+Warnings are said once a command is through: a refused input's line stands alone.
 """
 
 from __future__ import annotations
@@ -68,9 +69,6 @@ STREAM_SUFFIXES = (".csv", ".h5", ".hdf5")
 """What ``stream -o`` writes: CSV, or HDF5 in the run layout."""
 MAX_FORCE_N = 1e8
 """Largest force an output may hold [N]; beyond, the inputs were not what they claimed."""
-EXTRAPOLATION = 10.0
-"""``predict`` extrapolates (with a warning) up to this factor beyond the calibrated currents
-and gaps, and refuses beyond."""
 MAX_HARMONICS = 100
 """Most harmonics ``--harmonics`` may ask for."""
 MANY_JOBS = 4
@@ -315,26 +313,15 @@ def _cmd_calibrate(args) -> int:
 
 def _cmd_predict(args) -> int:
     from ..actuator import predict
-    from ..actuator.prediction import MAX_CURRENT_A, MAX_GAP_M
+    from ..actuator.prediction import check_current_and_gaps
     from ..campaign import load_calibration
 
-    if not (np.isfinite(args.current) and abs(args.current) <= MAX_CURRENT_A):
-        raise _ArgumentError(f"{PROG} predict: argument --current: {args.current!r} A is not a "
-                             f"finite current within {MAX_CURRENT_A:g} A")
-    if not (np.isfinite(args.gap) and 0 < args.gap <= MAX_GAP_M):
-        raise _ArgumentError(f"{PROG} predict: argument --gap: {args.gap!r} m is not an air gap "
-                             f"between 0 and {MAX_GAP_M:g} m (0.0008 for 0.8 mm)")
     cal = load_calibration(args.calibration)
-    top = max(abs(v) for v in cal.current_range)
-    if abs(args.current) > EXTRAPOLATION * top:
-        raise _ArgumentError(f"{PROG} predict: argument --current: {args.current:g} A is more "
-                             f"than {EXTRAPOLATION:g} times the largest calibrated current "
-                             f"{top:.4g} A (calibration '{args.calibration}')")
-    lo, hi = cal.gap_range
-    if not lo / EXTRAPOLATION <= args.gap <= hi * EXTRAPOLATION:
-        raise _ArgumentError(f"{PROG} predict: argument --gap: {args.gap:g} m is more than "
-                             f"{EXTRAPOLATION:g} times outside the calibrated gaps {lo:.4g} to "
-                             f"{hi:.4g} m (calibration '{args.calibration}')")
+    try:        # the API's checks (the same limits and wording), naming the options
+        check_current_and_gaps(cal, args.current, args.gap,
+                               names=("argument --current:", "argument --gap:"))
+    except InputError as exc:
+        raise _ArgumentError(f"{PROG} predict: {exc}") from None
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
@@ -484,10 +471,15 @@ def main(argv: Sequence[str] | None = None) -> int:
                     reconfigure(errors="replace")
                 except (ValueError, OSError, io.UnsupportedOperation):
                     pass
+        held: list[str] = []  # said once the command is through: a refusal is its one line
         with warnings.catch_warnings():
             warnings.simplefilter("default")
-            warnings.showwarning = _show_warning
-            return COMMANDS[args.command](args)
+            warnings.showwarning = lambda message, *_a, **_k: held.append(
+                f"{PROG}: warning: {message}")
+            status = COMMANDS[args.command](args)
+        for line in held:
+            _say(line)
+        return status
     except _ArgumentError as exc:
         _say(str(exc))
         return 2
@@ -532,10 +524,6 @@ def _expand_run_folders(args) -> None:
         return
     for note in notes:
         _print(f"note: {note}")
-
-
-def _show_warning(message, category, filename, lineno, file=None, line=None):
-    _say(f"{PROG}: warning: {message}")
 
 
 if __name__ == "__main__":  # pragma: no cover

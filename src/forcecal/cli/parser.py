@@ -12,12 +12,35 @@ PROG = "forcecal"
 
 
 class ArgumentError(Exception):
-    """Bad command-line arguments (reported in one line, exit status 2)."""
+    """Bad command-line arguments (reported in one line, exit status 2).
+
+    The message starts with the program and the command the arguments were given to
+    (``"forcecal predict: argument --gap: ..."``) and ends pointing to that command's help,
+    ``(see 'forcecal predict --help')``, which is added when the message lacks it.
+    """
+
+    def __init__(self, message: str) -> None:
+        prog = message.split(":", 1)[0]
+        words = prog.split()
+        if words[:1] == [PROG] and len(words) <= 2 and not message.endswith("--help')"):
+            message = f"{message} (see '{prog} --help')"
+        super().__init__(message)
 
 
 class _Parser(argparse.ArgumentParser):
     def error(self, message: str):  # one line instead of usage + message
-        raise ArgumentError(f"{self.prog}: {message} (see '{self.prog} --help')")
+        raise ArgumentError(f"{self.prog}: {message}")
+
+
+class _CommandParser(_Parser):
+    """A command's parser: it refuses the arguments it does not know itself, pointing to its
+    own help (argparse leaves them to the top parser, whose help does not list them)."""
+
+    def parse_known_args(self, args: Any = None, namespace: Any = None) -> Any:
+        parsed, extras = super().parse_known_args(args, namespace)
+        if extras:
+            self.error(f"unrecognized arguments: {' '.join(extras)}")
+        return parsed, extras
 
 
 def _model_options(p: argparse.ArgumentParser) -> None:
@@ -167,7 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
     from .. import __version__
 
     parser.add_argument("--version", action="version", version=f"{PROG} {__version__}")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND",
+                               parser_class=_CommandParser)
     _demo_parser(sub, fmt)
     _simulate_parser(sub, fmt)
     _scan_parser(sub, fmt)

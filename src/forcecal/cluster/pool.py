@@ -21,20 +21,25 @@ when their parent does.
 
 from __future__ import annotations
 
+import ast
 import contextlib
 import importlib
+import inspect
 import logging
 import multiprocessing
 import os
+import sys
 import threading
 import time
+import tokenize
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from pathlib import Path
 from typing import Any, TypeVar
 
 from ..errors import InputError
 
-__all__ = ["pool_map", "run_jobs"]
+__all__ = ["pool_map", "run_jobs", "unguarded_script"]
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -71,14 +76,81 @@ def single_threaded_workers() -> Iterator[None]:
             os.environ.pop(name, None)
 
 
+def _is_main_test(test: ast.expr) -> bool:
+    """Whether an ``if`` tests ``__name__ == "__main__"`` (either way round)."""
+    if not (isinstance(test, ast.Compare) and len(test.ops) == 1
+            and isinstance(test.ops[0], ast.Eq)):
+        return False
+    sides = {ast.unparse(test.left), ast.unparse(test.comparators[0])}
+    return sides == {"__name__", "'__main__'"}           # unparse writes one kind of quote
+
+
+def unguarded_script() -> str | None:
+    """Where the running script calls forcecal outside ``if __name__ == "__main__":``, when a
+    ``spawn`` worker process would run that script again; None when no worker would.
+
+    A ``spawn`` worker imports the main module again under another name: a script (or a
+    module run with ``python -m``) runs its unguarded top level once more in every worker, and
+    a call that starts workers there fails (``BrokenProcessPool``). A package's
+    ``__main__``, an interactive session, ``python -c`` and a notebook are not run again.
+
+    Returns
+    -------
+    str or None
+        ``"script 'PATH' line N"``: the line of the script's top level that leads to this call.
+    """
+    main = sys.modules.get("__main__")
+    path = getattr(main, "__file__", None)
+    name = getattr(getattr(main, "__spec__", None), "name", None) or ""
+    if main is None or path is None or name == "__main__" or name.endswith(".__main__") \
+            or Path(path).stem == "ipython":
+        return None
+    frame = inspect.currentframe()
+    while frame is not None and not (frame.f_globals is vars(main)
+                                     and frame.f_code.co_name == "<module>"):
+        frame = frame.f_back
+    if frame is None:                           # not from the script's top level: a thread
+        return None
+    line = frame.f_lineno
+    try:
+        with tokenize.open(path) as source:
+            tree = ast.parse(source.read())
+    except (OSError, SyntaxError, ValueError):
+        return None
+    for node in ast.walk(tree):
+        if isinstance(node, ast.If) and _is_main_test(node.test) \
+                and node.body[0].lineno <= line <= (node.body[-1].end_lineno or line):
+            return None
+    return f"script '{path}' line {line}"
+
+
+def check_main_guard(workers: int) -> None:
+    """Refuse to start ``workers`` processes that would run the calling script again.
+
+    Raises
+    ------
+    InputError
+        Naming the script and its line (:func:`unguarded_script`), when it calls forcecal
+        outside ``if __name__ == "__main__":``.
+    """
+    where = unguarded_script()
+    if where is not None:
+        raise InputError(f"workers = {workers}: the {where} calls forcecal outside "
+                         "'if __name__ == \"__main__\":'; every worker process would run the "
+                         "script again. Put the script's top level under that guard, or use "
+                         "workers=1")
+
+
 def pool_map(work: Callable[[Any], Any], items: list[Any], workers: int) -> Iterator[Any]:
     """``work(item)`` for every item in a ``spawn`` pool of at most ``workers`` processes,
     yielded as they complete.
 
     The pool starts its processes as the tasks are submitted, so the tasks are submitted under
     :func:`single_threaded_workers`; the workers leave when the parent dies
-    (:func:`_watch_parent`) and are terminated when the caller stops early or fails.
+    (:func:`_watch_parent`) and are terminated when the caller stops early or fails. A script
+    that would run again in every worker is refused first (:func:`check_main_guard`).
     """
+    check_main_guard(workers)
     pool = ProcessPoolExecutor(max_workers=max(1, min(workers, len(items))),
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_watch_parent, initargs=(os.getpid(),))
@@ -206,6 +278,7 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
         return
     import dask
 
+    check_main_guard(workers)
     with single_threaded_workers(), dask.config.set(_QUIET_WORKERS):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR)

@@ -35,6 +35,7 @@ from ..signals.harmonics import (
     refine_fundamental,
 )
 from ..signals.mains import hum_variance, on_mains
+from ..signals.sweeps import swept_drive
 from .budget import SolveInputs, pooled_variance, type_b_variance
 from .coordinates import Coordinates, deflection, generalized_coordinates
 from .diagnostics import (
@@ -213,8 +214,16 @@ def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
     try:
         f0 = refined_fundamental(records, run.fs, rig, h, f"run '{run.source}'", t0=run.t0)
     except DataError:
-        # a drive that drifts within the record defeats one fundamental: say so, not that the
-        # nominal frequency is wrong
+        # a drive that sweeps or drifts within the record defeats one fundamental: say so, not
+        # that the nominal frequency is wrong
+        sweep = swept_drive([rec.current], run.fs)
+        if sweep is not None:
+            raise DataError(
+                f"run '{run.source}': its coil current '{rig.actuator.current}' sweeps from "
+                f"about {sweep.low:g} to {sweep.high:g} Hz {sweep.where}, not a steady drive at "
+                f"rig '{rig.source}' key 'acquisition.frequency' = {rig.drive_frequency:g} Hz; "
+                "a run under a sweep is reconstructed with acquisition.drive = 'any' (and "
+                "acquisition.band, the band its broadband scan covers)") from None
         drift = drift_notes(rec.current, run.fs, rig.drive_frequency, f"run '{run.source}'",
                             t0=run.t0)
         if drift:

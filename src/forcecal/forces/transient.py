@@ -744,7 +744,7 @@ def run_inputs(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None
     """A run's gauges [N] and probes [m], the tare's (their zero, or None), and the notes of
     the drive's force above the scan's band; the model checked against the rig and the
     record's length against the band (batch and stream alike)."""
-    check_rig_keys(model.rig, model.source, rig)
+    check_rig_keys(model.rig, model.origin, rig)
     check_length(model, run.n_samples, run.fs, run.source)
     gauges, probes, current = run_channels(rig, run, tare)
     reach = AboveBand(run.fs, model.band, run.t0)

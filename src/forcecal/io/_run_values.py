@@ -23,6 +23,9 @@ _ROUNDING_CAP = 0.25  # rounded stamps excuse at most this share of a step
 _MIN_RATE = 1e-3  # Hz: one sample in 17 minutes; slower is a damaged increment
 _MAX_RATE = 1e9  # Hz: no DAQ samples faster; a larger rate is a damaged or mis-scaled file
 _MAX_T0 = 1e10  # s: about 300 years; a later start is a damaged stamp
+ABSOLUTE_TIME = 1e8
+"""[s] Time stamps from this on (three years) are absolute, since an epoch: the run starts
+at 0, its time read as seconds from the first sample."""
 
 
 class RunFile(NamedTuple):
@@ -193,7 +196,8 @@ def first_irregular_step(time: np.ndarray, resolution: np.ndarray) -> int | None
 def sampling_from_time(
     time: np.ndarray, path: Path, resolution: np.ndarray, where: Callable[[int], str]
 ) -> tuple[float, float]:
-    """(fs [Hz], t0 [s]) of uniform time stamps; DataError saying where they are not."""
+    """(fs [Hz], t0 [s]) of uniform time stamps; DataError saying where they are not. Absolute
+    stamps (:data:`ABSOLUTE_TIME` on) give t0 = 0: seconds from the first sample."""
     step = (time[-1] - time[0]) / (time.size - 1)
     if not step > 0:
         raise DataError(f"run '{path}': time stamps do not increase")
@@ -205,4 +209,9 @@ def sampling_from_time(
             f"t={time[k]:.6g} s ({where(k)}) differs from the mean step {step:.6g} s by "
             f"{100 * abs(actual - step) / step:.3g} %"
         )
-    return 1.0 / step, float(time[0])
+    return 1.0 / step, start_time(float(time[0]))
+
+
+def start_time(first: float) -> float:
+    """t0 [s] of a run whose first time stamp is ``first`` [s]: 0 for an absolute one."""
+    return 0.0 if first >= ABSOLUTE_TIME else first

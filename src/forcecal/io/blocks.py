@@ -3,13 +3,13 @@
 :func:`open_run_blocks` reads what it can in blocks and the rest whole:
 
 - HDF5 with the rate in the root attribute ``fs``: every channel dataset is sliced;
-- CSV in the plain layout (comma-separated, a ``time`` header cell then channel names without
-  units, times in s): pandas' C parser in chunks, with the parameters of the whole-file reader,
-  so the numbers are the same; the time stamps are first read on their own (one column) for
-  the rate;
-- anything else (TDMS, UFF, CSV dialects, HDF5 timed by a ``time`` dataset), and any file the
-  block readers find something odd in (a text cell, a short row, irregular stamps, a damaged
-  dataset): :func:`forcecal.io.run_files.read_run`, whole, which says precisely what is wrong.
+- CSV in the plain layout (comma-separated, a time header cell, ``time`` or another of
+  ``TIME_NAMES``, then channel names without units, times in s): pandas' C parser in chunks,
+  with the whole-file reader's parameters, so the numbers are the same; the time stamps are
+  first read on their own (one column) for the rate;
+- anything else (TDMS, UFF, CSV dialects, HDF5 timed by a dataset, a time column the rig
+  names), and any file the block readers find something odd in (a text cell, a short row,
+  irregular stamps, a damaged dataset): ``read_run``, whole, which says what is wrong.
 
 The channels are named as :func:`~forcecal.io.run_files.read_run` names them given the rig
 (its ``[channels]`` map applied). :func:`check_run_blocks` applies the checks of a read run and
@@ -37,7 +37,8 @@ from ..errors import DataError, InputError
 from ..records import Run
 from ..rig import Rig
 from ..signals.checks import MIN_SAMPLES, check_record_length, check_run_for_rig
-from ._run_values import RunFile, finish_run, first_line
+from ._run_values import ABSOLUTE_TIME, RunFile, finish_run, first_line
+from ._time_column import is_time_name, mapped_time
 from .run_channels import apply_rig
 from .run_files import read_run
 
@@ -155,7 +156,7 @@ def open_run_blocks(path: str | Path, rig: Rig | None = None, *,
     path = Path(path)
     suffix = path.suffix.lower()
     opened = None
-    if path.is_file() and not whole:
+    if path.is_file() and not whole and mapped_time(rig) is None:
         if suffix in (".h5", ".hdf5"):
             opened = _open_hdf5(path, rig)
         elif suffix == ".csv":
@@ -258,8 +259,8 @@ def _hdf5_blocks(h5: Any, path: Path, rig: Rig | None) -> RunBlocks | None:
         return None
     fs = float(np.asarray(h5.attrs["fs"], dtype=float).item())
     t0 = float(np.asarray(h5.attrs.get("t0", 0.0), dtype=float).item())
-    datasets = {n: h5[n] for n in h5 if isinstance(h5[n], h5py.Dataset)
-                and n.strip().lower() != "time"}
+    datasets = {n: h5[n] for n in h5 if isinstance(h5[n], h5py.Dataset)}
+    datasets.pop(next((n for n in datasets if is_time_name(n)), ""), None)  # as read_run
     if not (datasets and np.isfinite(fs) and fs > 0 and np.isfinite(t0)):
         return None
     lengths = {d.shape[0] if d.ndim == 1 else -1 for d in datasets.values()}
@@ -313,7 +314,7 @@ def _csv_header(path: Path) -> tuple[list[str], int] | None:
             if '"' in line or ";" in line or "\t" in line:
                 return None
             cells = [c.strip() for c in next(csv.reader([line]))]
-            plain = cells[0] == "time" and len(cells) >= 2 and len(set(cells)) == len(cells) \
+            plain = is_time_name(cells[0]) and len(cells) >= 2 and len(set(cells)) == len(cells) \
                 and all(_PLAIN_NAME.fullmatch(c) for c in cells[1:])
             return (cells, number) if plain else None
     return None
@@ -352,7 +353,8 @@ def _csv_blocks(path: Path, rig: Rig | None) -> RunBlocks | None:
             first = float(chunk[0, 0])
         n += chunk.shape[0]
         last = float(chunk[-1, 0])
-    if n < MIN_SAMPLES or not last > first or max(abs(first), abs(last)) > 1e10:
+    if n < MIN_SAMPLES or not last > first or max(abs(first), abs(last)) > 1e10 \
+            or first >= ABSOLUTE_TIME:                 # stamps since an epoch: read whole
         return None
     step = (last - first) / (n - 1)
     before = None

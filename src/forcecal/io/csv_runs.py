@@ -9,7 +9,9 @@ What lab exports add is understood:
   parentheses after a space): the column is named without it (``R1``), and the header as
   written is another name of the channel;
 - a units row under the header (``s, N, N, m``): every cell a unit or empty, none a number;
-- the time in s, ms or us (converted to s);
+- the time named ``time``, ``t``, ``Zeit``, ``X_Value`` or ``Timestamp`` (any case), or
+  anywhere under the rig's ``[channels] time``; in s, ms or us (converted to s), or as
+  dates and times (ISO 8601: seconds from the first);
 - a byte order mark, blank lines, spaces around the cells, quoted cells.
 
 The numbers are read by pandas' C parser (values exactly as written: correctly rounded).
@@ -25,11 +27,23 @@ import io
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from ..errors import DataError, InputError
+from ._time_column import (
+    date_seconds,
+    date_texts,
+    first_non_date,
+    is_date,
+    is_time_name,
+    mapped_time,
+    missing_time,
+)
+
+if TYPE_CHECKING:
+    from ..rig import Rig
 
 __all__: list[str] = []
 
@@ -58,7 +72,7 @@ class CsvColumns:
     units : list of str
         Each column's unit from the header or the units row, ``""`` when none is given.
     values : (n_rows, n_columns) array
-        The numbers, time as written (see ``units[0]``).
+        The numbers, time as written (see ``units[0]``; dates as seconds from the first).
     """
 
     path: Path
@@ -69,6 +83,7 @@ class CsvColumns:
     _dialect: tuple[str, str, int] = (",", ".", 0)
     _rows: list[int] | None = field(default=None, repr=False)
     _texts: list[str] | None = field(default=None, repr=False)
+    _time: int = 0  # the time's column in the file
 
     def row(self, k: int) -> str:
         """``"row N"``: the file's line number of data row ``k`` (the header is row 1 when the
@@ -84,16 +99,17 @@ class CsvColumns:
             delimiter, decimal, skip = self._dialect
             try:
                 column = pd.read_csv(self.path, sep=delimiter, header=None, skiprows=skip,
-                                     usecols=[0], dtype=str, na_filter=False,
-                                     encoding="utf-8-sig")[0].tolist()
+                                     usecols=[self._time], dtype=str, na_filter=False,
+                                     encoding="utf-8-sig")[self._time].tolist()
             except (ValueError, pd.errors.ParserError):
-                column = [row[0] for row in _careful(self.path, "run", *self._dialect)[1]]
+                column = [row[self._time]
+                          for row in _careful(self.path, "run", *self._dialect)[1]]
             self._texts = [t.replace(",", ".") for t in column] if decimal == "," else column
         return self._texts
 
 
-def read_csv_columns(path: Path, what: str) -> CsvColumns:
-    """Read a CSV table whose first column is the time.
+def read_csv_columns(path: Path, what: str, rig: Rig | None = None) -> CsvColumns:
+    """Read a CSV table with a time column: the first, or the one the rig names.
 
     Parameters
     ----------
@@ -101,19 +117,25 @@ def read_csv_columns(path: Path, what: str) -> CsvColumns:
         The file.
     what : str
         ``"run"`` or ``"table"``, the kind of file in the messages.
+    rig : Rig, optional
+        Its ``[channels] time`` names the time column (anywhere in the header); without it
+        the first column is the time, under one of the names of
+        :data:`~forcecal.io._time_column.TIME_NAMES`.
 
     Returns
     -------
     CsvColumns
+        The time column first.
 
     Raises
     ------
     InputError
-        A file that is not UTF-8 text, a header without ``time`` first, a column without a
-        name or named twice, a time unit not understood.
+        A file that is not UTF-8 text, a header without a time column first, a column without
+        a name or named twice, a time unit not understood.
     DataError
         An empty file, no data rows, a row that is not CSV or has another number of cells than
-        the header, a cell that is not a number (named by row and column).
+        the header, a cell that is not a number (named by row and column), a time column the
+        rig names that the header lacks.
     """
     head = _head_text(path, what)
     delimiter = _sniff_delimiter(head)
@@ -128,17 +150,62 @@ def read_csv_columns(path: Path, what: str) -> CsvColumns:
         row_units = [cell.strip().strip("[]()").strip() for cell in first_rows[0][1]]
         units = _merge_units(units, row_units, names, path, what)
         skip = first_rows[0][0]
+    time = _time_index(labels, names, path, what, rig)
     _check_header(labels, names, path, what)
-    values = _fast(path, delimiter, decimal, skip, len(names))
+    dates = _date_column(first_rows, skip, time, decimal)
+    fast = _fast(path, delimiter, decimal, skip, len(names), dates)
     columns = CsvColumns(path, names, labels, units, np.empty((0, len(names))),
-                         _dialect=(delimiter, decimal, skip))
-    if values is None:
+                         _dialect=(delimiter, decimal, skip), _time=time)
+    if fast is None:
         _, cells, rows = _careful(path, what, delimiter, decimal, skip)
-        values = _numeric(cells, names, rows, path, what, decimal)
+        values, columns._texts = _careful_values(cells, names, rows, path, what, decimal,
+                                                 (time, dates))
         columns._rows = rows
-        columns._texts = [row[0].replace(",", ".") if decimal == "," else row[0]
-                          for row in cells]
+    else:
+        values, columns._texts = fast
     columns.values = values
+    if dates is not None:
+        columns.units[time] = "s"
+    return _time_first(columns)
+
+
+def _time_index(labels: list[str], names: list[str], path: Path, what: str,
+                rig: Rig | None) -> int:
+    """The time's column: the one the rig names (by name or as written), else the first,
+    which must bear a time column's name."""
+    mapped = mapped_time(rig)
+    if mapped is not None:
+        for k, (label, name) in enumerate(zip(labels, names, strict=True)):
+            if mapped in (label, name):
+                return k
+        raise missing_time(path, mapped, rig, names)
+    if not is_time_name(names[0]):
+        raise InputError(f"{what} '{path}': the first column is {labels[0]!r}; expected 'time' "
+                         "(or 't', 'Zeit', 'X_Value', 'Timestamp', in any case; the rig's "
+                         "[channels] time = \"NAME\" names the time column otherwise)")
+    return 0
+
+
+def _date_column(first_rows: list[tuple[int, list[str]]], skip: int, time: int,
+                 decimal: str) -> int | None:
+    """``time`` when the first data row writes the time as a date and time, else None."""
+    data = [row for line, row in first_rows if line > skip]
+    if not data or time >= len(data[0]):
+        return None
+    cell = data[0][time]
+    return time if _number(cell, decimal) is None and is_date(cell) else None
+
+
+def _time_first(columns: CsvColumns) -> CsvColumns:
+    """The columns with the time moved first (where the rig named another column)."""
+    k = columns._time
+    if k == 0:
+        return columns
+    order = [k, *(j for j in range(len(columns.names)) if j != k)]
+    columns.names = [columns.names[j] for j in order]
+    columns.labels = [columns.labels[j] for j in order]
+    columns.units = [columns.units[j] for j in order]
+    columns.values = columns.values[:, order]
     return columns
 
 
@@ -246,8 +313,6 @@ def _merge_units(units: list[str], row: list[str], names: list[str], path: Path,
 
 
 def _check_header(labels: list[str], names: list[str], path: Path, what: str) -> None:
-    if names[0].lower() != "time":
-        raise InputError(f"{what} '{path}': the first column is {labels[0]!r}; expected 'time'")
     if len(names) < 2:
         raise DataError(f"{what} '{path}': no channel columns after 'time'")
     seen: set[str] = set()
@@ -263,22 +328,35 @@ def _check_header(labels: list[str], names: list[str], path: Path, what: str) ->
 # the numbers
 
 
-def _fast(path: Path, delimiter: str, decimal: str, skip: int, n_columns: int
-          ) -> np.ndarray | None:
-    """(n_rows, n_columns) numbers by pandas' C parser, or None when it finds anything but
-    numbers in rows of ``n_columns`` cells."""
+def _fast(path: Path, delimiter: str, decimal: str, skip: int, n_columns: int,
+          dates: int | None = None) -> tuple[np.ndarray, list[str] | None] | None:
+    """(n_rows, n_columns) numbers by pandas' C parser, and the time's texts when column
+    ``dates`` holds dates and times (then made seconds from the first); None when it finds
+    anything else in rows of ``n_columns`` cells."""
     pd = _pandas()
+    dtype: Any = np.float64 if dates is None else {
+        j: str if j == dates else np.float64 for j in range(n_columns)}
     try:
         frame = pd.read_csv(path, sep=delimiter, decimal=decimal, header=None, skiprows=skip,
-                            dtype=np.float64, na_filter=False, engine="c",
+                            dtype=dtype, na_filter=False, engine="c",
                             encoding="utf-8-sig", skip_blank_lines=True)
     except (ValueError, UnicodeDecodeError, pd.errors.ParserError,
             pd.errors.EmptyDataError):
         return None
+    texts = None
+    if dates is not None:
+        if frame.shape[1] != n_columns:
+            return None
+        column = frame[dates].tolist()
+        seconds = date_seconds(column, pd)
+        if seconds is None:
+            return None
+        texts = date_texts(column, seconds)
+        frame[dates] = seconds
     values = frame.to_numpy(dtype=float)
     if values.ndim != 2 or values.shape[1] != n_columns or values.shape[0] == 0:
         return None
-    return values
+    return values, texts
 
 
 def _pandas() -> Any:
@@ -326,8 +404,31 @@ def _careful(path: Path, what: str, delimiter: str, decimal: str, skip: int
     return header, cells, rows
 
 
+def _careful_values(cells: list[list[str]], names: list[str], rows: list[int], path: Path,
+                    what: str, decimal: str, time: tuple[int, int | None]
+                    ) -> tuple[np.ndarray, list[str]]:
+    """(n_rows, n_columns) numbers of the careful reader's cells, and the time's texts; the
+    time column ``time[0]``, when it holds dates and times (``time[1]``), as seconds from the
+    first."""
+    at, dates = time
+    if dates is None:
+        texts = [row[at].replace(",", ".") if decimal == "," else row[at] for row in cells]
+        return _numeric(cells, names, rows, path, what, decimal, at), texts
+    column = [row[dates] for row in cells]
+    seconds = date_seconds(column, _pandas())
+    if seconds is None:
+        k = first_non_date(column, _pandas())
+        raise DataError(f"{what} '{path}': row {rows[k]}, column {names[dates]!r}: "
+                        f"{column[k].strip()!r} is not a date and time like the first row's "
+                        "(ISO 8601: 2024-05-01T12:00:00.0001)")
+    numbers = [[*row[:dates], "0", *row[dates + 1:]] for row in cells]
+    values = _numeric(numbers, names, rows, path, what, decimal, at)
+    values[:, dates] = seconds
+    return values, date_texts(column, seconds)
+
+
 def _numeric(cells: list[list[str]], names: list[str], rows: list[int], path: Path, what: str,
-             decimal: str) -> np.ndarray:
+             decimal: str, time: int = 0) -> np.ndarray:
     """(n_rows, n_columns) float array; DataError naming row and column of a bad cell."""
     texts = [[c.replace(",", ".") for c in row] for row in cells] if decimal == "," else cells
     if not any("_" in cell for row in texts for cell in row):  # float() takes '1_000'
@@ -336,10 +437,11 @@ def _numeric(cells: list[list[str]], names: list[str], rows: list[int], path: Pa
         except ValueError:
             pass
     for row, number in zip(cells, rows, strict=True):
-        for cell, name in zip(row, names, strict=True):
+        for column, (cell, name) in enumerate(zip(row, names, strict=True)):
             if _number(cell, decimal) is None:
                 raise DataError(
                     f"{what} '{path}': row {number}, column {name!r}: {cell.strip()!r} is not "
-                    "a number"
+                    "a number" + (" of seconds nor a date and time (ISO 8601: "
+                                  "2024-05-01T12:00:00.0001)" if column == time else "")
                 )
     raise DataError(f"{what} '{path}': a cell is not a number")  # pragma: no cover

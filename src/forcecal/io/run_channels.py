@@ -4,7 +4,8 @@ file states checked against the rig's scales.
 The rig's ``[channels]`` table maps a rig channel (a gauge, a sensor, ``actuator.current``,
 ``actuator.flux``) to the file's channel: a DAQ name (``s1 = "cDAQ1Mod1/ai0"``), or for a
 UFF run a record's node and direction (``s1 = "node 12 +Z"``) or ID line. Channels the map does
-not name keep the file's names.
+not name keep the file's names. Its key ``time`` names the time column, which the readers take
+(:mod:`forcecal.io._time_column`).
 
 Where the file states a channel's unit (``s1 [mm]`` in a CSV header or units row; a UFF
 ordinate's label) and the unit is one of the rig's quantity for that channel (a length for a
@@ -23,6 +24,7 @@ from ..errors import DataError
 from ..records import Run
 from ..rig import Rig
 from ._run_values import RunFile
+from ._time_column import TIME_KEY
 
 __all__: list[str] = []
 
@@ -67,6 +69,8 @@ def apply_rig(loaded: RunFile, rig: Rig) -> Run:
     channels = run.channels
     sources: dict[str, str] = {}
     for name, ref in rig.channel_map:
+        if name == TIME_KEY:                 # the time column: its reader took it
+            continue
         source = ref if ref in channels else loaded.aliases.get(ref)
         if source is None:
             raise DataError(f"run '{run.source}': channel {ref!r} (rig '{rig.source}', key "

@@ -35,6 +35,7 @@ from ..errors import DataError, InputError
 from ..records import Run
 from ..signals.checks import check_sample_count
 from ._run_values import (
+    ABSOLUTE_TIME,
     RunFile,
     check_finite_time,
     decimal_resolution,
@@ -48,6 +49,7 @@ from ._run_values import (
     sampling_from_time,
     tdms_log,
 )
+from ._time_column import mapped_time, since_first, time_channel
 from .csv_runs import TIME_UNITS, read_csv_columns
 from .run_channels import apply_rig
 from .table_writer import table_writer
@@ -113,13 +115,13 @@ def read_run(path: str | Path, rig: Rig | None = None, *, group: str | None = No
     if group is None and rig is not None:
         group = rig.run_group
     if suffix == ".csv":
-        loaded = _read_csv_run(path)
+        loaded = _read_csv_run(path, rig)
     elif suffix == ".tdms":
-        loaded = RunFile(_read_tdms_run(path, group))
+        loaded = RunFile(_read_tdms_run(path, group, rig))
     elif suffix in (".uff", ".unv"):
         loaded = read_uff_run(path)
     else:
-        loaded = RunFile(_read_hdf5_run(path, group))
+        loaded = RunFile(_read_hdf5_run(path, group, rig))
     if rig is None:
         return loaded.run
     return apply_rig(loaded, rig)
@@ -176,13 +178,15 @@ def run_paths(paths: Sequence[str | Path]) -> tuple[list[str], list[str]]:
     return runs, notes
 
 
-def _read_csv_run(path: Path) -> RunFile:
-    table = read_csv_columns(path, "run")
+def _read_csv_run(path: Path, rig: Rig | None) -> RunFile:
+    table = read_csv_columns(path, "run", rig)
     unit = table.units[0]
     if unit not in TIME_UNITS:
         raise InputError(f"run '{path}': the time column is in {unit!r}; expected s, ms or us")
     factor = TIME_UNITS[unit]
     time = table.values[:, 0] * factor if factor != 1.0 else table.values[:, 0]
+    if time.size and time[0] >= ABSOLUTE_TIME:  # since an epoch: exactly, from the digits
+        time = since_first(table.time_texts()) * factor
     check_sample_count(time.size, path)
     check_finite_time(time, path, table.row)
     resolution = np.zeros_like(time)
@@ -197,13 +201,13 @@ def _read_csv_run(path: Path) -> RunFile:
     return RunFile(finish_run(path, channels, fs, t0), aliases, units)
 
 
-def _read_tdms_run(path: Path, group: str | None) -> Run:
+def _read_tdms_run(path: Path, group: str | None, rig: Rig | None) -> Run:
     with tdms_log() as messages:
         try:
             tdms = TdmsFile.read(path)
             chosen = _tdms_group(tdms, path, group)
             raw = {ch.name: ch for ch in chosen.channels()}
-            time_name = next((n for n in raw if n.strip().lower() == "time"), None)
+            time_name = time_channel(list(raw), mapped_time(rig), path, rig)
             channels = {n: _tdms_values(ch, path) for n, ch in raw.items() if n != time_name}
             time = _tdms_time(raw[time_name], path) if time_name is not None else None
         except (InputError, DataError):
@@ -257,7 +261,7 @@ def _tdms_group(tdms, path: Path, group: str | None):
     return groups[0]
 
 
-def _read_hdf5_run(path: Path, group: str | None) -> Run:
+def _read_hdf5_run(path: Path, group: str | None, rig: Rig | None) -> Run:
     try:
         with h5py.File(path, "r") as h5:
             where = _hdf5_group(h5, path, group)
@@ -268,7 +272,7 @@ def _read_hdf5_run(path: Path, group: str | None) -> Run:
         raise
     except Exception as exc:  # h5py raises OSError, KeyError, RuntimeError... on damage
         raise InputError(f"run '{path}': not a readable HDF5 file ({first_line(exc)})") from exc
-    time_name = next((n for n in data if n.strip().lower() == "time"), None)
+    time_name = time_channel(list(data), mapped_time(rig), path, rig)
     channels = {n: _hdf5_values(v, n, path) for n, v in data.items() if n != time_name}
     if not channels:
         raise DataError(f"run '{path}': no channel datasets at the file root")

@@ -36,6 +36,7 @@ from ..records import Scan, ScanFRF, ScanSpectra
 from ..rig import Rig
 from ..signals.spline_smoother import SplineFamily
 from .basis import ShapeFit, shape_similarity
+from .coverage import check_scan_coverage, check_scan_on_rig
 from .frf import scan_response
 from .inertia import mass_coupling
 from .screening import MAX_SET_ASIDE, record_weights
@@ -105,6 +106,9 @@ class BroadbandModel:
         (a model written before they were kept) takes each line's own ratio.
     ratio_std : (n_shapes, n_lines) array or None
         Their standard uncertainty, of Re and of Im each (:func:`smooth_ratios`).
+    file : str
+        The MODEL.json the model was read from (:func:`load_any_model`); empty for a model
+        built here. Refusals name the model by it (:attr:`origin`).
     """
 
     band: tuple[float, float]
@@ -122,6 +126,12 @@ class BroadbandModel:
     rig: dict[str, float | str] = field(default_factory=dict)
     ratios: np.ndarray | None = None
     ratio_std: np.ndarray | None = None
+    file: str = ""
+
+    @property
+    def origin(self) -> str:
+        """What a refusal names the model by: the MODEL.json it was read from, else its scan."""
+        return self.file or self.source
 
     @property
     def n_shapes(self) -> int:
@@ -312,6 +322,8 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
         coherent.
     """
     band = _broadband_band(rig, scan)
+    check_scan_on_rig(rig, scan)
+    covered = check_scan_coverage(rig, scan)
     st = rig.structure
     resp, dead = scan_response(scan, band, rig.scan_averages).without_dead()
     good = _drive_lines(scan, band, resp.coherence, len(dead))
@@ -319,7 +331,7 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     h, std = resp.values[:, good], np.maximum(resp.std[:, good], tiny)
     a, s_noise, u, sv, chi2 = _line_span(h, std)
     d, note = _span_size(sv, chi2, a.shape)
-    notes = [f"scan '{scan.source}': {note}"] if note else []
+    notes = [*covered, *([f"scan '{scan.source}': {note}"] if note else [])]
     notes += set_aside_notes(scan, dead)
     points = st.coordinates(resp.points, source=f"scan '{scan.source}'")
     weights = record_weights(np.median(s_noise, axis=1))
@@ -571,13 +583,13 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
     -------
     SpatialModel
     """
-    check_rig_keys(model.rig, model.source, rig)
+    check_rig_keys(model.rig, model.origin, rig)
     n = np.arange(1, n_harmonics + 1)
     snr = np.interp(n * f0, model.frequencies, model.line_snr)
     inside = n * f0 <= model.band[1]
     if not inside[0]:
         raise InputError(f"a drive at {f0:.4g} Hz lies above the band {model.band[0]:g}-"
-                         f"{model.band[1]:g} Hz of the broadband model '{model.source}'")
+                         f"{model.band[1]:g} Hz of the broadband model '{model.origin}'")
     dropped = {int(k): f"{k * f0:.4g} Hz above the scan's band ({model.band[1]:g} Hz)"
                for k in n[~inside]}
     notes = model.notes + tuple(
@@ -607,7 +619,7 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
         f0=f0, harmonics=kept, shapes=shapes, couplings=couplings, similarity=mac,
         snr=snr, gauge_names=model.gauge_names, dropped=dict(sorted(dropped.items())),
         n_points=model.n_points, source=model.source, notes=notes, rig=model.rig,
-        static_shape=static)
+        static_shape=static, file=model.file)
 
 
 def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:
@@ -621,7 +633,8 @@ def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:
     """
     doc = read_model_document(path)
     kind = doc.get("kind", "harmonic") if isinstance(doc, dict) else "harmonic"
-    return MODEL_KINDS.get(kind, SpatialModel).from_json(doc, source=str(path))
+    model = MODEL_KINDS.get(kind, SpatialModel).from_json(doc, source=str(path))
+    return dataclasses.replace(model, file=str(path))
 
 
 MODEL_KINDS: dict[str, type[SpatialModel] | type[BroadbandModel]] = {

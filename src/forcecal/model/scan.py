@@ -25,6 +25,7 @@ from ..records import FRF_PHASE, Scan, ScanFRF, ScanSpectra
 from ..signals.checks import check_scan_length
 from ..signals.harmonics import fit_harmonics, refine_fundamental
 from ..signals.noise import GUARD, noise_power, noise_windows
+from ..signals.sweeps import swept_drive
 from .screening import record_weights
 
 __all__ = ["HarmonicShapes", "harmonic_shapes"]
@@ -397,15 +398,29 @@ def harmonic_shapes(scan: Scan | ScanSpectra | ScanFRF, f0_nominal: float,
         return aligned_shapes(scan.points, lines.f0, lines.response, lines.response_std,
                               lines.drive, lines.drive_std, scan.quantity, scan.source)
     check_scan_length(scan, f0_nominal)
-    try:
-        f0 = refine_fundamental(scan.reference, scan.fs, f0_nominal, n_harmonics)
-    except DataError as exc:
-        raise DataError(f"scan '{scan.source}': {exc} (the rig's 'acquisition.frequency' is "
-                        f"{f0_nominal:g} Hz)") from None
+    f0 = _refined(scan, f0_nominal, n_harmonics)
     ref = fit_harmonics(scan.reference, scan.fs, f0, n_harmonics)
     resp = fit_harmonics(scan.response, scan.fs, f0, n_harmonics)
     return aligned_shapes(scan.points, f0, resp.phasors[:, 1:], resp.phasor_std[:, 1:],
                           ref.phasors[:, 1], ref.phasor_std[:, 1], scan.quantity, scan.source)
+
+
+def _refined(scan: Scan, f0_nominal: float, n_harmonics: int) -> float:
+    """The fundamental [Hz] refined from the references; DataError naming the rig's
+    frequency, or the band the references sweep through when they do."""
+    try:
+        return refine_fundamental(scan.reference, scan.fs, f0_nominal, n_harmonics)
+    except DataError as exc:
+        sweep = swept_drive(scan.reference, scan.fs)
+        if sweep is not None:
+            raise DataError(
+                f"scan '{scan.source}': its reference (the coil current) sweeps from about "
+                f"{sweep.low:g} to {sweep.high:g} Hz {sweep.where}, not a steady drive at the "
+                f"rig's 'acquisition.frequency' = {f0_nominal:g} Hz; declare the band the scan "
+                f"covers with 'acquisition.band = {sweep.band}' (and acquisition.drive = 'any' "
+                "for runs under that drive)") from None
+        raise DataError(f"scan '{scan.source}': {exc} (the rig's 'acquisition.frequency' is "
+                        f"{f0_nominal:g} Hz)") from None
 
 
 def aligned_shapes(points: np.ndarray, f0: float, response: np.ndarray,

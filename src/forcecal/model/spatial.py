@@ -13,7 +13,7 @@ import hashlib
 import json
 import math
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -25,6 +25,7 @@ from ..errors import DataError, InputError
 from ..records import Scan, ScanFRF, ScanSpectra
 from ..rig import Rig, rig_to_dict
 from .basis import PolynomialBasis, ShapeFit, shape_similarity
+from .coverage import check_scan_coverage, check_scan_on_rig
 from .inertia import mass_coupling
 from .scan import HarmonicShapes, harmonic_shapes, steady_scan, unusable_spectra
 from .screening import Screening, record_weights, screen_records, unusable_records
@@ -81,6 +82,8 @@ class SpatialModel:
         steady_model`); None: the fundamental's shape stands in for it
         (:func:`forcecal.actuator.gaps.quasi_static_shape`). Not written to the model file: a model
         that has one is built from a broadband model, which is.
+    file : the MODEL.json the model was read from (:func:`load_model`); empty for a model
+        built here. Refusals name the model by it (:attr:`origin`).
     """
 
     f0: float
@@ -101,6 +104,12 @@ class SpatialModel:
     scans: tuple[str, ...] = ()
     member_scans: tuple[tuple[int, ...], ...] = ()
     static_shape: ShapeFit | VectorShapeFit | None = None
+    file: str = ""
+
+    @property
+    def origin(self) -> str:
+        """What a refusal names the model by: the MODEL.json it was read from, else its scan."""
+        return self.file or self.source
 
     @property
     def one_shape(self) -> bool:
@@ -303,7 +312,8 @@ def load_model(path: str | Path) -> SpatialModel:
     -------
     SpatialModel
     """
-    return SpatialModel.from_json(read_model_document(path), source=str(path))
+    model = SpatialModel.from_json(read_model_document(path), source=str(path))
+    return replace(model, file=str(path))
 
 
 def read_model_document(path: str | Path) -> Any:
@@ -374,8 +384,10 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF
                                                           basis=basis) for s in scans])
         scan = scans[0]
     scan = steady_scan(scan)
+    check_scan_on_rig(rig, scan)
     hs = shapes if shapes is not None else harmonic_shapes(scan, rig.drive_frequency,
                                                            n_harmonics)
+    covered = check_scan_coverage(rig, scan)  # once the drive is confirmed; before any fit
     st = rig.structure
     if basis not in ("polynomial", "modes"):
         raise InputError(f"basis '{basis}' is unknown (choose 'polynomial' or 'modes')")
@@ -383,7 +395,6 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF
         raise InputError(f"rig '{rig.source}': the {basis} basis does not serve a "
                          f"{st.kind}; its shapes use the "
                          + " or ".join(f"{b} basis (--basis {b})" for b in st.bases))
-    _check_points_on_structure(rig, scan)
     points = st.coordinates(hs.points, source=f"scan '{scan.source}'")
     fits, screening, snr, dropped = _screened_fits(rig, scan, hs, points, criterion, basis)
     keep = screening.keep
@@ -395,7 +406,7 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF
     couplings = np.stack([mass_coupling(rig, f.evaluate) for f in chosen])
     vals = [f.evaluate(points[keep]) for f in chosen]
     mac = np.array([[shape_similarity(a, b) for b in vals] for a in vals])
-    notes = st.model_notes(chosen) + set_aside_notes(scan, screening.reasons)
+    notes = covered + st.model_notes(chosen) + set_aside_notes(scan, screening.reasons)
     if screening.note:
         notes += (f"scan '{scan.source}': {screening.note}",)
     return SpatialModel(f0=hs.f0, harmonics=np.array(kept), shapes=tuple(chosen),
@@ -482,20 +493,6 @@ def set_aside_notes(scan: Scan | ScanSpectra | ScanFRF, reasons: dict[int, str]
     return tuple(notes)
 
 
-def _check_points_on_structure(rig: Rig, scan: Scan | ScanSpectra) -> None:
-    st = rig.structure
-    pts = np.asarray(scan.points, dtype=float).reshape(scan.n_points, -1)
-    st.coordinates(pts, source=f"scan '{scan.source}'")
-    for k, p in enumerate(pts):
-        xyz = [float(c) for c in p[:3]] + [0.0] * (3 - min(len(p), 3))
-        if not st.contains(xyz[0], xyz[1], xyz[2], tol=1e-6):
-            where = ", ".join(f"{c:.4g}" for c in xyz[:st.dim])
-            axes = ", ".join(st.axes)
-            raise InputError(f"scan '{scan.source}': point {k + 1} at "
-                             + (f"x = {where}" if st.dim == 1 else f"({axes}) = ({where})")
-                             + f" m lies off the structure of rig '{rig.source}'")
-
-
 def rig_keys(rig: Rig) -> dict[str, float | str]:
     """What a spatial model depends on in its rig, as flat keys (``structure.length``,
     ``structure.masses[0].mass``, ``gauges[1].x``, ``sensors[0].direction[2]``...): the
@@ -551,7 +548,7 @@ def check_model_rig(model: SpatialModel, rig: Rig) -> None:
         When the rig's geometry, masses or sensor layout differ from the model's rig (a model
         written before models recorded their rig is accepted).
     """
-    check_rig_keys(model.rig, model.source, rig)
+    check_rig_keys(model.rig, model.origin, rig)
 
 
 def check_rig_keys(keys: dict[str, float | str], source: str, rig: Rig) -> None:
@@ -561,21 +558,33 @@ def check_rig_keys(keys: dict[str, float | str], source: str, rig: Rig) -> None:
     Raises
     ------
     InputError
-        Naming the first key that differs.
+        Naming the model, the first key that differs with its two values, and the others.
     """
     if not keys:
         return
     now = rig_keys(rig)
+    changed = []
     for key in sorted(set(keys) | set(now)):
         was, is_ = keys.get(key), now.get(key)
         same = (isinstance(was, float) and isinstance(is_, float)
                 and math.isclose(was, is_, rel_tol=1e-9, abs_tol=1e-12)) or was == is_
         if not same:
-            raise InputError(
-                f"model '{source}' was built for a rig whose key '{key}' is "
-                f"{'absent' if was is None else repr(was)}, but rig '{rig.source}' has "
-                f"{'none' if is_ is None else repr(is_)}: its shapes and mass couplings belong "
-                "to the other rig; build the model again with 'forcecal scan'")
+            changed.append((key, "absent" if was is None else repr(was),
+                            "none" if is_ is None else repr(is_)))
+    if not changed:
+        return
+    (first, old, new), more = changed[0], changed[1:]
+    also = "; ".join(f"'{k}' {a} -> {b}" for k, a, b in more[:MORE_KEYS]) + (
+        f"; {len(more) - MORE_KEYS} more" if len(more) > MORE_KEYS else "")
+    raise InputError(
+        f"model '{source}' was built for a rig whose key '{first}' is {old}, but rig "
+        f"'{rig.source}' has {new}" + (f" (other keys changed: {also})" if more else "")
+        + ": its shapes and mass couplings belong to the other rig; build the model again "
+        "with 'forcecal scan'")
+
+
+MORE_KEYS = 3
+"""Changed rig keys a refused model's message lists beyond the first."""
 
 
 # --- from span ---

@@ -127,7 +127,7 @@ class AnyDriveStream:
                  history: float = HISTORY, warmup: float = WARMUP, step: float = STEP,
                  source: str = "<stream>", tare: np.ndarray | None = None,
                  tare_fs: float | None = None):
-        check_rig_keys(model.rig, model.source, rig)
+        check_rig_keys(model.rig, model.origin, rig)
         self.rig, self.model, self.fs, self.t0 = rig, model, float(fs), float(t0)
         self.source = source
         self._tare, self._tare_fs = tare, tare_fs

@@ -34,7 +34,7 @@ if TYPE_CHECKING:
     from ..model.basis import ShapeFit
     from ..model.vector_basis import VectorShapeFit
 
-__all__ = ["UP", "LumpedMass", "Structure", "locations"]
+__all__ = ["UP", "LumpedMass", "Structure", "locations", "ranges_text"]
 
 UP = (0.0, 0.0, 1.0)
 """The measuring direction of beams and plates: +w, out of their plane."""
@@ -80,6 +80,19 @@ def locations(items: Iterable[Located]) -> np.ndarray:
     (n, 6) array [m, 1]
     """
     return np.array([[p.x, p.y, p.z, *p.direction] for p in items], dtype=float).reshape(-1, 6)
+
+
+def ranges_text(lo: Iterable[float], hi: Iterable[float], axes: Iterable[str]) -> str:
+    """An extent in words, e.g. ``x in [0, 0.6] m`` or ``x in [0, 0.5] m, y in [0, 0.4] m``.
+
+    Parameters
+    ----------
+    lo, hi : iterable of float
+        [m] the smallest and the largest coordinate along each of ``axes``.
+    axes : iterable of str
+    """
+    return ", ".join(f"{a} in [{float(a0):.4g}, {float(a1):.4g}] m"
+                     for a, a0, a1 in zip(axes, lo, hi, strict=False))
 
 
 @dataclass(frozen=True)
@@ -235,6 +248,18 @@ class Structure(ABC):
         """Notes a spatial model built from these fits should carry."""
         return ()
 
+    def scan_mismatch(self, points: np.ndarray) -> str | None:
+        """Why scan points, as a scan file gives them, are of another kind of structure (a
+        plate's grid on a beam, a beam's line on a plate), or None when they may be of this
+        one.
+
+        Parameters
+        ----------
+        points : (n_points, n_dim) array [m]
+            The scan's points (:attr:`forcecal.records.Scan.points`).
+        """
+        return None
+
     # -------------------------------------------------------------- reporting
 
     @abstractmethod
@@ -269,7 +294,7 @@ class Structure(ABC):
         if pts.ndim == 1:
             pts = pts[:, None]
         if pts.shape[1] < n:
-            raise InputError(f"'{source}': {what}; found {pts.shape[1]} columns")
+            raise InputError(f"{source}: {what}; found {pts.shape[1]} columns")
         return pts[:, :n]
 
 

@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from .base import LumpedMass, OutOfPlane
+from .base import LumpedMass, OutOfPlane, ranges_text
 
 if TYPE_CHECKING:
     from .._toml import TableReader
@@ -16,6 +16,9 @@ __all__ = ["Beam"]
 
 _N_QUAD = 64
 """Gauss-Legendre points along the beam (exact for polynomial shapes up to degree 126)."""
+SCAN_WIDTH = 0.25
+"""How far a beam's scan points may spread across it (in y), as a fraction of its length (a
+beam is long beside its width); a wider spread is another structure's scan."""
 
 
 @dataclass(frozen=True)
@@ -46,6 +49,18 @@ class Beam(OutOfPlane):
 
     def extent(self) -> tuple[float, float]:
         return (0.0, self.length)
+
+    def scan_mismatch(self, points: np.ndarray) -> str | None:
+        """Points spread across the beam (in y) by more than ``SCAN_WIDTH`` of its length:
+        the grid of a plate, or of another structure, not a beam's line."""
+        pts = np.asarray(points, dtype=float).reshape(len(points), -1)
+        if pts.shape[1] < 2 or np.ptp(pts[:, 1]) <= SCAN_WIDTH * self.length:
+            return None
+        lo, hi = pts[:, :2].min(axis=0), pts[:, :2].max(axis=0)
+        return (f"its {len(pts)} points are 2-D, spread over a plane "
+                f"({ranges_text(lo, hi, ('x', 'y'))}), where a beam's points lie along x (their y "
+                f"within {SCAN_WIDTH * self.length:.4g} m, {SCAN_WIDTH:.0%} of its "
+                f"{self.length:.4g} m length): a scan of another structure")
 
     def mass_quadrature(self) -> tuple[np.ndarray, np.ndarray]:
         xi, wi = np.polynomial.legendre.leggauss(_N_QUAD)

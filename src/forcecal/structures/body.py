@@ -94,7 +94,7 @@ class Body(Structure):
         pts = np.asarray(points, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 6:
             found = pts.shape[1] if pts.ndim == 2 else 1
-            raise InputError(f"'{source}': a body's points need coordinates and a measuring "
+            raise InputError(f"{source}: a body's points need coordinates and a measuring "
                              f"direction (x, y, z, dx, dy, dz); found {found} columns")
         return pts
 

@@ -9,7 +9,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from .base import LumpedMass, OutOfPlane
+from .base import LumpedMass, OutOfPlane, ranges_text
 
 if TYPE_CHECKING:
     from .._toml import TableReader
@@ -18,6 +18,9 @@ __all__ = ["Plate", "inside_polygon"]
 
 _N_TRI = 12
 """Gauss points per direction on each triangle (exact for degree <= 22)."""
+SCAN_WIDTH = 0.05
+"""A plate's scan points spread across their own main line by at least this fraction of the
+plate's smaller side; less is a line scan (a beam's), from which no (x, y) shape follows."""
 
 
 @dataclass(frozen=True)
@@ -57,6 +60,22 @@ class Plate(OutOfPlane):
         v = np.asarray(self.outline)
         return ((float(v[:, 0].min()), float(v[:, 0].max())),
                 (float(v[:, 1].min()), float(v[:, 1].max())))
+
+    def scan_mismatch(self, points: np.ndarray) -> str | None:
+        """Points that give x only, or lie along one line (across it less than
+        ``SCAN_WIDTH`` of the plate's smaller side): a beam's scan, not a plate's."""
+        pts = np.asarray(points, dtype=float).reshape(len(points), -1)
+        need = "where a plate needs points (x, y) spread over its outline"
+        span = ranges_text(pts.min(axis=0), pts.max(axis=0), self.axes[:pts.shape[1]])
+        if pts.shape[1] < 2:
+            return f"its {len(pts)} points give x only ({span}): a line, 1-D, {need}"
+        xy = pts[:, :2] - pts[:, :2].mean(axis=0)
+        across = float(np.ptp(xy @ np.linalg.svd(xy, full_matrices=False)[2][-1]))
+        (x0, x1), (y0, y1) = self.extent()
+        if across >= SCAN_WIDTH * min(x1 - x0, y1 - y0):
+            return None
+        return (f"its {len(pts)} points lie along a line ({span}; {across:.3g} m across it), "
+                f"{need}")
 
     def mass_quadrature(self) -> tuple[np.ndarray, np.ndarray]:
         qp, qw = polygon_quadrature(np.asarray(self.outline, dtype=float), _N_TRI)
