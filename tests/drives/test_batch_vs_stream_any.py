@@ -30,6 +30,8 @@ Checked against breakage: the stream giving its samples one sample late fails ev
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -44,9 +46,15 @@ larger uncertainties)."""
 
 
 @pytest.fixture(scope="module")
-def random_rig(tmp_path_factory):
+def random_dir(tmp_path_factory):
     out = tmp_path_factory.mktemp("random")
     write_simulation(out, "random", seed=0)
+    return out
+
+
+@pytest.fixture(scope="module")
+def random_rig(random_dir):
+    out = random_dir
     rig = forcecal.load_rig(out / "rig.toml")
     model = forcecal.build_spatial_model(rig, forcecal.read_scan(out / "scan.uff", rig=rig))
     run = forcecal.read_run(out / "runs" / "random.csv")
@@ -98,3 +106,29 @@ def test_stream_agrees_with_batch_in_every_window(random_rig, name):
         for label, f, u in (("batch", f_b, u_b), ("stream", f_s, u_s)):
             z = _rms(f[sl] - want[sl]) / _rms(u[sl])
             assert 0.5 < z < 1.5, (at, label, z)
+
+
+@pytest.mark.parametrize("option", [["--ac-coupled"], ["--monte-carlo", "10"],
+                                    ["--format", "hdf5"], ["--format", "mat"],
+                                    ["--format", "uff"]])
+def test_the_harmonic_estimates_options_are_refused_under_any_drive(random_dir, option,
+                                                                    tmp_path, capsys):
+    """A steady drive's options are refused in one line, never ignored, and nothing is
+    written."""
+    from forcecal.cli.main import main
+
+    out = tmp_path / "out"
+    status = main(["reconstruct", str(random_dir / "rig.toml"), str(random_dir / "scan.uff"),
+                   str(random_dir / "runs" / "random.csv"), "-o", str(out), *option])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert status == 2 and len(err) == 1, err
+    assert "acquisition.drive = 'any'" in err[0] and option[-1 if option[0] == "--format"
+                                                            else 0] in err[0], err
+    assert not out.exists()
+
+
+def test_the_api_refuses_them_too(random_rig):
+    rig, run, _, _, _ = random_rig
+    for options in ({"ac_coupled": True}, {"monte_carlo": 10}, {"n_harmonics": 4}):
+        with pytest.raises(forcecal.InputError, match=re.escape("acquisition.drive = 'any'")):
+            forcecal.reconstruct(rig, None, run, **options)     # refused before the model

@@ -67,8 +67,6 @@ def _print(msg: object) -> None:
 
 STREAM_SUFFIXES = (".csv", ".h5", ".hdf5")
 """What ``stream -o`` writes: CSV, or HDF5 in the run layout."""
-MAX_FORCE_N = 1e8
-"""Largest force an output may hold [N]; beyond, the inputs were not what they claimed."""
 MAX_HARMONICS = 100
 """Most harmonics ``--harmonics`` may ask for."""
 MANY_JOBS = 4
@@ -238,7 +236,8 @@ def _cmd_reconstruct(args) -> int:
     _check_distinct_names(args.runs)
     rig = _load_rig(args)
     drive = drive_of(rig)
-    drive.check_options(rig, ac_coupled=args.ac_coupled, monte_carlo=args.monte_carlo)
+    drive.check_options(rig, ac_coupled=args.ac_coupled, monte_carlo=args.monte_carlo,
+                        fmt=args.format)
     model = _model_for(args, rig)
     runs = _read_runs(args.runs, rig)
     tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
@@ -354,6 +353,7 @@ def _cmd_stream(args) -> int:
 
     from ..drives import drive_of
     from ..io.blocks import check_run_blocks, open_run_blocks
+    from ..io.results import MAX_FORCE_N
     from ..io.staging import clean_stale
     from ..realtime.replay import bounded_forces
 
@@ -376,7 +376,7 @@ def _cmd_stream(args) -> int:
     if tare is not None:             # as reconstruct: the gauges' zero (the probes' too under
         blocks = replace(blocks, offsets={c: float(np.mean(tare.channel(c)))     # any drive)
                                           for c in drive.zeroed_channels(rig, model)})
-    check = bounded_forces(blocks.source, MAX_FORCE_N)
+    check = bounded_forces(blocks.source, MAX_FORCE_N)     # the limit every output keeps
     with blocks:
         if not to_stdout:
             clean_stale(Path(args.output).parent)

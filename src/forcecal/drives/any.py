@@ -54,9 +54,14 @@ class AnyDrive:
         return [band_line(model, output)]
 
     def check_options(self, rig: Rig, *, n_harmonics: int | None = None,
-                      ac_coupled: bool = False, monte_carlo: int = 0) -> None:
+                      ac_coupled: bool = False, monte_carlo: int = 0,
+                      fmt: str = "csv") -> None:
         """Refuse the options of the harmonic estimate: forces sample by sample have no
         harmonics to drop the DC of, and no Monte Carlo of their inputs."""
+        if fmt not in TransientEstimate.formats:
+            raise InputError(f"rig '{rig.source}': --format {fmt} holds a steady drive's "
+                             "phasors; under acquisition.drive = 'any' the forces sample by "
+                             f"sample are written as {' or '.join(TransientEstimate.formats)}")
         for given, option in ((n_harmonics is not None, "n_harmonics"),
                               (ac_coupled, "--ac-coupled"), (monte_carlo, "--monte-carlo")):
             if given:

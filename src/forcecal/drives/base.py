@@ -52,7 +52,8 @@ class Drive(Protocol):
         ...
 
     def check_options(self, rig: Rig, *, n_harmonics: int | None = None,
-                      ac_coupled: bool = False, monte_carlo: int = 0) -> None:
+                      ac_coupled: bool = False, monte_carlo: int = 0,
+                      fmt: str = "csv") -> None:
         """Refuse the options this drive has no use for."""
         ...
 

@@ -79,7 +79,8 @@ class SteadyDrive:
         return lines + [f"note: {note}" for note in model.notes]
 
     def check_options(self, rig: Rig, *, n_harmonics: int | None = None,
-                      ac_coupled: bool = False, monte_carlo: int = 0) -> None:
+                      ac_coupled: bool = False, monte_carlo: int = 0,
+                      fmt: str = "csv") -> None:
         """Every option serves a steady drive."""
 
     def reconstruct(self, rig: Rig, model: Any, run: Run, *, n_harmonics: int | None = None,

@@ -164,10 +164,7 @@ def replay(rig: Rig, model: SpatialModel, run: Run, block: int = 256, *,
         "n_harmonics": n_harmonics, "forgetting": forgetting,
         "track_frequency": track_frequency, "sensor_std": sensor_std, "tare_dc": tare_dc,
         "ac_coupled": ac_coupled, "extra_harmonics": extra_harmonics})
-    raw = np.stack([run.channel(name) for name in est.channel_names])
-    pieces = list(stream_forces(est, [raw], block, run.t0))      # (time, force, static, std)
-    force = np.concatenate([p[1] for p in pieces], axis=1)
-    static = np.concatenate([p[2] for p in pieces], axis=1)
+    force, static, _ = _replay_arrays(est, run, block)
     names = est.force_names
     return (run.time, {k: force[i] for i, k in enumerate(names)},
             {k: static[i] for i, k in enumerate(names)})
@@ -365,7 +362,15 @@ def stream_steady(rig: Rig, model: SpatialModel, run: Run, tare: Run | None = No
     tare_dc = None if tare is None else [g.scale * tare.channel(g.name).mean()
                                          for g in rig.gauges]
     est = _estimator(rig, model, run.fs, run.t0, None, {"tare_dc": tare_dc})
-    raw = np.stack([run.channel(name) for name in est.channel_names])
-    pieces = list(stream_forces(est, [raw], block, run.t0))
-    force, static, std = (np.concatenate([p[k] for p in pieces], axis=1) for k in (1, 2, 3))
+    force, static, std = _replay_arrays(est, run, block)
     return StreamedForces(run.name, tuple(est.force_names), run.time, force, static, std)
+
+
+def _replay_arrays(est: StreamEstimator, run: Run, block: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A run held in memory through ``est``: its forces and reactions-only forces
+    (n_forces, N) and their standard uncertainties (n_forces + 1, N) [N]."""
+    raw = np.stack([run.channel(name) for name in est.channel_names])
+    pieces = list(stream_forces(est, [raw], block, run.t0))      # (time, force, static, std)
+    force, static, std = (np.concatenate([p[k] for p in pieces], axis=1) for k in (1, 2, 3))
+    return force, static, std
