@@ -3,10 +3,12 @@
 A production batch is many actuators, each with its own campaign. Here every job is one
 campaign of the `campaign` preset's rig (a tare and eight runs of 0.5 s; noise redrawn per
 job), calibrated as ``forcecal calibrate RIG MODEL --manifest M1 M2 ... --workers W`` does
-(:func:`forcecal.cluster.run_jobs` with the CLI's own job function). Reported for each W:
-the wall time (cluster start included), the cluster's start alone, the speed-up over the serial
-path, and the overhead per job (the worker time a job costs beyond its serial compute:
-``(W (wall - start) - serial) / jobs``). The results are checked identical to the serial ones.
+(:func:`forcecal.cluster.run_jobs` with the CLI's own jobs, each campaign's manifest and records
+read by the client and carried in its job, the reading timed with the jobs). Reported for each W:
+the wall time (cluster start included; one worker too, a cluster of one), the cluster's start
+alone, the speed-up over the serial path, and the overhead per job (the worker time a job
+costs beyond its serial compute: ``(W (wall - start) - serial) / jobs``). The results are
+checked identical to the serial ones.
 
 From the measured figures: what a 10,000-actuator batch would cost on a cluster of C cores,
 ``10000 * (serial_per_job + overhead_per_job) / C + start`` (the overhead the least measured).
@@ -30,6 +32,7 @@ from pathlib import Path
 import numpy as np
 
 from forcecal.cluster.jobs import calibrate_job as _calibrate_job
+from forcecal.cluster.jobs import calibrate_jobs as _calibrate_jobs
 from forcecal.cluster.pool import _client, run_jobs
 from forcecal.io.manifest import write_manifest
 from forcecal.io.run_files import write_run_csv
@@ -78,6 +81,18 @@ def campaigns(folder: Path, n_jobs: int):
     return rig, model, manifests
 
 
+def spread_over(rig, model, manifests: list[str], workers: int) -> list:
+    """The campaigns calibrated over a local cluster of ``workers`` processes, started for the
+    call as the command starts it (one worker too: the cluster's own cost, with no
+    parallelism)."""
+    if workers > 1:
+        return run_jobs(_calibrate_job, _calibrate_jobs(rig, model, manifests, False),
+                        workers=workers)
+    with _client(1, None) as client:
+        return run_jobs(_calibrate_job, _calibrate_jobs(rig, model, manifests, False),
+                        scheduler=client.scheduler.address)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--jobs", type=int, default=8, help="campaigns (default 8)")
@@ -87,10 +102,10 @@ def main(argv=None) -> int:
     with tempfile.TemporaryDirectory(prefix="forcecal-cluster-") as tmp:
         print(f"simulating {args.jobs} campaigns", flush=True)
         rig, model, manifests = campaigns(Path(tmp), args.jobs)
-        jobs = [(rig, model, m, False) for m in manifests]
         print("serial", flush=True)
         t0 = time.perf_counter()
-        serial = run_jobs(_calibrate_job, jobs, workers=1)
+        serial = run_jobs(_calibrate_job, _calibrate_jobs(rig, model, manifests, False),
+                          workers=1)
         t_serial = time.perf_counter() - t0
         reference = [r.calibration.params.tolist() for r in serial]
         rows = []
@@ -101,13 +116,12 @@ def main(argv=None) -> int:
                 pass
             start = time.perf_counter() - t0
             t0 = time.perf_counter()
-            out = run_jobs(_calibrate_job, jobs, workers=w) if w > 1 else None
-            wall = time.perf_counter() - t0 if w > 1 else t_serial
-            same = out is None or [r.calibration.params.tolist() for r in out] == reference
-            rows.append({"workers": w, "seconds_wall": wall, "seconds_start": start if w > 1
-                         else 0.0, "speed_up": t_serial / wall, "identical": same,
-                         "overhead_per_job_s": (w * (wall - start) - t_serial) / args.jobs
-                         if w > 1 else 0.0})
+            out = spread_over(rig, model, manifests, w)
+            wall = time.perf_counter() - t0
+            same = [r.calibration.params.tolist() for r in out] == reference
+            rows.append({"workers": w, "seconds_wall": wall, "seconds_start": start,
+                         "speed_up": t_serial / wall, "identical": same,
+                         "overhead_per_job_s": (w * (wall - start) - t_serial) / args.jobs})
     per_job = t_serial / args.jobs
     spread = [r for r in rows if r["workers"] > 1] or rows
     best = min(spread, key=lambda r: r["overhead_per_job_s"])

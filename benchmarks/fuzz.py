@@ -2,15 +2,18 @@
 
 Run from the project root::
 
-    .venv/bin/python benchmarks/fuzz.py              # 2400 cases (200 per input kind)
+    .venv/bin/python benchmarks/fuzz.py              # 3000 cases (200 per input kind)
     .venv/bin/python benchmarks/fuzz.py --cases 500  # fewer
+    .venv/bin/python benchmarks/fuzz.py --kinds rig-keys model-keys cal-keys --cases 150
 
 Builds the small 'paper' lab of ``tests/fuzz_inputs.py`` once, then draws ``--cases`` cases
 spread evenly over the input kinds (seeds ``--start`` onwards, so a run is reproducible),
 runs each through ``forcecal.cli.main`` and classifies it: ok, refused, unclean (a refusal not
 in the promised form), internal (exit 1 or an exception), silent (exit 0 with non-finite or
-absurd outputs). Prints a table of counts per outcome and input kind, the first examples of
-each failure, and writes ``benchmarks/results/fuzz.json``.
+absurd outputs; for the key kinds, a key misspelt, in the wrong case, moved, an unknown table
+or a key written twice, exit 0 at all, and a refusal must name the key). Prints a table of
+counts per outcome and input kind, the first examples of each failure, and writes
+``benchmarks/results/fuzz.json``.
 """
 
 from __future__ import annotations
@@ -50,7 +53,8 @@ def table(counts: Counter, kinds: list[str]) -> str:
 
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--cases", type=int, default=2400, help="cases in all (default 2400)")
+    parser.add_argument("--cases", type=int, default=200 * len(KINDS),
+                        help=f"cases in all (default {200 * len(KINDS)})")
     parser.add_argument("--start", type=int, default=0, help="first seed (default 0)")
     parser.add_argument("--kinds", nargs="*", default=list(KINDS), help="input kinds")
     parser.add_argument("--examples", type=int, default=4,

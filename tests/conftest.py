@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import os
 
-# One BLAS thread per test process, as `make test` sets it: the two xdist workers are the
-# parallelism, and BLAS threads in each would oversubscribe the cores (the coverage study of
-# forces/test_uncertainty.py took 300 s of CPU instead of 17 s). Set before numpy is imported,
-# so that `python -m pytest` alone runs as `make test` does.
+# One BLAS thread per test process: the two xdist workers are the parallelism, and BLAS threads
+# in each would oversubscribe the cores (the coverage study of forces/test_uncertainty.py took
+# 300 s of CPU instead of 17 s). The command line and the API set their threads themselves
+# (forcecal.cluster.threads), but most tests call the stages' modules directly, which do not:
+# so set here, before numpy is imported.
 for _name in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_name, "1")
 

@@ -10,11 +10,14 @@ command either
   of the command, when the combination is at fault; for an argument, the option), and leaves
   no output file behind;
 
-never exit 1, never an exception.
+never exit 1, never an exception. For the key kinds (:data:`fuzz_keys.KEY_KINDS`: a key
+misspelt, in the wrong case, moved, an unknown table, a key written twice) only the refusal is
+right, and its line must name the mutated key too; exit 0 is silent.
 
 A case is ``(kind, seed)``: :func:`make_case` draws one mutation of that kind's input with
-``random.Random(seed)`` (the mutators are in :mod:`fuzz_mutations`) and :func:`run_case` runs
-it through :func:`forcecal.cli.main` in process and classifies the outcome (:data:`OUTCOMES`).
+``random.Random(seed)`` (the mutators are in :mod:`fuzz_mutations` and :mod:`fuzz_keys`) and
+:func:`run_case` runs it through :func:`forcecal.cli.main` in process and classifies the
+outcome (:data:`OUTCOMES`).
 """
 
 from __future__ import annotations
@@ -33,17 +36,21 @@ from typing import Any
 
 import h5py
 import numpy as np
+from fuzz_keys import FAMILIES, KEY_KINDS, key_case, names_key, write_key_rig
 from fuzz_mutations import extreme, mutate_doc, text_mutation, write_file
 from fuzz_oracle import check_outputs
 
 OK, REFUSED, UNCLEAN, INTERNAL, SILENT = "ok", "refused", "unclean", "internal", "silent"
 OUTCOMES = (OK, REFUSED, UNCLEAN, INTERNAL, SILENT)
 """ok: exit 0, sound outputs; refused: exit 2, one line naming the input, no output;
-unclean: a refusal that breaks the form (several lines, no name, output left behind);
-internal: exit 1 or an exception; silent: exit 0 with non-finite or absurd outputs."""
+unclean: a refusal that breaks the form (several lines, no name, output left behind; for a
+key kind, a line that does not name the key); internal: exit 1 or an exception; silent: exit 0
+with non-finite or absurd outputs, or, for a key kind, exit 0 at all."""
 
-KINDS = ("rig", "scan_uff", "scan_frf", "scan_h5", "scan_npz", "run_csv", "run_tdms",
-         "run_h5", "manifest", "model", "calibration", "arguments")
+VALUE_KINDS = ("rig", "scan_uff", "scan_frf", "scan_h5", "scan_npz", "run_csv", "run_tdms",
+               "run_h5", "manifest", "model", "calibration", "arguments")
+"""Damaged values and bytes: a sound exit 0 and a clean refusal are both right."""
+KINDS = (*VALUE_KINDS, *KEY_KINDS)
 
 _RUN_DECIMATE = 4      # the lab's run: 10 kHz -> 2.5 kHz, 1 s (20 periods)
 _SCAN_DECIMATE = 2     # the lab's scan: 10 kHz -> 5 kHz, 0.5 s
@@ -125,9 +132,18 @@ def build_lab(root: Path) -> Lab:
         "scan_npz": root / "scan.npz", "run_csv": root / "runs" / "paper.csv",
         "run_tdms": root / "runs" / "paper.tdms", "run_h5": root / "runs" / "paper.h5",
         "manifest": root / "manifest.csv", "model": root / "model.json",
-        "calibration": root / "calibration.json",
+        "calibration": root / "calibration.json", "model_frf": root / "model_frf.json",
+        "rig_keys": _key_rig(root),
     }
     return lab
+
+
+def _key_rig(root: Path) -> Path:
+    """The rig the key kinds mutate (:func:`fuzz_keys.write_key_rig`); as it is, it must run."""
+    path = write_key_rig(root)
+    assert _quiet_main(["scan", str(path), str(root / "scan.npz"), "-o",
+                        str(root / "model_keys.json")]) == 0, f"{path} is refused as it is"
+    return path
 
 
 def _frf_scan(root: Path) -> None:
@@ -183,6 +199,7 @@ class Case:
     command: str = ""
     stdout_bytes: bool = False     # stdout as strict UTF-8 bytes (a non-UTF-8 file name)
     folder: Path = Path()          # the working folder of the command
+    key: str = ""                  # a key kind's mutated key: a refusal must name it
 
 
 @dataclass
@@ -604,7 +621,11 @@ _MAKERS: dict[str, Callable[[Lab, Path, random.Random], Case]] = {
 def make_case(lab: Lab, folder: Path, kind: str, seed: int) -> Case:
     """Draw one mutated input of ``kind`` into ``folder`` (empty or missing)."""
     folder.mkdir(parents=True, exist_ok=True)
-    case = _MAKERS[kind](lab, folder, random.Random(f"{kind}-{seed}"))
+    rng = random.Random(f"{kind}-{seed}")
+    if kind in KEY_KINDS:  # seeds 0..4 draw each family once
+        case = key_case(lab, folder, rng, kind, FAMILIES[seed % len(FAMILIES)])
+    else:
+        case = _MAKERS[kind](lab, folder, rng)
     case.seed = seed
     case.folder = folder
     return case
@@ -651,7 +672,8 @@ def run_case(case: Case, lab: Lab) -> Outcome:
              if ln.strip() and not ln.startswith(("  [", "  simulating"))]
     text = " | ".join(lines)[:300]
     if code == 0:
-        bad = check_outputs(case, lab, stdout)
+        bad = (f"exit 0: key '{case.key}' not refused" if case.key
+               else check_outputs(case, lab, stdout))
         if bad:
             return Outcome(case.kind, case.seed, case.what, SILENT, code, bad)
         return Outcome(case.kind, case.seed, case.what, OK, code, text)
@@ -663,6 +685,8 @@ def run_case(case: Case, lab: Lab) -> Outcome:
     inputs = [a for a in case.argv[1:] if a.startswith("/") and Path(a).exists()]
     if lines and not any(n in lines[-1] for n in (*case.names, *inputs)):
         problems.append("names no input")
+    if case.key and lines and not names_key(lines[-1], case.key):
+        problems.append(f"names not the key '{case.key}'")
     left = _leftovers(case)
     if left:
         problems.append(f"left {', '.join(p.name for p in left[:3])}")

@@ -4,20 +4,33 @@ Hypothesis draws (input kind, seed) pairs, derandomized so every run tries the s
 :mod:`fuzz_inputs` turns each into one mutated file (or argument) and runs the command that
 reads it in process. The contract (INTERFACES.md section 5): exit 0 with finite, valid and
 physically bounded outputs, or exit 2 with one line naming the file and no output left; never
-an internal error (exit 1, an exception) and never a silent wrong result. The long version is
+an internal error (exit 1, an exception) and never a silent wrong result. A key mutation (a key
+misspelt, in the wrong case, moved, an unknown table, a key written twice: :mod:`fuzz_keys`)
+is refused naming the file and the key, never run (issue 33). The long version is
 ``benchmarks/fuzz.py``.
 """
 
 from __future__ import annotations
 
 import pytest
-from fuzz_inputs import INTERNAL, KINDS, REFUSED, SILENT, UNCLEAN, Lab, build_lab, fuzz_one
+from fuzz_inputs import (
+    INTERNAL,
+    KEY_KINDS,
+    REFUSED,
+    SILENT,
+    UNCLEAN,
+    VALUE_KINDS,
+    Lab,
+    build_lab,
+    fuzz_one,
+)
+from fuzz_keys import FAMILIES
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 CASES = 300
-"""Cases per run (25 per input kind), about 15 s; the long campaign (2400 cases, 200 per kind)
-is ``benchmarks/fuzz.py``."""
+"""Cases per run (25 per input kind of damaged values), about 15 s; the long campaign (200 per
+kind, the key kinds too) is ``benchmarks/fuzz.py``."""
 
 
 @pytest.fixture(scope="module")
@@ -32,10 +45,21 @@ def work(tmp_path_factory):
 
 @settings(max_examples=CASES, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
-@given(kind=st.sampled_from(KINDS), seed=st.integers(min_value=0, max_value=10**6))
+@given(kind=st.sampled_from(VALUE_KINDS), seed=st.integers(min_value=0, max_value=10**6))
 def test_a_mutated_input_is_refused_cleanly_or_gives_sound_outputs(lab, work, kind, seed):
     outcome = fuzz_one(lab, work, kind, seed)
     assert outcome.outcome not in (INTERNAL, SILENT, UNCLEAN), (
+        f"{outcome.outcome}: {kind} seed {seed} ({outcome.what}): {outcome.detail}")
+
+
+@pytest.mark.parametrize("seed", range(len(FAMILIES)))
+@pytest.mark.parametrize("kind", KEY_KINDS)
+def test_a_mutated_key_is_refused_naming_the_file_and_the_key(lab, work, kind, seed):
+    """Seeds 0-4 draw each family of key mutation once (misspelt, wrong case, moved, an
+    unknown table, written twice) at any depth of the rig, the model or the calibration: the
+    only right outcome is exit 2 with one line naming the file and the key's dotted path."""
+    outcome = fuzz_one(lab, work, kind, seed)
+    assert outcome.outcome == REFUSED, (
         f"{outcome.outcome}: {kind} seed {seed} ({outcome.what}): {outcome.detail}")
 
 

@@ -30,7 +30,7 @@ DEFERRED_OK = ("cli", "api.py", "report", "__init__.py")
 """Where an import inside a function is allowed: start-up time is the point (the command line,
 the API, the report's figures, the package's lazy top)."""
 CORE = ("structures", "signals", "model", "forces", "actuator", "rig.py", "records.py",
-        "errors.py", "_schema.py", "_toml.py", "_atomic.py", "_version.py")
+        "errors.py", "schema", "_atomic.py", "_version.py")
 """The method's own stages and data: they never read files by format, stream or draw."""
 OUTSIDE_CORE = ("io", "realtime", "report", "cli", "simulate", "drives", "campaign", "cluster",
                 "api")

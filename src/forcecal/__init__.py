@@ -45,11 +45,13 @@ if TYPE_CHECKING:
         read_scan,
         reconstruct,
         stream,
+        threads,
         write_calibration,
     )
 
 _LAZY = ("build_spatial_model", "calibrate", "load_calibration", "load_model", "predict",
-         "predict_flux", "read_run", "read_scan", "reconstruct", "stream", "write_calibration")
+         "predict_flux", "read_run", "read_scan", "reconstruct", "stream", "threads",
+         "write_calibration")
 """Names of :mod:`forcecal.api` imported on first use (they import SciPy's statistics)."""
 
 __all__ = [
@@ -77,6 +79,7 @@ __all__ = [
     "read_scan",
     "reconstruct",
     "stream",
+    "threads",
     "write_calibration",
 ]
 

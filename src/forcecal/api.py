@@ -23,6 +23,7 @@ Like the command line, this module sits outside the core: it reads files (:mod:`
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from contextlib import AbstractContextManager
 from dataclasses import replace
 from pathlib import Path
 
@@ -30,6 +31,7 @@ from .actuator import Calibration, Law, predict, predict_flux
 from .campaign import CampaignResult, calibrate_campaign, write_calibration
 from .campaign import load_calibration as _load_calibration
 from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
+from .cluster.threads import limited, thread_count, with_threads
 from .drives import drive_of
 from .forces.estimate import Estimate
 from .io.run_files import read_run
@@ -51,6 +53,7 @@ __all__ = [
     "read_run",
     "read_scan",
     "reconstruct",
+    "threads",
     "write_calibration",
 ]
 
@@ -94,6 +97,7 @@ def read_scan(path: str | Path, rig: Rig | None = None,
     return _read_scan(path, reference_label=reference_label, locations=locations)
 
 
+@with_threads
 def calibrate(
     rig: Rig,
     scan_or_model: Scan | SpatialModel,
@@ -186,6 +190,7 @@ def load_calibration(path: str | Path) -> Calibration:
     return _load_calibration(path)
 
 
+@with_threads
 def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
                         n_harmonics: int = 6, criterion: str = "gcv",
                         basis: str = "polynomial") -> SpatialModel | BroadbandModel:
@@ -243,6 +248,7 @@ def load_model(path: str | Path) -> SpatialModel | BroadbandModel:
     return load_any_model(path)
 
 
+@with_threads
 def reconstruct(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
                 n_harmonics: int | None = None, tare: Run | None = None,
                 ac_coupled: bool = False, monte_carlo: int = 0) -> Estimate:
@@ -289,6 +295,7 @@ def reconstruct(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
     return replace(est, provenance=_origin(rig, model, run, tare))
 
 
+@with_threads
 def stream(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
            tare: Run | None = None) -> Estimate:
     """A run through the real-time estimator of the rig's drive, as ``forcecal stream`` gives
@@ -314,6 +321,38 @@ def stream(rig: Rig, model: SpatialModel | BroadbandModel, run: Run,
     """
     est = drive_of(rig).stream_run(rig, model, run, tare)
     return replace(est, provenance=_origin(rig, model, run, tare))
+
+
+def threads(n: int) -> AbstractContextManager[int]:
+    """Run the forcecal calls inside on ``n`` BLAS/OpenMP threads (and Numba's, when its
+    threading layer runs), restored after: for a call that is one large matrix problem.
+
+    Every API call runs on one thread unless told (``FORCECAL_THREADS``, or this): forcecal's
+    work is many small matrix problems, for which one thread is the fastest and leaves the other
+    cores to other processes. Workers started inside (``workers=``) get ``n`` threads each.
+    Usable as a decorator.
+
+    Parameters
+    ----------
+    n : int
+        Threads, a whole number >= 1.
+
+    Returns
+    -------
+    context manager
+        Yields ``n``.
+
+    Raises
+    ------
+    InputError
+        ``n`` is 0, negative or not a whole number.
+
+    Examples
+    --------
+    >>> with forcecal.threads(4):                                # doctest: +SKIP
+    ...     est = forcecal.reconstruct(rig, model, run)
+    """
+    return limited(thread_count(n, "forcecal.threads"))
 
 
 def _origin(rig: Rig, model: SpatialModel | BroadbandModel, run: Run, tare: Run | None) -> dict:

@@ -17,8 +17,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ._toml import TableReader, channel_map, check_numbers
 from .errors import RigError
+from .schema.channels import Fail, channel_map
+from .schema.rig_file import check_rig_document
+from .schema.toml_text import duplicated_key
 from .structures import KINDS, UP, LumpedMass, Structure, locations
 
 __all__ = [
@@ -34,86 +36,29 @@ __all__ = [
 ]
 
 
-# --- from rig_acquisition ---
-def read_acquisition(r: TableReader, acq: dict[str, Any]) -> dict[str, Any]:
-    """The ``[acquisition]`` keys as :class:`forcecal.rig.Rig` fields.
-
-    Returns
-    -------
-    dict
-        ``frequency``, ``run_group``, ``temperature``, ``mains``, ``band``, ``drive`` and
-        ``scan_averages`` (None where a key is absent; ``drive`` "steady").
-
-    Raises
-    ------
-    RigError
-        A key out of its range or inconsistent with another, named.
-    """
-    keys: dict[str, Any] = {
-        "frequency": r.number(acq, "frequency", "acquisition", required=False, positive=True),
-        "run_group": r.text(acq, "group", "acquisition", required=False, default=None),
-        "temperature": _temperature(r, acq),
-        "mains": r.number(acq, "mains", "acquisition", required=False, positive=True)}
-    mains = keys["mains"]
-    if mains is not None and not 10.0 <= mains <= 1000.0:
-        raise r.fail("acquisition.mains", f"= {mains!r} Hz is not a mains frequency (50 or 60)")
-    keys["band"], keys["drive"] = _drive_band(r, acq)
-    keys["scan_averages"] = _scan_averages(r, acq, keys["band"])
-    return keys
+def _acquisition(fail: Fail, acq: Any) -> dict[str, Any]:
+    """The validated ``[acquisition]`` keys as :class:`Rig` fields, with the checks that join
+    two keys (a band's ends in order; ``drive = "any"`` and ``scan_averages`` need a band)."""
+    band = None
+    if acq.band is not None:
+        lo, hi = acq.band
+        if not lo < hi:
+            raise fail("acquisition.band", f"= [{lo!r}, {hi!r}] Hz is not a band "
+                       "(0 <= low < high)")
+        band = (float(lo), float(hi))
+    if acq.drive == "any" and band is None:
+        raise fail("acquisition.drive", "= 'any' needs 'acquisition.band', the band a "
+                   "broadband scan covered")
+    if acq.scan_averages is not None and band is None:
+        raise fail("acquisition.scan_averages", "serves a broadband scan's FRFs; give "
+                   "'acquisition.band' too")
+    return {"frequency": acq.frequency, "run_group": acq.group, "temperature": acq.temperature,
+            "mains": acq.mains, "band": band, "drive": acq.drive,
+            "scan_averages": acq.scan_averages}
 
 
 DRIVES = ("steady", "any")
 """What ``acquisition.drive`` may say."""
-
-
-def _drive_band(r: TableReader, acq: dict[str, Any]) -> tuple[tuple[float, float] | None, str]:
-    """``acquisition.band`` [Hz] (None when absent) and ``acquisition.drive``."""
-    drive = r.text(acq, "drive", "acquisition", required=False, default="steady")
-    if drive not in DRIVES:
-        raise r.fail("acquisition.drive", f"= {drive!r} is not one of {', '.join(DRIVES)}")
-    band = None
-    if "band" in acq:
-        lo, hi = r.vector(acq, "band", "acquisition", 2, "a band (low, high) in Hz")
-        if not 0.0 <= lo < hi:
-            raise r.fail("acquisition.band", f"= [{lo!r}, {hi!r}] Hz is not a band "
-                         "(0 <= low < high)")
-        band = (float(lo), float(hi))
-    if drive == "any" and band is None:
-        raise r.fail("acquisition.drive", "= 'any' needs 'acquisition.band', the band a "
-                     "broadband scan covered")
-    return band, drive
-
-
-def _scan_averages(r: TableReader, acq: dict[str, Any], band: tuple[float, float] | None
-                   ) -> int | None:
-    """``acquisition.scan_averages``: a whole number of averages, for a broadband scan."""
-    n = r.number(acq, "scan_averages", "acquisition", required=False, positive=True)
-    if n is None:
-        return None
-    if n != int(n) or n > 1e6:
-        raise r.fail("acquisition.scan_averages", f"= {n!r} is not a number of averages (a "
-                     "whole number, 2 to 1e6)")
-    if n < 2:
-        raise r.fail("acquisition.scan_averages", f"= {int(n)}: the coherence of one average is "
-                     "1 on every line and states no noise; FRFs need 2 or more averages")
-    if band is None:
-        raise r.fail("acquisition.scan_averages", "serves a broadband scan's FRFs; give "
-                     "'acquisition.band' too")
-    return int(n)
-
-
-_TEMPERATURE_RANGE_C = (-100.0, 200.0)
-"""Ambient temperatures ``acquisition.temperature`` may give [°C]; beyond is probably kelvin."""
-
-
-def _temperature(r: TableReader, acq: dict[str, Any]) -> float | None:
-    """``acquisition.temperature`` [°C], or None when absent."""
-    value = r.number(acq, "temperature", "acquisition", required=False)
-    lo, hi = _TEMPERATURE_RANGE_C
-    if value is not None and not lo <= value <= hi:
-        raise r.fail("acquisition.temperature", f"= {value!r} °C is not an ambient temperature "
-                     f"between {lo:g} and {hi:g} °C (23.0 for 23 °C; not in kelvin)")
-    return value
 
 
 # --- from rig ---
@@ -145,6 +90,9 @@ class ForcePoint:
     gap: float | None = None
     z: float = 0.0
     direction: tuple[float, float, float] = UP
+    flux: str | None = None
+    """The run files' channel of the flux through this pole (``forces[].flux``); None: the
+    actuator's (``actuator.flux``), when the rig gives one."""
 
 
 @dataclass(frozen=True)
@@ -312,10 +260,6 @@ class Rig:
 MAX_RIG_BYTES = 10_000_000
 """Largest rig file read (a rig of thousands of points is a few hundred kB)."""
 
-_KNOWN_TOP = {"name", "structure", "gauges", "forces", "sensors", "actuator", "acquisition",
-              "channels", "uncertainty"}
-
-
 def load_rig(path: str | Path) -> Rig:
     """Read and validate a rig file.
 
@@ -341,8 +285,16 @@ def load_rig(path: str | Path) -> Rig:
         raise RigError(f"rig '{path}': {path.stat().st_size} bytes; a rig file is at most "
                        f"{MAX_RIG_BYTES} bytes")
     try:
-        doc = tomllib.loads(path.read_text(encoding="utf-8"))
-    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        text = path.read_text(encoding="utf-8")
+        doc = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        twice = duplicated_key(text, str(exc))
+        if twice is not None:
+            where = str(exc)[str(exc).rfind("(at ") + 4:].rstrip(")")
+            raise RigError(f"rig '{path}': key '{twice}' is written twice ({where}); a key is "
+                           "given once per table") from None
+        raise RigError(f"rig '{path}': not a valid TOML file ({exc})") from None
+    except UnicodeDecodeError as exc:
         raise RigError(f"rig '{path}': not a valid TOML file ({exc})") from None
     except RecursionError:
         raise RigError(f"rig '{path}': not a valid TOML file (nested too deeply)") from None
@@ -357,7 +309,9 @@ def _first_line(exc: BaseException) -> str:
 
 
 def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
-    """Validate a rig given as a parsed TOML document (see :func:`load_rig`).
+    """Validate a rig given as a parsed TOML document (see :func:`load_rig`): first against
+    its schema (:mod:`forcecal.schema.rig_file`: keys, types, units' bounds, unknown keys
+    refused), then what joins keys (points on the structure, statics, unique names).
 
     Parameters
     ----------
@@ -370,150 +324,94 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     -------
     Rig
     """
-    r = TableReader(source)
-    if not isinstance(doc, dict):
-        raise RigError(f"rig '{source}': expected a TOML document (a table of keys)")
-    check_numbers(doc, source)
-    unknown = set(doc) - _KNOWN_TOP
-    if unknown:
-        raise r.fail(sorted(unknown)[0], "is not a rig key (expected one of "
-                     + ", ".join(sorted(_KNOWN_TOP)) + ")")
-    name = r.text(doc, "name", "", required=False, default=Path(source).stem)
-    structure = _structure(r, r.table(doc, "structure"))
-    gauges = tuple(Gauge(**g) for g in _points(r, doc, "gauges", structure, ("scale",)))
-    forces = tuple(ForcePoint(**f) for f in _points(r, doc, "forces", structure, ("gap",)))
-    sensors = tuple(Sensor(**s) for s in _points(r, doc, "sensors", structure, ("scale",)))
-    actuator = _actuator(r, r.table(doc, "actuator", required=False))
-    acq = read_acquisition(r, r.table(doc, "acquisition", required=False))
-    _check_names(r, gauges, forces, sensors, actuator)
-    _check_statics(r, structure, gauges, forces, sensors)
+    keys = check_rig_document(doc, source)
+
+    def fail(key: str, what: str) -> RigError:
+        return RigError(f"rig '{source}': key '{key}' {what}")
+
+    structure = _structure(fail, keys.structure)
+    gauges = tuple(Gauge(**g, scale=k.scale)
+                   for k, g in zip(keys.gauges, _points(fail, keys.gauges, "gauges", structure),
+                                   strict=True))
+    forces = tuple(ForcePoint(**f, gap=k.gap, flux=k.flux)
+                   for k, f in zip(keys.forces, _points(fail, keys.forces, "forces", structure),
+                                   strict=True))
+    sensors = tuple(Sensor(**p, scale=k.scale)
+                    for k, p in zip(keys.sensors,
+                                    _points(fail, keys.sensors, "sensors", structure),
+                                    strict=True))
+    actuator = Actuator(**keys.actuator.model_dump())
+    acq = _acquisition(fail, keys.acquisition)
+    _check_names(fail, gauges, forces, sensors, actuator)
+    _check_statics(fail, structure, gauges, forces, sensors)
     names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
     names += [actuator.flux] if actuator.flux is not None else []
+    names += [f.flux for f in forces if f.flux is not None and f.flux not in names]
     names += ["time"]                   # the run files' time column
-    channels = channel_map(r, r.table(doc, "channels", required=False), names)
-    type_b = _type_b(r, r.table(doc, "uncertainty", required=False), "uncertainty" in doc)
-    return Rig(name=name or Path(source).stem, structure=structure, gauges=gauges,
+    channels = channel_map(fail, keys.channels, names)
+    type_b = (TypeB(**keys.uncertainty.model_dump(), declared=True)
+              if keys.uncertainty is not None else TypeB())
+    return Rig(name=keys.name or Path(source).stem, structure=structure, gauges=gauges,
                forces=forces, sensors=sensors, actuator=actuator, source=source,
                channel_map=channels, type_b=type_b, **acq)
 
 
-def _type_b(r: TableReader, table: dict[str, Any], declared: bool) -> TypeB:
-    """The ``[uncertainty]`` table: type-B standard uncertainties, defaults for keys absent."""
-    unknown = set(table) - set(TypeB.KEYS)
-    if unknown:
-        raise r.fail(f"uncertainty.{sorted(unknown)[0]}", "is not a type-B key (expected one of "
-                     + ", ".join(TypeB.KEYS) + ")")
-    limits = {"gauge_scale": 0.5, "probe_scale": 0.5, "current_scale": 0.5, "position": 0.1,
-              "mass": 0.5, "gap": 1e-3}
-    values: dict[str, float] = {}
-    for key in TypeB.KEYS:
-        v = r.number(table, key, "uncertainty", required=False)
-        if v is None:
-            continue
-        if not 0.0 <= v <= limits[key]:
-            raise r.fail(f"uncertainty.{key}", f"= {v!r} must lie in [0, {limits[key]:g}] "
-                         + ("(a relative standard uncertainty: 0.005 for 0.5 %)"
-                            if key not in ("position", "gap") else "(a standard uncertainty in m)"))
-        values[key] = v
-    return TypeB(**values, declared=declared)
-
-
-def _structure(r: TableReader, st: dict[str, Any]) -> Structure:
-    """The ``[structure]`` table: its kind picks the class, which reads its own keys."""
-    kind = r.text(st, "kind", "structure", required=False, default="beam")
-    cls = KINDS.get(kind or "")
-    if cls is None:
-        names = ", ".join(f"'{k}'" for k in KINDS)
-        raise r.fail("structure.kind", f"must be one of {names}, found {kind!r}")
-    masses_raw = st.get("masses", [])
-    if not isinstance(masses_raw, list):
-        raise r.fail("structure.masses", "must be an array of {x, mass} tables")
-    masses = []
-    for k, m in enumerate(masses_raw):
-        key = f"structure.masses[{k}]"
-        if not isinstance(m, dict):
-            raise r.fail(key, "must be a table {x = ..., mass = ...}")
-        masses.append(LumpedMass(
-            x=r.required(m, "x", key),
-            y=_coordinate(r, m, "y", key, cls.axes),
-            z=_coordinate(r, m, "z", key, cls.axes),
-            mass=r.required(m, "mass", key, positive=True),
-        ))
-    structure = cls.from_table(r, st, tuple(masses))
+def _structure(fail: Fail, st: Any) -> Structure:
+    """The validated ``[structure]`` table: its kind picks the class, which builds itself."""
+    cls = KINDS[st.kind]
+    masses = tuple(LumpedMass(x=m.x, y=_coordinate(fail, m, "y", f"structure.masses[{k}]",
+                                                   cls.axes),
+                              z=_coordinate(fail, m, "z", f"structure.masses[{k}]", cls.axes),
+                              mass=m.mass) for k, m in enumerate(st.masses))
+    structure = cls.from_keys(st, masses, fail)
     for k, lm in enumerate(masses):
         if not structure.contains(lm.x, lm.y, lm.z):
-            raise r.fail(f"structure.masses[{k}].x", f"= {lm.x} lies off the structure")
+            raise fail(f"structure.masses[{k}].x", f"= {lm.x} lies off the structure")
     return structure
 
 
-def _optional(r: TableReader, table: dict[str, Any], key: str, path: str,
-              default: float) -> float:
-    """An optional number with its default."""
-    value = r.number(table, key, path, required=False)
-    return default if value is None else value
-
-
-def _coordinate(r: TableReader, item: dict[str, Any], axis: str, path: str,
-                axes: tuple[str, ...]) -> float:
+def _coordinate(fail: Fail, item: Any, axis: str, path: str, axes: tuple[str, ...]) -> float:
     """Coordinate ``axis`` of a point: required when the structure has that axis, else 0."""
-    return r.required(item, axis, path) if axis in axes else _optional(r, item, axis, path, 0.0)
+    value = getattr(item, axis)
+    if value is None and axis in axes:
+        raise fail(f"{path}.{axis}", "is missing")
+    return 0.0 if value is None else float(value)
 
 
-def _direction(r: TableReader, item: dict[str, Any], path: str,
+def _direction(fail: Fail, item: Any, path: str,
                directed: bool) -> tuple[float, float, float]:
     """A point's unit ``direction`` (required where the structure's points carry one; beams
     and plates act along +w)."""
-    if "direction" not in item:
+    if item.direction is None:
         if directed:
-            raise r.fail(f"{path}.direction", "is missing: on a body every gauge, force and "
-                         "sensor needs its direction [dx, dy, dz]")
+            raise fail(f"{path}.direction", "is missing: on a body every gauge, force and "
+                       "sensor needs its direction [dx, dy, dz]")
         return UP
     if not directed:
-        raise r.fail(f"{path}.direction", "applies to a 3-D body only (beams and plates act "
-                     "along +w)")
-    v = r.vector(item, "direction", path, 3, "[dx, dy, dz], three numbers")
+        raise fail(f"{path}.direction", "applies to a 3-D body only (beams and plates act "
+                   "along +w)")
+    v = item.direction
     norm = math.sqrt(sum(c * c for c in v))
     if norm == 0.0:
-        raise r.fail(f"{path}.direction", "must not be zero")
+        raise fail(f"{path}.direction", "must not be zero")
     return (v[0] / norm, v[1] / norm, v[2] / norm)
 
 
-def _points(r: TableReader, doc: dict[str, Any], key: str, structure: Structure,
-            extra: tuple[str, ...]) -> list[dict[str, Any]]:
-    """The entries of ``[[key]]`` as keyword arguments of Gauge, ForcePoint or Sensor."""
+def _points(fail: Fail, items: Sequence[Any], key: str,
+            structure: Structure) -> list[dict[str, Any]]:
+    """The entries of ``[[key]]``: name, position and direction, each on the structure."""
     out = []
-    for k, item in enumerate(r.array_of_tables(doc, key)):
+    for k, item in enumerate(items):
         path = f"{key}[{k}]"
         entry: dict[str, Any] = dict(
-            name=r.text(item, "name", path),
-            x=r.required(item, "x", path),
-            y=_coordinate(r, item, "y", path, structure.axes),
-            z=_coordinate(r, item, "z", path, structure.axes),
-            direction=_direction(r, item, path, structure.directed),
-        )
-        for e in extra:
-            if e == "gap":
-                entry[e] = r.number(item, "gap", path, required=False, positive=True)
-            else:
-                entry[e] = _optional(r, item, e, path, 1.0)
-                if entry[e] == 0.0:
-                    raise r.fail(f"{path}.{e}", "must not be zero")
+            name=item.name, x=item.x,
+            y=_coordinate(fail, item, "y", path, structure.axes),
+            z=_coordinate(fail, item, "z", path, structure.axes),
+            direction=_direction(fail, item, path, structure.directed))
         if not structure.contains(entry["x"], entry["y"], entry["z"]):
-            raise r.fail(f"{path}.x", structure.outside(entry["x"], entry["y"], entry["z"]))
+            raise fail(f"{path}.x", structure.outside(entry["x"], entry["y"], entry["z"]))
         out.append(entry)
     return out
-
-
-def _actuator(r: TableReader, act: dict[str, Any]) -> Actuator:
-    """The ``[actuator]`` table (every key optional)."""
-    return Actuator(
-        current=r.text(act, "current", "actuator", required=False, default="i") or "i",
-        flux=r.text(act, "flux", "actuator", required=False, default=None),
-        turns=r.number(act, "turns", "actuator", required=False, positive=True),
-        pole_area=r.number(act, "pole_area", "actuator", required=False, positive=True),
-        current_scale=_optional(r, act, "current_scale", "actuator", 1.0),
-        flux_scale=_optional(r, act, "flux_scale", "actuator", 1.0),
-    )
 
 
 def _groups(gauges: tuple[Gauge, ...], forces: tuple[ForcePoint, ...],
@@ -522,7 +420,7 @@ def _groups(gauges: tuple[Gauge, ...], forces: tuple[ForcePoint, ...],
     return [("gauges", gauges), ("forces", forces), ("sensors", sensors)]
 
 
-def _check_names(r: TableReader, gauges: tuple[Gauge, ...], forces: tuple[ForcePoint, ...],
+def _check_names(fail: Fail, gauges: tuple[Gauge, ...], forces: tuple[ForcePoint, ...],
                  sensors: tuple[Sensor, ...], actuator: Actuator) -> None:
     """Names unique across every channel kind, and none reserved for an output column."""
     seen: dict[str, str] = {}
@@ -530,26 +428,26 @@ def _check_names(r: TableReader, gauges: tuple[Gauge, ...], forces: tuple[ForceP
         for k, item in enumerate(items):
             if item.name in seen or item.name in ("time", "total"):
                 other = seen.get(item.name, "a reserved column name")
-                raise r.fail(f"{key}[{k}].name", f"= '{item.name}' is used twice (also {other})")
+                raise fail(f"{key}[{k}].name", f"= '{item.name}' is used twice (also {other})")
             seen[item.name] = f"{key}[{k}]"
     if actuator.current in seen:
-        raise r.fail("actuator.current", f"= '{actuator.current}' is also {seen[actuator.current]}")
+        raise fail("actuator.current", f"= '{actuator.current}' is also {seen[actuator.current]}")
 
 
-def _check_statics(r: TableReader, structure: Structure, gauges: tuple[Gauge, ...],
+def _check_statics(fail: Fail, structure: Structure, gauges: tuple[Gauge, ...],
                    forces: tuple[ForcePoint, ...], sensors: tuple[Sensor, ...]) -> None:
     """Gauge count, at least one sensor and one force, no two points at one place."""
     needed = structure.n_rigid
     if len(gauges) != needed:
-        raise r.fail("gauges", f"has {len(gauges)} entries; a {structure.kind} on statically "
+        raise fail("gauges", f"has {len(gauges)} entries; a {structure.kind} on statically "
                      f"determinate gauges needs exactly {needed}")
     if not sensors:
-        raise r.fail("sensors", "is empty: each harmonic's shape needs at least one "
+        raise fail("sensors", "is empty: each harmonic's shape needs at least one "
                      "displacement sensor (no more shapes than sensors)")
     if not forces:
-        raise r.fail("forces", "is empty: name at least one force point")
+        raise fail("forces", "is empty: name at least one force point")
     if len(forces) > len(gauges):
-        raise r.fail("forces", f"has {len(forces)} entries; at most {len(gauges)} forces "
+        raise fail("forces", f"has {len(forces)} entries; at most {len(gauges)} forces "
                      "(one per gauge) can be determined")
     directed = structure.directed
     for key, items in _groups(gauges, forces, sensors):
@@ -558,7 +456,7 @@ def _check_statics(r: TableReader, structure: Structure, gauges: tuple[Gauge, ..
             for b in range(a):
                 if np.linalg.norm(pts[a, :3] - pts[b, :3]) < 1e-6 and (
                         not directed or np.linalg.norm(pts[a, 3:] - pts[b, 3:]) < 1e-6):
-                    raise r.fail(f"{key}[{a}].x", f"puts '{items[a].name}' at the same point as "
+                    raise fail(f"{key}[{a}].x", f"puts '{items[a].name}' at the same point as "
                                  f"'{items[b].name}'" + (" in the same direction" if directed
                                                          else ""))
 
@@ -594,13 +492,13 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         "name": rig.name,
         "structure": structure,
         "gauges": [point(g, ("scale",)) for g in rig.gauges],
-        "forces": [point(f, ("gap",)) for f in rig.forces],
+        "forces": [point(f, ("gap", "flux")) for f in rig.forces],
         "sensors": [point(s, ("scale",)) for s in rig.sensors],
     }
     act: dict[str, Any] = {"current": rig.actuator.current}
-    for key in ("flux", "turns", "pole_area"):
+    for key in ("flux", "turns", "pole_area", "current_scale", "flux_scale"):
         v = getattr(rig.actuator, key)
-        if v is not None:
+        if v is not None and not (key.endswith("_scale") and v == 1.0):
             act[key] = v
     doc["actuator"] = act
     acquisition: dict[str, Any] = {}

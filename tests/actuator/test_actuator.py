@@ -325,7 +325,7 @@ def test_load_names_the_file_at_fault(calibration, tmp_path):
     obj = calibration.to_json()
     del obj["covariance"]
     lacking.write_text(json.dumps(obj), encoding="utf-8")
-    with pytest.raises(InputError, match=re.escape(str(lacking)) + ".*missing key 'covariance'"):
+    with pytest.raises(InputError, match=re.escape(str(lacking)) + ".*key 'covariance' is missing"):
         Calibration.load(lacking)
 
 

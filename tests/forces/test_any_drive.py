@@ -137,7 +137,8 @@ def test_bad_inputs_get_one_clear_line(beam, bb_model, tmp_path):
                 (reconstruct_any if smooth else stream_any)(rig, bb_model, broken)
     doc = bb_model.to_json()
     for change, what in ((lambda d: d["couplings"].pop(), "couplings"),
-                         (lambda d: d["line_snr"].__setitem__(0, None), "broadband"),
+                         (lambda d: d["line_snr"].__setitem__(0, None),
+                          r"key .line_snr\[0\]. must be a number"),
                          (lambda d: d.pop("shapes"), "shapes")):
         bad = json.loads(json.dumps(doc))
         change(bad)

@@ -21,11 +21,11 @@ import pyuff
 import tomli_w
 from nptdms import ChannelObject, TdmsWriter
 
-from forcecal._toml import node_channel, parse_node_channel
 from forcecal.cli.main import main
 from forcecal.errors import DataError, InputError, RigError
 from forcecal.io.run_files import read_run, read_table_csv, run_paths
 from forcecal.rig import load_rig, parse_rig, rig_to_dict
+from forcecal.schema.channels import node_channel, parse_node_channel
 
 THIRD_PARTY = Path(__file__).resolve().parents[3] / "shared" / "data" / "third-party-uff"
 SHORT_SECONDS = 0.4

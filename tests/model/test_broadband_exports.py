@@ -243,7 +243,7 @@ def test_frf_exports_that_cannot_state_their_noise_are_refused(beam, random_scan
     _frf_uff(random_scan, tmp_path / "half.uff", segment,
              edit=lambda node, records: records[:1] if node == 9 else records)
     refused(rig_toml, tmp_path / "half.uff", "half.uff", "node 9 has 0 coherence records")
-    for value, said in ((2.5, "= 2.5 is not a number of averages"),
+    for value, said in ((2.5, "must be a whole number, found 2.5"),
                         (1, "= 1: the coherence of one average is 1 on every line"),
                         (0, "must be positive")):
         refused(_rig_file(rig, tmp_path / "bad.toml", scan_averages=value), good,

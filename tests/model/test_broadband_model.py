@@ -11,13 +11,20 @@ white noise on every channel. The beam, the scan and its model are session fixtu
 from __future__ import annotations
 
 import dataclasses
+import json
+import re
 
 import numpy as np
 import pytest
 from fe_beam import FS, noisy_chirp, record_run
 
 from forcecal.errors import InputError
-from forcecal.model.broadband import BroadbandModel, build_broadband_model, steady_model
+from forcecal.model.broadband import (
+    BroadbandModel,
+    build_broadband_model,
+    load_any_model,
+    steady_model,
+)
 
 
 def test_broadband_span_shapes_and_couplings(beam, bb_model):
@@ -230,3 +237,46 @@ def test_a_line_whose_noise_reads_zero_does_not_take_the_ratios():
         ratios, std = smooth_ratios(f, coords, cov)
         assert np.all(np.isfinite(ratios)) and np.all(np.isfinite(std)), change
         assert np.max(np.abs(ratios[1] - coords[1] / coords[0])) < 1e-2, change
+
+
+def _rename(table: dict, old: str, new: str) -> None:
+    table[new] = table.pop(old)
+
+
+def _twice(table: dict, key: str) -> None:
+    """``key`` of ``table`` written twice (the same value) once the document is dumped."""
+    table[f"{TWICE}{key}"] = table[key]
+
+
+TWICE = "__written_twice__"
+
+
+@pytest.mark.parametrize(("change", "said"), [
+    (lambda d: d.update(comment="by hand"),
+     r"key 'comment' is not a broadband model key"),
+    (lambda d: d["coordinates"].update(scale=1.0),
+     r"key 'coordinates\.scale' is not a complex array key"),
+    (lambda d: d["shapes"][1].update(weight=1.0), r"key 'shapes\[1\]\.weight' is not a shape key"),
+    (lambda d: _rename(d, "coordinates", "coordinate"),
+     r"key 'coordinate' is not a broadband model key; did you mean 'coordinates'\?"),
+    (lambda d: _rename(d, "kind", "Kind"),
+     r"key 'Kind' is not a broadband model key; did you mean 'kind'\?"),
+    (lambda d: _rename(d["shapes"][0], "residual_std", "residual_sd"),
+     r"key 'shapes\[0\]\.residual_sd' is not a shape key; did you mean 'residual_std'\?"),
+    (lambda d: _twice(d, "n_points"), r"key 'n_points' is written twice"),
+    (lambda d: _twice(d["coordinates"], "im"), r"key 'coordinates\.im' is written twice"),
+], ids=["unknown", "unknown-in-table", "unknown-in-entry", "misspelt", "misspelt-kind",
+        "misspelt-in-entry", "twice", "twice-in-table"])
+def test_a_broadband_model_file_refuses_every_key_it_does_not_declare(bb_model, tmp_path,
+                                                                     change, said):
+    """An unknown key (at the top level, in a table, in an entry of an array), a misspelt one
+    (a required key, ``kind`` itself, a shape's key) and one written twice (``json.loads``
+    would keep one value without a word): each refused in one line naming the file and the
+    dotted key, a misspelt one with the key meant (issue 33)."""
+    doc = bb_model.to_json()
+    change(doc)
+    path = tmp_path / "model.json"
+    path.write_text(re.sub(rf'"{TWICE}(\w+)"', r'"\1"', json.dumps(doc)))
+    with pytest.raises(InputError, match=rf"^model '{re.escape(str(path))}': {said}") as err:
+        load_any_model(path)
+    assert "\n" not in str(err.value)

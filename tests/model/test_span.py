@@ -13,6 +13,9 @@ import json
 import numpy as np
 import pytest
 
+from forcecal.actuator.laws import get_law
+from forcecal.actuator.prediction import Calibration
+from forcecal.campaign.statistics import ParameterUncertainty
 from forcecal.errors import InputError
 from forcecal.forces.coordinates import choose_members, coordinate_map, member_fit, sensor_weights
 from forcecal.forces.steady import channels_si, reconstruct
@@ -21,6 +24,7 @@ from forcecal.model.inertia import inertia_term
 from forcecal.model.relaxation import force_matrix
 from forcecal.model.spatial import SpatialModel, build_spatial_model, load_model
 from forcecal.realtime.estimator import StreamEstimator
+from forcecal.rig import TypeB
 from forcecal.signals.harmonics import fit_harmonics
 from forcecal.simulate.presets import get_preset
 from forcecal.simulate.virtual_rig import (
@@ -231,6 +235,51 @@ def test_a_damaged_span_entry_is_refused_by_key(two_coil, tmp_path):
     path.write_text(json.dumps(doc))
     with pytest.raises(InputError, match=r"span\[0\]\.couplings_re"):
         load_model(path)
+
+
+@pytest.fixture(scope="module")
+def saved_files(two_coil, tmp_path_factory):
+    """The two-scan model saved, and a calibration with a campaign's uncertainty block, each
+    written once: the documents the tests below damage."""
+    folder = tmp_path_factory.mktemp("saved")
+    law = get_law("k_i2_sfe2")
+    cov = np.diag([1e-14, 1e-12])
+    cal = Calibration(law=law.name, params=np.array([2e-5, 2e-4]), covariance=cov, n_poles=2,
+                      current_range=(0.0, 2.0), gap_range=(5e-4, 1.5e-3))
+    unc = ParameterUncertainty(param_names=law.param_names, statistical=cov / 2, type_b=cov / 2,
+                               budget={"gauges": np.sqrt(np.diag(cov / 2))}, residual=cov,
+                               run_scatter=None, n_runs=3, type_b_used=TypeB())
+    calibration = folder / "calibration.json"
+    calibration.write_text(json.dumps({**cal.to_json(), "uncertainty": unc.to_json(2)}))
+    return {"model": two_coil[3].save(folder / "model.json"), "calibration": calibration}
+
+
+@pytest.mark.parametrize(("kind", "table", "old", "new", "key", "near"), [
+    ("model", (), "notes", "note", "note", "notes"),
+    ("model", ("shapes", 0), "order", "ordr", "shapes[0].ordr", "order"),
+    ("model", ("span", 1, "shapes", 0), "basis", "bases", "span[1].shapes[0].bases", "basis"),
+    ("calibration", ("uncertainty",), "coverage_factor", "coverage_facter",
+     "uncertainty.coverage_facter", "coverage_factor"),
+    ("calibration", ("uncertainty", "budget", "gauges"), "K", "Kx",
+     "uncertainty.budget.gauges.Kx", "K"),
+    ("calibration", ("params",), "K", "k", "params.k", "K"),
+    ("calibration", ("uncertainty", "stderr"), "s_fe", "sfe", "uncertainty.stderr.sfe", "s_fe"),
+])
+def test_an_unknown_key_is_refused_naming_it_and_the_nearest_key(saved_files, tmp_path, kind,
+                                                                 table, old, new, key, near):
+    doc = json.loads(saved_files[kind].read_text())
+    load = load_model if kind == "model" else Calibration.load
+    load(saved_files[kind])                                      # the file as written reads
+    where = doc
+    for part in table:
+        where = where[part]
+    where[new] = where.pop(old)
+    path = tmp_path / f"{kind}.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError) as refused:
+        load(path)
+    assert str(refused.value).startswith(f"{kind} '{path}': key '{key}' is not "), refused.value
+    assert str(refused.value).endswith(f"; did you mean '{near}'?"), refused.value
 
 
 def test_a_scan_repeated_at_the_same_load_adds_nothing(two_coil):

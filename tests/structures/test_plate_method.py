@@ -163,8 +163,9 @@ def test_modal_basis_represents_its_own_modes_exactly():
 def test_plate_rig_without_y_is_refused(tmp_path):
     doc = {"structure": {"kind": "plate", "mass_per_area": 1.0,
                          "outline": [[0, 0], [1, 0], [0, 1]]},
-           "gauges": [{"name": "R1", "x": 0.1}]}
-    with pytest.raises(RigError, match=r"gauges\[0\]\.y"):
+           "gauges": [{"name": "R1", "x": 0.1}], "forces": [{"name": "F1", "x": 0.2, "y": 0.1}],
+           "sensors": [{"name": "s1", "x": 0.3, "y": 0.1}]}
+    with pytest.raises(RigError, match=r"gauges\[0\]\.y' is missing"):
         parse_rig(doc, source="p.toml")
 
 

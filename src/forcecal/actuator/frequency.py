@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
-from .._schema import _covariance, _Doc
 from ..errors import DimensionError, InputError
+from ..schema.calibration_file import check_frequency_law
 from .gaps import fourier_series
 
 __all__ = ["FrequencyLaw", "SteadyRecord"]
@@ -441,8 +441,7 @@ class FrequencyLaw:
         }
 
     @classmethod
-    def from_json(cls, obj: Any, source: str = "<dict>", key: str = "frequency_law"
-                  ) -> FrequencyLaw:
+    def from_json(cls, obj: Any, source: str = "<dict>") -> FrequencyLaw:
         """Read the law :meth:`to_json` wrote.
 
         Parameters
@@ -451,8 +450,6 @@ class FrequencyLaw:
             The decoded object.
         source : str
             The calibration file, for the messages.
-        key : str
-            Where ``obj`` sits in the file, for the messages.
 
         Returns
         -------
@@ -461,41 +458,19 @@ class FrequencyLaw:
         Raises
         ------
         InputError
-            Naming ``source`` and the key at fault.
+            Naming ``source`` and the key at fault (``frequency_law.params.tau``), checked
+            against the file's schema (:mod:`forcecal.schema.calibration_file`).
         """
-        d = _Doc("calibration", source)
-        if not isinstance(obj, dict):
-            raise d.fail(key, f"must be an object, found {type(obj).__name__}")
-        params = d.get(obj, "params", key, dict)
-        for n in FREQUENCY_PARAM_NAMES:
-            if n not in params:
-                raise d.fail(f"{key}.params", f"lacks {n!r}")
-        p = [d.number(params[n], f"{key}.params.{n}", -1e12, 1e12) for n in FREQUENCY_PARAM_NAMES]
-        cov = d.matrix(d.get(obj, "covariance", key, list), f"{key}.covariance", 3, 3,
-                       -1e24, 1e24)
-        _covariance(d, cov, f"{key}.covariance")
-        ranges = {}
-        for name, lo_hi in (("frequency_range", (0.0, 1e6)), ("current_range", (-1e5, 1e5)),
-                            ("gap_range", (0.0, 0.1))):
-            lo, hi = d.vector(d.get(obj, name, key, list), f"{key}.{name}", 2, *lo_hi)
-            if hi < lo:
-                raise d.fail(f"{key}.{name}", f"= [{lo}, {hi}]; expected [lo, hi] with lo <= hi")
-            ranges[name] = (lo, hi)
-        steps = []
-        for j, row in enumerate(d.get(obj, "steps", key, list, required=False) or []):
-            if not isinstance(row, dict):
-                raise d.fail(f"{key}.steps[{j}]", "must be an object")
-            v = [d.number(d.get(row, k, f"{key}.steps[{j}]", (int, float)),
-                          f"{key}.steps[{j}].{k}") for k in _STEP_KEYS]
-            steps.append(FrequencyStep(v[0], int(v[1]), *v[2:]))
-        chi2 = obj.get("chi2")
+        law = check_frequency_law(obj, source)
+        p = law.params
+        steps = tuple(FrequencyStep(*(getattr(s, k) for k in _STEP_KEYS)) for s in law.steps)
         return cls(
-            k=p[0], s_fe=p[1], tau=p[2], covariance=np.array(cov), steps=tuple(steps),
-            n_poles=d.integer(d.get(obj, "n_poles", key, int), f"{key}.n_poles", 1, 1000),
-            chi2=None if chi2 is None else d.number(chi2, f"{key}.chi2", 0.0),
-            dof=d.integer(obj.get("dof", 0), f"{key}.dof", 0, 10**9),
-            covariance_scale=d.number(obj.get("covariance_scale", 1.0),
-                                      f"{key}.covariance_scale", 0.0), **ranges)
+            k=p.K, s_fe=p.s_fe, tau=p.tau, covariance=np.array(law.covariance), steps=steps,
+            n_poles=law.n_poles, chi2=law.chi2, dof=law.dof,
+            covariance_scale=law.covariance_scale,
+            frequency_range=(law.frequency_range[0], law.frequency_range[1]),
+            current_range=(law.current_range[0], law.current_range[1]),
+            gap_range=(law.gap_range[0], law.gap_range[1]))
 
 
 _STEP_KEYS = ("frequency", "n_runs", "gain", "gain_std", "k", "k_std", "lag_deg",

@@ -21,8 +21,9 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from .._atomic import write_text_atomic
-from .._schema import MAX_DOCUMENT_BYTES, check_calibration_document, reject_constant
 from ..errors import DimensionError, InputError
+from ..schema.calibration_file import check_calibration_document
+from ..schema.json_files import MAX_DOCUMENT_BYTES, object_pairs, reject_constant
 from .frequency import FrequencyLaw
 from .laws import Law, get_law
 
@@ -336,7 +337,7 @@ class Calibration:
         except (OSError, UnicodeDecodeError) as exc:
             raise InputError(f"calibration file '{path}' cannot be read: {exc}") from None
         try:
-            obj = json.loads(text, parse_constant=reject_constant)
+            obj = json.loads(text, parse_constant=reject_constant, object_pairs_hook=object_pairs)
         except json.JSONDecodeError as exc:
             raise InputError(
                 f"calibration file '{path}' is not valid JSON: {exc.msg} at line {exc.lineno}"

@@ -39,13 +39,12 @@ from ..actuator.frequency import SteadyRecord
 from ..actuator.frequency_fit import STEP_TOLERANCE, fit_frequency_law
 from ..actuator.propagation import NoiseColumns, column_effects, covariance_of
 from ..errors import FitError, InputError
-from ..io.manifest import read_manifest
 from ..model.broadband import BroadbandModel
 from ..model.spatial import SpatialModel
 from ..rig import Rig
 from .repeatability import repeatability
 from .result import CampaignResult, ReactionsOnly, k_total_of
-from .runs import RunResult, reconstruct_campaign
+from .runs import CampaignInputs, RunResult, campaign_entries, reconstruct_campaign
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, calibration_data
 from .statistics import ParameterUncertainty, noise_columns, parameter_uncertainty
 
@@ -288,7 +287,7 @@ def calibrate_runs(
 def calibrate_campaign(
     rig: Rig,
     model: SpatialModel | BroadbandModel,
-    manifest_path: str | Path,
+    manifest_path: str | Path | CampaignInputs,
     progress: Callable[[int, int, str], None] | None = None,
     workers: int | None = None,
     laws: Sequence[Law] | None = None,
@@ -304,8 +303,9 @@ def calibrate_campaign(
         ideal K reported beside the fitted one.
     model : SpatialModel
         The harmonic shapes.
-    manifest_path : str or Path
-        The campaign manifest CSV.
+    manifest_path : str, Path or CampaignInputs
+        The campaign manifest CSV, or the campaign read
+        (:func:`forcecal.campaign.load_campaign`: no file is opened then).
     progress : callable or None
         As for :func:`forcecal.campaign.reconstruct_campaign`.
     workers : int or None
@@ -349,7 +349,7 @@ def calibrate_campaign(
         ac_coupled=ac_only,
         samples_per_period=samples_per_period,
     )
-    tares = tuple(e.run.stem for e in read_manifest(manifest_path) if e.tare)
-    return calibrate_runs(
-        rig, results, laws=laws, ac_only=ac_only, manifest=str(manifest_path), tares=tares
-    )
+    tares = tuple(e.run.stem for e in campaign_entries(manifest_path) if e.tare)
+    name = (manifest_path.manifest if isinstance(manifest_path, CampaignInputs)
+            else str(manifest_path))
+    return calibrate_runs(rig, results, laws=laws, ac_only=ac_only, manifest=name, tares=tares)

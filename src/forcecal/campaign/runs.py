@@ -4,13 +4,17 @@ A campaign is a manifest (INTERFACES.md section 4) listing runs at several stati
 currents, and zero-current tare records. :func:`reconstruct_campaign` reconstructs every run
 (:func:`forcecal.forces.steady.reconstruct`) with its calibration samples
 (:func:`forcecal.campaign.run_samples`), in a ``spawn`` process pool when there are many.
+
+A campaign is given by its manifest's path, its runs read where they are reconstructed, or as
+:class:`CampaignInputs` (:func:`load_campaign`): the manifest's rows and every record it names,
+read, so that a process without the files (a worker of a remote cluster) reconstructs it.
 """
 
 from __future__ import annotations
 
 import os
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -24,11 +28,12 @@ from ..io.manifest import GAP_RATIO, ManifestEntry, read_manifest
 from ..io.run_files import read_run
 from ..model.broadband import STEADY_HARMONICS, BroadbandModel, steady_model
 from ..model.spatial import SpatialModel
+from ..records import Run
 from ..rig import Rig
 from ..signals.checks import check_run_for_rig
 from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, run_samples
 
-__all__ = ["RunResult", "reconstruct_campaign", "rig_for_entry"]
+__all__ = ["RunResult", "load_campaign", "reconstruct_campaign", "rig_for_entry"]
 
 PARALLEL_MIN_RUNS = 3
 """Campaigns with fewer runs than this are reconstructed serially whatever ``workers`` says."""
@@ -110,8 +115,57 @@ def rig_for_entry(rig: Rig, entry: ManifestEntry, manifest: str | Path = "<manif
 
 
 @dataclass(frozen=True)
+class CampaignInputs:
+    """A campaign's manifest and records, read (:func:`load_campaign`): all that a calibration
+    needs besides the rig and the model, with no file left to open (picklable).
+
+    Attributes
+    ----------
+    manifest : str
+        The manifest's path as given, for the messages and the result.
+    entries : tuple of ManifestEntry
+        Its rows, in file order.
+    records : mapping str -> Run
+        Every run and tare file the rows name (``str(entry.run)``), read with the rig.
+    """
+
+    manifest: str
+    entries: tuple[ManifestEntry, ...]
+    records: Mapping[str, Run]
+
+
+def load_campaign(manifest_path: str | Path, rig: Rig) -> CampaignInputs:
+    """Read a campaign's manifest and every run and tare file it names, each once.
+
+    Parameters
+    ----------
+    manifest_path : str or Path
+        The campaign manifest CSV.
+    rig : Rig
+        The rig: its channel map, scales and TDMS group, as the runs are read with.
+
+    Returns
+    -------
+    CampaignInputs
+        What :func:`reconstruct_campaign` reconstructs as it would the manifest's path.
+
+    Raises
+    ------
+    InputError, DataError
+        A bad manifest, a missing or unreadable record (as :func:`forcecal.io.read_run`).
+    """
+    entries = tuple(read_manifest(manifest_path))
+    records: dict[str, Run] = {}
+    for entry in entries:
+        if str(entry.run) not in records:
+            records[str(entry.run)] = read_run(entry.run, rig)
+    return CampaignInputs(str(manifest_path), entries, records)
+
+
+@dataclass(frozen=True)
 class _Task:
-    """One run to reconstruct, as sent to a worker process (picklable)."""
+    """One run to reconstruct, as sent to a worker process (picklable): its records read
+    already (``record``, ``tare_record``), or read from their paths by the worker."""
 
     index: int
     rig: Rig
@@ -120,6 +174,8 @@ class _Task:
     tare: Path | None
     ac_coupled: bool
     samples_per_period: int
+    record: Run | None = None
+    tare_record: Run | None = None
 
 
 def _reconstruct_entry(task: _Task) -> tuple[int, RunResult, _Caught]:
@@ -128,9 +184,11 @@ def _reconstruct_entry(task: _Task) -> tuple[int, RunResult, _Caught]:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         rig, model = _entry_model(task)
-        run = read_run(task.entry.run, rig)
+        run = task.record if task.record is not None else read_run(task.entry.run, rig)
         check_run_for_rig(rig, run)
-        tare = read_run(task.tare, rig) if task.tare is not None else None
+        tare = task.tare_record
+        if tare is None and task.tare is not None:
+            tare = read_run(task.tare, rig)
         estimate = reconstruct(rig, model, run, tare=tare, ac_coupled=task.ac_coupled)
         samples = run_samples(rig, model, run, estimate, tare, task.samples_per_period,
                               tare_name=None if task.tare is None else task.tare.stem)
@@ -169,37 +227,50 @@ def _tare_for(index: int, tares: list[int]) -> int | None:
     return before[-1] if before else tares[0]
 
 
+def campaign_entries(manifest: str | Path | CampaignInputs) -> list[ManifestEntry]:
+    """The rows of a campaign given by its manifest's path or read (:class:`CampaignInputs`).
+
+    Raises
+    ------
+    InputError
+        A bad manifest.
+    """
+    if isinstance(manifest, CampaignInputs):
+        return list(manifest.entries)
+    return read_manifest(manifest)
+
+
 def _campaign_tasks(
     rig: Rig,
     model: SpatialModel | BroadbandModel,
-    manifest_path: str | Path,
+    manifest: str | Path | CampaignInputs,
     ac_coupled: bool,
     samples_per_period: int,
 ) -> list[_Task]:
-    """The non-tare rows of the manifest as tasks, each with its rig and tare.
+    """The non-tare rows of the manifest as tasks, each with its rig and tare (and, for a
+    campaign read already, with their records).
 
     Raises
     ------
     InputError
         A bad manifest, a run without a static gap, a manifest with no run to reconstruct.
     """
-    entries = read_manifest(manifest_path)
+    entries = campaign_entries(manifest)
+    name = manifest.manifest if isinstance(manifest, CampaignInputs) else manifest
+    records = manifest.records if isinstance(manifest, CampaignInputs) else {}
     tare_rows = [k for k, e in enumerate(entries) if e.tare]
-    tasks = [
-        _Task(
-            index=k,
-            rig=rig_for_entry(rig, e, manifest_path),
-            model=model,
-            entry=e,
-            tare=None if (j := _tare_for(k, tare_rows)) is None else entries[j].run,
-            ac_coupled=ac_coupled,
-            samples_per_period=samples_per_period,
-        )
-        for k, e in enumerate(entries)
-        if not e.tare
-    ]
+    tasks = []
+    for k, e in enumerate(entries):
+        if e.tare:
+            continue
+        tare = None if (j := _tare_for(k, tare_rows)) is None else entries[j].run
+        tasks.append(_Task(index=k, rig=rig_for_entry(rig, e, name), model=model, entry=e,
+                           tare=tare, ac_coupled=ac_coupled,
+                           samples_per_period=samples_per_period,
+                           record=records.get(str(e.run)),
+                           tare_record=None if tare is None else records.get(str(tare))))
     if not tasks:
-        raise InputError(f"manifest '{manifest_path}': every run is a tare; nothing to calibrate")
+        raise InputError(f"manifest '{name}': every run is a tare; nothing to calibrate")
     for task in tasks:
         static_gaps(task.rig)
     return tasks
@@ -221,7 +292,7 @@ def _run_tasks(
 def reconstruct_campaign(
     rig: Rig,
     model: SpatialModel | BroadbandModel,
-    manifest_path: str | Path,
+    manifest_path: str | Path | CampaignInputs,
     progress: Callable[[int, int, str], None] | None = None,
     workers: int | None = None,
     ac_coupled: bool = False,
@@ -239,8 +310,8 @@ def reconstruct_campaign(
         The rig; each row's gaps replace its static gaps.
     model : SpatialModel
         The harmonic shapes.
-    manifest_path : str or Path
-        The campaign manifest CSV.
+    manifest_path : str, Path or CampaignInputs
+        The campaign manifest CSV, or the campaign read (:func:`load_campaign`).
     progress : callable or None
         Called as ``progress(done, total, run name)`` after each run.
     workers : int or None

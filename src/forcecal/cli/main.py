@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cluster.pool import run_jobs
+from ..cluster.threads import limited
 from ..errors import ForcecalError, InputError
 from .parser import PROG, build_parser, check_arguments
 from .parser import ArgumentError as _ArgumentError
@@ -278,7 +279,7 @@ def _workers(args, n_jobs: int) -> int:
 
 def _cmd_calibrate(args) -> int:
     from ..campaign import calibrate_campaign, write_calibration
-    from ..cluster.jobs import calibrate_job, campaign_folders
+    from ..cluster.jobs import calibrate_job, calibrate_jobs, campaign_folders
     from ..io.staging import staged_folder
 
     rig = _load_rig(args)
@@ -291,7 +292,7 @@ def _cmd_calibrate(args) -> int:
         results, folders = [result], [Path(args.output)]
     else:
         folders = campaign_folders(args.output, manifests)
-        results = run_jobs(calibrate_job, [(rig, model, m, args.ac_coupled) for m in manifests],
+        results = run_jobs(calibrate_job, calibrate_jobs(rig, model, manifests, args.ac_coupled),
                            names=[f.name for f in folders],
                            workers=_workers(args, len(manifests)),
                            scheduler=args.scheduler, progress=_progress)
@@ -442,9 +443,22 @@ def _cmd_demo(args) -> int:
     return 0
 
 
+def _cmd_schema(args) -> int:
+    from .._atomic import write_text_atomic
+    from ..schema.rig_file import key_table, rig_json_schema_text
+
+    text = key_table() if args.keys else rig_json_schema_text()
+    if args.out is None or args.out == "-":
+        sys.stdout.write(text)
+    else:
+        _print(write_text_atomic(args.out, text))
+    return 0
+
+
 COMMANDS = {"demo": _cmd_demo, "simulate": _cmd_simulate, "scan": _cmd_scan,
             "reconstruct": _cmd_reconstruct, "calibrate": _cmd_calibrate,
-            "predict": _cmd_predict, "stream": _cmd_stream, "report": _cmd_report}
+            "predict": _cmd_predict, "stream": _cmd_stream, "report": _cmd_report,
+            "schema": _cmd_schema}
 """Each command's handler, by the name the parser (:mod:`forcecal.cli.parser`) gives it."""
 
 
@@ -472,7 +486,7 @@ def main(argv: Sequence[str] | None = None) -> int:
                 except (ValueError, OSError, io.UnsupportedOperation):
                     pass
         held: list[str] = []  # said once the command is through: a refusal is its one line
-        with warnings.catch_warnings():
+        with warnings.catch_warnings(), limited(getattr(args, "threads", None)):
             warnings.simplefilter("default")
             warnings.showwarning = lambda message, *_a, **_k: held.append(
                 f"{PROG}: warning: {message}")

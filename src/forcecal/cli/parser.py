@@ -6,6 +6,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from ..cluster.threads import ENVIRONMENT, thread_count
+from ..errors import InputError
+
 __all__: list[str] = []
 
 PROG = "forcecal"
@@ -182,6 +185,25 @@ def _report_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     _model_options(p)
 
 
+def _schema_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
+    p = sub.add_parser("schema", help="the rig file's JSON Schema, for an editor",
+                       formatter_class=fmt,
+                       epilog="example:\n  forcecal schema rig.schema.json   # then, at the top "
+                              "of a rig file:\n  #:schema ./rig.schema.json")
+    p.add_argument("out", nargs="?", metavar="OUT",
+                   help="the file to write (default: standard output)")
+    p.add_argument("--keys", action="store_true",
+                   help="the table of the rig file's keys (Markdown) instead")
+
+
+def _threads(text: str) -> int:
+    """``--threads N``: a whole number >= 1 (:func:`forcecal.cluster.threads.thread_count`)."""
+    try:
+        return thread_count(text)
+    except InputError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
 def build_parser() -> argparse.ArgumentParser:
     fmt = argparse.RawDescriptionHelpFormatter
     parser = _Parser(prog=PROG, description="External forces on a vibrating structure from "
@@ -200,6 +222,7 @@ def build_parser() -> argparse.ArgumentParser:
     _predict_parser(sub, fmt)
     _stream_parser(sub, fmt)
     _report_parser(sub, fmt)
+    _schema_parser(sub, fmt)
     for command in sub.choices.values():                         # after the command too
         verbosity = command.add_mutually_exclusive_group()
         verbosity.add_argument("-q", "--quiet", action="store_true",
@@ -207,6 +230,10 @@ def build_parser() -> argparse.ArgumentParser:
         verbosity.add_argument("-v", "--verbose", action="store_true",
                                help="details (the uncertainty budget of every force), and "
                                     "progress even when stderr is not a terminal")
+        command.add_argument("--threads", type=_threads, metavar="N", default=None,
+                             help=f"BLAS/OpenMP threads of the command (default: {ENVIRONMENT}, "
+                                  "else 1, fastest for forcecal's many small matrix problems; "
+                                  "workers get as many each)")
     for name in ("reconstruct", "calibrate"):                      # the commands of many jobs
         jobs = sub.choices[name].add_mutually_exclusive_group()
         jobs.add_argument(

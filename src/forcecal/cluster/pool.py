@@ -9,14 +9,15 @@ serial path's results, in the order of the jobs, whichever way it spreads them.
   (``distributed``): a local cluster of ``workers`` processes started for the command and
   closed with it, or an existing cluster given by its scheduler's address (``tcp://host:8786``),
   whose workers must have forcecal installed. Inputs travel to the workers as pickled objects
-  (rig, model, records), outputs come back the same way and are written by the caller, so the
+  (rig, model, records), an input that several jobs share (the rig, the model) once
+  (:func:`_share`); outputs come back the same way and are written by the caller, so the
   workers need no shared file system.
 
-Workers run their linear algebra on one thread each (:func:`single_threaded_workers` while they
-start): the workers are the parallelism. No worker outlives the command: the pool's workers
-watch their parent (:func:`_watch_parent`) and are terminated on an error or Ctrl-C; a local
-Dask cluster is closed when :func:`run_jobs` returns or fails, and its worker processes leave
-when their parent does.
+Workers run their linear algebra on the threads of the call that spreads the jobs, one each
+unless told (:mod:`.threads`): the workers are the parallelism. No worker outlives the command:
+the pool's workers watch their parent (:func:`_watch_parent`) and are terminated on an error or
+Ctrl-C; a local Dask cluster is closed when :func:`run_jobs` returns or fails, and its worker
+processes leave when their parent does.
 """
 
 from __future__ import annotations
@@ -38,14 +39,13 @@ from pathlib import Path
 from typing import Any, TypeVar
 
 from ..errors import InputError
+from .threads import THREAD_VARIABLES as THREAD_VARIABLES  # re-exported: the variables set
+from .threads import LimitedJob, current_threads, limited
 
 __all__ = ["pool_map", "run_jobs", "unguarded_script"]
 
 T = TypeVar("T")
 R = TypeVar("R")
-
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-"""The variables that set the BLAS libraries' thread counts."""
 
 CONNECT_TIMEOUT_S = 20.0
 """How long to wait for an existing Dask scheduler [s]."""
@@ -57,23 +57,8 @@ stack (forcecal's jobs are many small NumPy calls, which it slows)."""
 _PARENT_POLL_S = 0.5
 """How often a pool worker checks that its parent is alive [s]."""
 
-
-@contextlib.contextmanager
-def single_threaded_workers() -> Iterator[None]:
-    """Worker processes started inside run their linear algebra on one thread each.
-
-    The workers are the parallelism: BLAS threads in every worker would oversubscribe the
-    cores (on a busy machine by a factor of ten in time). The variables are set only where the
-    user has not set them, only while the workers start, and restored after.
-    """
-    added = [name for name in THREAD_VARIABLES if name not in os.environ]
-    for name in added:
-        os.environ[name] = "1"
-    try:
-        yield
-    finally:
-        for name in added:
-            os.environ.pop(name, None)
+_INLINE = (type(None), bool, int, float, complex, str, bytes)
+"""Job inputs sent within each job, even when shared: a scalar or a name."""
 
 
 def _is_main_test(test: ast.expr) -> bool:
@@ -146,8 +131,9 @@ def pool_map(work: Callable[[Any], Any], items: list[Any], workers: int) -> Iter
     yielded as they complete.
 
     The pool starts its processes as the tasks are submitted, so the tasks are submitted under
-    :func:`single_threaded_workers`; the workers leave when the parent dies
-    (:func:`_watch_parent`) and are terminated when the caller stops early or fails. A script
+    :func:`~.threads.limited` (the workers start with its ``*_NUM_THREADS``) and each task runs
+    under the caller's limit (:class:`~.threads.LimitedJob`); the workers leave when the parent
+    dies (:func:`_watch_parent`) and are terminated when the caller stops early or fails. A script
     that would run again in every worker is refused first (:func:`check_main_guard`).
     """
     check_main_guard(workers)
@@ -155,8 +141,9 @@ def pool_map(work: Callable[[Any], Any], items: list[Any], workers: int) -> Iter
                                mp_context=multiprocessing.get_context("spawn"),
                                initializer=_watch_parent, initargs=(os.getpid(),))
     try:
-        with single_threaded_workers():
-            futures = [pool.submit(work, item) for item in items]
+        with limited() as threads:
+            job = LimitedJob(work, threads)
+            futures = [pool.submit(job, item) for item in items]
         for future in as_completed(futures):
             yield future.result()
     except BaseException:  # an error, Ctrl-C or the caller closing the generator early
@@ -240,28 +227,93 @@ def run_jobs(
                 progress(k + 1, total, labels[k])
         return results
     with _client(workers, scheduler) as client:
-        futures = client.map(work, list(jobs), key=[f"forcecal-{k}-{labels[k]}"
-                                                    for k in range(total)], pure=False)
-        index = {future.key: k for k, future in enumerate(futures)}
-        out: list[Any] = [None] * total
-        from distributed import as_completed as completed
+        return _spread(client, LimitedJob(work, current_threads()), jobs, labels, progress)
 
-        try:
-            for done, future in enumerate(completed(futures), start=1):
-                k = index[future.key]
-                out[k] = future.result()
-                if progress is not None:
-                    progress(done, total, labels[k])
-        except BaseException:
-            client.cancel(futures)
-            raise
+
+def _spread(client: Any, job: LimitedJob, jobs: Sequence[Any], labels: list[str],
+            progress: Callable[[int, int, str], None] | None) -> list[Any]:
+    """``job`` of every job over a Dask client, the results in the order of ``jobs``.
+
+    The jobs are taken from ``jobs`` as they are submitted, at most :func:`_window` of them
+    running or queued at once: a sequence that reads a job's inputs when the job is taken
+    (:func:`forcecal.cluster.jobs.calibrate_jobs`) reads the next while the workers compute,
+    and the client holds the inputs of a few jobs only. The inputs the first two jobs share
+    go to the cluster once (:func:`_share`). On a failure the jobs not done are cancelled.
+    """
+    from distributed import as_completed as completed
+
+    total = len(jobs)
+    first = [jobs[k] for k in range(min(2, total))]
+    shared = _share(client, first)
+    taken = enumerate(_taken(first, jobs))
+    out: list[Any] = [None] * total
+    running: dict[str, tuple[int, Any]] = {}
+    done = completed()
+
+    def top_up() -> None:
+        """Submit the next jobs until the window is full or no job is left."""
+        limit = _window(client)
+        while len(running) < limit and (item := next(taken, None)) is not None:
+            k, args = item
+            future = client.submit(job, _with_shared(args, shared),
+                                   key=f"forcecal-{k}-{labels[k]}", pure=False)
+            running[future.key] = (k, future)
+            done.add(future)
+
+    try:
+        top_up()
+        for count, future in enumerate(done, start=1):
+            k, _ = running.pop(future.key)
+            out[k] = future.result()
+            top_up()
+            if progress is not None:
+                progress(count, total, labels[k])
+    except BaseException:
+        client.cancel([future for _, future in running.values()])
+        raise
     return out
+
+
+def _taken(first: list[Any], jobs: Sequence[Any]) -> Iterator[Any]:
+    """The jobs, the first ones as taken already, the others taken from ``jobs`` one by one."""
+    yield from first
+    for k in range(len(first), len(jobs)):
+        yield jobs[k]
+
+
+def _window(client: Any) -> int:
+    """Jobs submitted and not done at most: two for each thread of the cluster's workers
+    (one running, one queued behind it), at least two."""
+    return max(2, 2 * sum(client.nthreads().values()))
+
+
+def _share(client: Any, first: list[Any]) -> dict[int, tuple[Any, Any]]:
+    """The inputs that the first tuple jobs hold in common (the same object: the rig, the
+    model), each sent to the cluster once (``client.scatter``): ``id(input) -> (input, its
+    future)``; every other input travels within its job."""
+    tuples = [job for job in first if isinstance(job, tuple)]
+    if len(tuples) < 2:
+        return {}
+    common = {id(x): x for x in tuples[0] if not isinstance(x, _INLINE)}
+    common = {key: x for key, x in common.items() if any(y is x for y in tuples[1])}
+    futures = client.scatter(list(common.values()), hash=False) if common else []
+    return {key: (x, f) for (key, x), f in zip(common.items(), futures, strict=True)}
+
+
+def _with_shared(job: Any, shared: dict[int, tuple[Any, Any]]) -> Any:
+    """The job with each input of ``shared`` replaced by its future, which the worker resolves
+    to the input before the job runs."""
+    if not isinstance(job, tuple) or not shared:
+        return job
+    return tuple(shared[id(x)][1] if not isinstance(x, _INLINE) and id(x) in shared
+                 and shared[id(x)][0] is x else x for x in job)
 
 
 @contextlib.contextmanager
 def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
     """A Dask client: to the scheduler at ``scheduler``, or to a local cluster of ``workers``
-    single-threaded processes that lives as long as the client (no dashboard, quiet logs)."""
+    processes of one task each, started under the caller's thread limit (:mod:`.threads`),
+    that lives as long as the client (no dashboard, quiet logs)."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - a dependency; kept for a trimmed install
@@ -279,7 +331,7 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
     import dask
 
     check_main_guard(workers)
-    with single_threaded_workers(), dask.config.set(_QUIET_WORKERS):
+    with limited(), dask.config.set(_QUIET_WORKERS):
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
                                dashboard_address=None, silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:

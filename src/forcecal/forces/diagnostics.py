@@ -4,9 +4,9 @@ Each check is cheap, runs on every batch estimate, and turns into a note (printe
 command line, kept in the JSON) that says what was found, what it likely means and what to do:
 
 - **probes vs shapes** (:func:`probe_misfit_notes`): the sensors' phasors should lie on the scan
-  model's shape at every harmonic; a reduced chi-square far above 1 means the run deflects in
-  another shape than the scan saw (the load pattern changed since the scan: a coil, a gap
-  ratio) or a probe is wrong (sign, scale, position);
+  model's shape at every harmonic; a chi-square beyond its quantile at :data:`FALSE_ALARM` per
+  run means the run deflects in another shape than the scan saw (the load pattern changed
+  since the scan: a coil, a gap ratio) or a probe is wrong (sign, scale, position);
 - **an actuator that pushes** (:func:`pull_only_notes`): an electromagnet only pulls, so every
   force, DC included, must stay >= 0 within its uncertainty; a pushing force means a gauge's
   sign or the tare is wrong;
@@ -29,14 +29,11 @@ from ..signals.mains import on_mains
 from ..signals.noise import GUARD
 from .coordinates import Coordinates
 
-__all__: list[str] = []
+__all__ = ["FALSE_ALARM"]
 
-MISFIT_QUANTILE = 0.999
-"""Chi-square quantile above which the probes contradict a harmonic's shape..."""
-MISFIT_RATIO = 25.0
-"""...and the reduced chi-square above which they do so by far more than the shape's own
-fitting error: the probes miss the shape by 5 times their noise (a clean scan's polynomial
-shapes leave up to a few; a load pattern changed since the scan gives hundreds)."""
+FALSE_ALARM = 1e-3
+"""Probability per run that a clean run draws a check's note: each check's threshold is its
+statistic's quantile at this rate (shared among the harmonics a check tests)."""
 PUSH_SIGMAS = 5.0
 """A force below -PUSH_SIGMAS standard uncertainties pushes."""
 DC_RATIO_TOLERANCE = 0.3
@@ -63,17 +60,19 @@ def probe_misfit_notes(coords: Coordinates, sensor_names: list[str], what: str) 
     """
     n_s = len(sensor_names)
     notes = []
+    rate = FALSE_ALARM / max(len(coords.harmonics), 1)
     for k, (n, chi2) in enumerate(zip(coords.harmonics, coords.chi2, strict=True)):
         dof = 2 * (n_s - len(coords.span(k)[0]))
         if dof <= 0:
             continue
         # the chi-square quantile, 2 P^-1(dof / 2, q) (scipy.special: lighter than .stats)
-        limit = max(float(2 * gammaincinv(dof / 2, MISFIT_QUANTILE) / dof), MISFIT_RATIO)
+        limit = float(2 * gammaincinv(dof / 2, 1 - rate) / dof)
         if np.isfinite(chi2) and chi2 > limit:
             notes.append(
                 f"{what}: harmonic {int(n)}: the probes {', '.join(sensor_names)} disagree with "
                 f"the scan model's shape (reduced chi-square {chi2:.3g}, {dof} degrees of "
-                f"freedom, limit {limit:.3g}): the run deflects in another "
+                f"freedom; chance exceeds {limit:.3g} at a {rate:.2g} rate): the run deflects in "
+                "another "
                 "shape than the scan saw (a load pattern changed since the scan: scan under this "
                 "load too and build the model from both scans) or a probe's sign, scale or "
                 "position is wrong; the uncertainty is inflated accordingly")
@@ -178,8 +177,9 @@ def dc_vs_ac_notes(force_names: list[str], force: np.ndarray, force_std: np.ndar
     if abs(found - expected) > max(DC_RATIO_TOLERANCE * expected, 5 * sigma):
         return [f"{what}: the DC force {found:.4g} N (sum of {', '.join(force_names)}) is far "
                 f"from the {expected:.4g} N that the current's harmonics predict for a force "
-                "growing with i^2 from its AC part: a gauge offset, a missing or wrong tare "
-                "record, or a gauge's sign is likely wrong"]
+                "growing with i^2 from its AC part: the DC is off (a gauge offset, a missing or "
+                "wrong tare record, a gauge's sign) or the AC is (the inertia: a probe's scale "
+                "or sign, a mass)"]
     return []
 
 

@@ -190,6 +190,10 @@ class ForceEstimate:
     monte_carlo_std: np.ndarray | None = None
     monte_carlo_draws: int = 0
     provenance: dict | None = None
+    dropped_rms: np.ndarray | None = None
+    """(n_forces + 1,) [N] the RMS of the harmonics above H that the reactions show and the
+    estimate leaves out (``--harmonics``), each force's and the total's; counted in the
+    waveform's uncertainty. None when none is left out."""
 
     formats: ClassVar[tuple[str, ...]] = SERIES_FORMATS
 
@@ -241,7 +245,8 @@ class ForceEstimate:
         n = self.harmonics[1:]
         duration = self.time[-1] - self.time[0] if self.time.size > 1 else 0.0
         drift = (2 * np.pi * n * self.f0_std * duration) ** 2 / 12 * np.abs(self.total[1:]) ** 2 / 2
-        return float(np.sqrt(np.sum(self.total_std[1:] ** 2) + np.sum(drift)))
+        dropped = 0.0 if self.dropped_rms is None else float(self.dropped_rms[-1]) ** 2
+        return float(np.sqrt(np.sum(self.total_std[1:] ** 2) + np.sum(drift) + dropped))
 
     def _fundamentals(self) -> list[tuple[str, float, float, float]]:
         """(name, |F_1|, its std, reactions-only |F_1|) [N] of every force and the total."""
@@ -453,7 +458,9 @@ def waveform_std_series(est: ForceEstimate) -> np.ndarray:
     the waveform moves by (df / f0) (t - t_mid) dx/dt, zero at mid-record and largest at its
     ends. The two are independent:
 
-        u(t)**2 = sum_n std_n**2 + (f0_std / f0)**2 (t - t_mid)**2 (dx_AC/dt)**2.
+        u(t)**2 = sum_n std_n**2 + (f0_std / f0)**2 (t - t_mid)**2 (dx_AC/dt)**2,
+
+    plus the mean square of the harmonics left out (:attr:`ForceEstimate.dropped_rms`).
 
     Over the record, the RMS of u(t) without the DC term is the estimate's ``waveform_std``
     for the total (to the sampling of the record).
@@ -474,6 +481,8 @@ def waveform_std_series(est: ForceEstimate) -> np.ndarray:
     t = np.asarray(est.time, dtype=float)
     out = np.empty((phasors.shape[0], t.size))
     out[:] = np.sum(std**2, axis=1)[:, None]
+    if est.dropped_rms is not None:
+        out += (est.dropped_rms**2)[:, None]
     if est.f0_std != 0.0 and t.size > 1:
         # dx_AC/dt has the phasors j n w0 X_n; a block of time stamps at a time, so that
         # memory holds the result and no more

@@ -38,7 +38,9 @@ from ..signals.mains import hum_variance, on_mains
 from ..signals.sweeps import swept_drive
 from .budget import SolveInputs, pooled_variance, type_b_variance
 from .coordinates import Coordinates, deflection, generalized_coordinates
+from .crosschecks import NUISANCE, EstimateTerms, flux_notes
 from .diagnostics import (
+    DRIFT_TOLERANCE,
     dc_vs_ac_notes,
     drift_notes,
     mains_notes,
@@ -67,7 +69,12 @@ __all__ = [
 ]
 
 FREQUENCY_MISMATCH = 0.01
-"""Relative difference between a run's and the scan's fundamental that draws a warning."""
+"""Relative difference between a run's and the scan's fundamental that draws a warning (the
+shapes may not apply); a smaller one beyond the drive's drift draws a note."""
+SIGMAS = 5.0
+"""Standard uncertainties of the run's fundamental beyond which it differs from the scan's."""
+LOOKED_AT = 6
+"""Harmonics looked at for content that ``--harmonics`` would leave out, at least."""
 SIGNIFICANT_REACTION = 5.0
 """A harmonic without a shape is kept when a gauge shows it above this many noise stds."""
 
@@ -229,14 +236,47 @@ def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
         if drift:
             raise DataError(drift[0]) from None
         raise
-    f0_std = fundamental_uncertainty(records, run.fs, f0, h, t0=run.t0)
-    notes = []
+    notes: list[str] = []
     if abs(f0 / model.f0 - 1) > FREQUENCY_MISMATCH:
+        f0, notes = _at_the_scans(records, run, rig, model, h, f0)
+    f0_std = fundamental_uncertainty(records, run.fs, f0, h, t0=run.t0)
+    off = f0 / model.f0 - 1
+    if abs(off) > FREQUENCY_MISMATCH:
         msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
                f"{model.f0:.4g} Hz; its shapes may not apply")
         warnings.warn(msg, stacklevel=3)
         notes.append(msg)
+    elif abs(f0 - model.f0) > max(SIGMAS * f0_std, DRIFT_TOLERANCE * model.f0):
+        notes.append(f"run '{run.source}': its fundamental {f0:.6g} Hz differs from the scan "
+                     f"model's {model.f0:.6g} Hz by {off:+.3%} ({abs(f0 - model.f0) / f0_std:.3g} "
+                     f"standard uncertainties), more than a steady drive drifts "
+                     f"({DRIFT_TOLERANCE:.1%}): the run's sampling rate (its time base) or the "
+                     "drive's setting differs from the scan's; the shapes are the scan's")
     return f0, f0_std, notes
+
+
+def _at_the_scans(records: list[np.ndarray], run: Run, rig: Rig, model: SpatialModel, h: int,
+                  f0: float) -> tuple[float, list[str]]:
+    """A fundamental found far from the scan model's, from the rig's nominal frequency: the
+    fundamental refined from the model's instead, when it fits the records better (a short
+    record and a wrong nominal frequency lock onto a side lobe), with a note naming the key."""
+    try:
+        there = refine_fundamental(records, run.fs, model.f0, h, t0=run.t0)
+    except DataError:
+        return f0, []
+    if abs(there / model.f0 - 1) > FREQUENCY_MISMATCH:
+        return f0, []
+    stacked = np.stack(records)
+    miss = [float(np.sum(fit_harmonics(stacked, run.fs, f, h, t0=run.t0).residual_std ** 2))
+            for f in (f0, there)]
+    if miss[1] >= miss[0]:
+        return f0, []
+    return there, [f"run '{run.source}': the rig's nominal drive frequency (key "
+                   f"'acquisition.frequency' = {rig.drive_frequency:g} Hz, rig "
+                   f"'{rig.source}') led to {f0:.6g} Hz, which fits the record worse than "
+                   f"{there:.6g} Hz near the scan model's {model.f0:.6g} Hz (residual variance "
+                   f"{miss[0] / miss[1]:.3g} times larger): the drive is taken at {there:.6g} Hz; "
+                   "the rig's key is likely wrong"]
 
 
 def _tare_dc(rig: Rig, tare: dict[str, np.ndarray] | None) -> np.ndarray:
@@ -347,7 +387,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     f0, f0_std, notes = _fundamental(rig, model, run, rec, h)
     tare_sig = None if tare is None else channels_si(rig, tare)
     g_fit, s_fit, hummed = _channel_fits(rig, run, rec, f0, h, tare, tare_sig)
-    coords = generalized_coordinates(model, rig, s_fit, run.source)
+    coords = _coordinates(rig, model, run, rec, s_fit, f0, h)
     psi = force_matrix(rig)
     pinv, cond = np.linalg.pinv(psi), float(np.linalg.cond(psi))
     tare_dc = _tare_dc(rig, tare_sig)
@@ -371,6 +411,8 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     type_b = _type_b(rig, model, g_fit, s_fit, tare_dc, w0, coords, kept, with_inertia,
                      ac_coupled)
     budget, std, std_re_im = _combined_std(noise, type_b, var, std, ac_coupled)
+    terms = _terms(rig, force, std, budget, reactions, inertia, pinv,
+                   kept & (np.arange(h + 1) > 0 if ac_coupled else True), w0)
     if not rig.type_b.declared:
         notes.append(f"run '{run.source}': {rig.type_b.describe()}")
     notes += _split_note(rig, cond)
@@ -381,6 +423,8 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     series = _series(force, f0, run)
     notes += span_notes(model, coords, len(rig.sensors), f"run '{run.source}'")
     notes += _self_checks(rig, run, rec, coords, force, std[:n_f], series, f0, ac_coupled)
+    notes += flux_notes(rig, run, terms, f"run '{run.source}'")
+    notes += (dropped := _dropped(rig, model, run, rec, f0, h, pinv, force))[0]
     return ForceEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
         gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
@@ -392,8 +436,56 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         static_series=static_series, psi_condition=cond,
         consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
         dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std, budget=budget,
-        type_b=rig.type_b,
+        type_b=rig.type_b, dropped_rms=dropped[1],
     )
+
+
+def _coordinates(rig: Rig, model: SpatialModel, run: Run, rec: _Records, s_fit: HarmonicFit,
+                 f0: float, h: int) -> Coordinates:
+    """Step 3: the coordinates of every harmonic of the model, those above H too (the
+    sensors fitted that far)."""
+    top = int(max(model.harmonics))
+    fit = s_fit if top <= h else fit_harmonics(rec.sensors, run.fs, f0, top, run.t0)
+    return generalized_coordinates(model, rig, fit, run.source)
+
+
+def _terms(rig: Rig, force: np.ndarray, std: np.ndarray, budget: dict[str, np.ndarray],
+           reactions: np.ndarray, inertia: np.ndarray, pinv: np.ndarray, kept: np.ndarray,
+           w0: float) -> EstimateTerms:
+    """What the cross-checks test (:mod:`forcecal.forces.crosschecks`): the forces with their
+    uncertainty less the type-B sources the checks fit as parameters."""
+    n_f = len(rig.forces)
+    held = sum((budget[k][:n_f] ** 2 for k in NUISANCE if k in budget),
+               start=np.zeros_like(std[:n_f]))
+    return EstimateTerms(force=force, std=np.sqrt(np.clip(std[:n_f] ** 2 - held, 0.0, None)),
+                         reactions=reactions, inertia=inertia, pinv=pinv, kept=kept, w0=w0)
+
+
+def _dropped(rig: Rig, model: SpatialModel, run: Run, rec: _Records, f0: float, h: int,
+             pinv: np.ndarray, force: np.ndarray) -> tuple[list[str], np.ndarray | None]:
+    """The harmonics above H (to the model's, at least :data:`LOOKED_AT`) that the reactions
+    show above their noise: a note, and the RMS of each force's and the total's share of them
+    by the reactions alone (None when none shows)."""
+    top = min(max(len(model.snr), LOOKED_AT), int(0.45 * run.fs / f0))
+    if h >= top:
+        return [], None
+    fit = fit_harmonics(rec.gauges, run.fs, f0, top, t0=run.t0)
+    shown = significant_reactions(fit.phasors, fit.phasor_std)
+    above = [n for n in range(h + 1, top + 1) if shown[n]]
+    if not above:
+        return [], None
+    left = -pinv @ fit.phasors[:, above]                       # reactions only, (n_f, k)
+    left = np.vstack([left, left.sum(axis=0)])
+    rms = np.sqrt(np.sum(np.abs(left) ** 2, axis=1) / 2)
+    kept_rms = np.sqrt(np.sum(np.abs(force.sum(axis=0)[1:]) ** 2) / 2)
+    share = rms[-1] / np.hypot(kept_rms, rms[-1])
+    which = (f"harmonic {above[0]}" if len(above) == 1
+             else f"harmonics {', '.join(map(str, above))}")
+    return [f"run '{run.source}': {which} of the reactions stand above their noise and hold "
+            f"{share:.2%} of the total force's AC RMS (by the reactions alone); the forces, "
+            f"estimated to harmonic {h}, leave them out, and their RMS ({rms[-1]:.3g} N) is "
+            "counted in the waveform's uncertainty (a model of more harmonics keeps them: "
+            f"scan --harmonics {above[-1]})"], rms
 
 
 def _noise_variances(a_r: np.ndarray, g_fit: HarmonicFit, var_probes: np.ndarray,

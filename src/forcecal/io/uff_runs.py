@@ -22,8 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._toml import node_channel
 from ..errors import DataError, InputError
+from ..schema.channels import node_channel
 from ._run_values import RunFile, run_from_time, sampled_run
 from ._uff_read import _rate_from_increment
 from ._uff_sets import TIME_ABSCISSA, TIME_RESPONSE, read_sets, set_type, type_list

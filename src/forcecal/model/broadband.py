@@ -34,6 +34,7 @@ from .._atomic import write_text_atomic
 from ..errors import InputError
 from ..records import Scan, ScanFRF, ScanSpectra
 from ..rig import Rig
+from ..schema.broadband_file import BROADBAND_KEYS, check_broadband_document
 from ..signals.spline_smoother import SplineFamily
 from .basis import ShapeFit, shape_similarity
 from .coverage import check_scan_coverage, check_scan_on_rig
@@ -232,28 +233,24 @@ class BroadbandModel:
         Raises
         ------
         InputError
-            A key missing or malformed.
+            ``model 'SOURCE': key 'KEY' WHAT``: a key unknown (with the nearest valid one),
+            missing, written twice, of the wrong type or beyond its bound, or lists whose sizes
+            disagree (:func:`forcecal.schema.broadband_file.check_broadband_document`).
         """
-        try:
-            if doc.get("kind") != "broadband":
-                raise ValueError("kind is not 'broadband'")
-            shapes = tuple(_real_shape(shape_from_json(s)) for s in doc["shapes"])
-            coords = _complex(doc["coordinates"])
-            ratios = _complex(doc["ratios"]) if "ratios" in doc else None
-            ratio_std = np.asarray(doc["ratio_std"], float) if "ratio_std" in doc else None
-            model = cls(band=(float(doc["band"][0]), float(doc["band"][1])), shapes=shapes,
-                        couplings=np.asarray(doc["couplings"], float),
-                        frequencies=np.asarray(doc["frequencies"], float), coordinates=coords,
-                        singular_values=np.asarray(doc["singular_values"], float),
-                        chi2=np.asarray(doc["chi2"], float),
-                        line_snr=np.asarray(doc["line_snr"], float),
-                        gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
-                        source=str(doc["source"]), notes=tuple(doc["notes"]),
-                        rig=dict(doc["rig"]), ratios=ratios, ratio_std=ratio_std)
-        except (KeyError, TypeError, ValueError, IndexError, AttributeError) as exc:
-            raise InputError(f"model '{source}': not a broadband model ({exc!r})") from None
-        _check_sizes(model, source)
-        return model
+        check_broadband_document(doc, source)
+        ratios = _complex(doc["ratios"]) if "ratios" in doc else None
+        ratio_std = np.asarray(doc["ratio_std"], float) if "ratio_std" in doc else None
+        return cls(band=(float(doc["band"][0]), float(doc["band"][1])),
+                   shapes=tuple(_real_shape(shape_from_json(s)) for s in doc["shapes"]),
+                   couplings=np.asarray(doc["couplings"], float),
+                   frequencies=np.asarray(doc["frequencies"], float),
+                   coordinates=_complex(doc["coordinates"]),
+                   singular_values=np.asarray(doc["singular_values"], float),
+                   chi2=np.asarray(doc["chi2"], float),
+                   line_snr=np.asarray(doc["line_snr"], float),
+                   gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
+                   source=str(doc["source"]), notes=tuple(doc["notes"]),
+                   rig=dict(doc["rig"]), ratios=ratios, ratio_std=ratio_std)
 
     def save(self, path: str | Path) -> Path:
         """Write the model as JSON (atomically)."""
@@ -264,32 +261,9 @@ def _complex(doc: dict[str, Any]) -> np.ndarray:
     return np.asarray(doc["re"], float) + 1j * np.asarray(doc["im"], float)
 
 
-def _check_sizes(m: BroadbandModel, source: str) -> None:
-    """Refuse a broadband model whose arrays disagree or hold non-finite numbers."""
-    n_k, n_lines = len(m.shapes), len(m.frequencies)
-    wrong = ("no shape" if not n_k else
-             "its band is not a band" if not 0 <= m.band[0] < m.band[1] else
-             "its couplings are not (gauges, shapes)"
-             if m.couplings.shape != (len(m.gauge_names), n_k) else
-             "its coordinates are not (shapes, lines)"
-             if m.coordinates.shape != (n_k, n_lines) or m.line_snr.shape != (n_lines,) else
-             "its ratios are not (shapes, lines)" if any(
-                 a is not None and a.shape != (n_k, n_lines) for a in (m.ratios, m.ratio_std))
-             else
-             "it holds non-finite numbers" if not all(
-                 np.all(np.isfinite(a)) for a in (m.couplings, m.frequencies, m.coordinates,
-                                                  m.line_snr, *(f.coefficients for f in m.shapes),
-                                                  *(a for a in (m.ratios, m.ratio_std)
-                                                    if a is not None)))
-             else "")
-    if wrong:
-        raise InputError(f"model '{source}': not a broadband model ({wrong})")
-
-
 def _real_shape(s: object) -> ShapeFit:
-    """A span shape read back: real coefficients."""
-    if not isinstance(s, ShapeFit):
-        raise TypeError("a broadband model's shapes are scalar fields")
+    """A span shape read back: real coefficients (the schema admits scalar fields only)."""
+    assert isinstance(s, ShapeFit), "a broadband model's shapes are scalar fields"
     return dataclasses.replace(s, coefficients=np.real(s.coefficients))
 
 
@@ -626,17 +600,31 @@ def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:
     """A MODEL.json written by ``scan``: a harmonic (steady) model or a broadband one, read
     once (:func:`forcecal.model.spatial.read_model_document`).
 
+    A document with a ``kind`` is read as a broadband model (a harmonic model has none; any
+    other kind is refused naming the key), and so is one without ``kind`` or ``format`` that
+    holds a key only a broadband model has (its ``kind`` misspelt or moved: refused naming
+    that key).
+
     Raises
     ------
     InputError
-        As :func:`forcecal.model.spatial.load_model`, or a broadband document that does not read.
+        As :func:`forcecal.model.spatial.load_model`, or a broadband document that does not
+        read (:func:`forcecal.schema.broadband_file.check_broadband_document`).
     """
     doc = read_model_document(path)
-    kind = doc.get("kind", "harmonic") if isinstance(doc, dict) else "harmonic"
-    model = MODEL_KINDS.get(kind, SpatialModel).from_json(doc, source=str(path))
+    model = MODEL_KINDS[_model_kind(doc)].from_json(doc, source=str(path))
     return dataclasses.replace(model, file=str(path))
+
+
+def _model_kind(doc: Any) -> str:
+    """The kind of model a MODEL.json document is (see :func:`load_any_model`)."""
+    if not isinstance(doc, dict):
+        return "harmonic"
+    if "kind" in doc:  # only a broadband model has one
+        return "broadband"
+    return "broadband" if "format" not in doc and BROADBAND_KEYS & doc.keys() else "harmonic"
 
 
 MODEL_KINDS: dict[str, type[SpatialModel] | type[BroadbandModel]] = {
     "harmonic": SpatialModel, "broadband": BroadbandModel}
-"""A MODEL.json's ``kind`` -> the class that reads it (a harmonic model has none)."""
+"""A MODEL.json's kind (:func:`_model_kind`) -> the class that reads it."""

@@ -20,10 +20,11 @@ from typing import Any
 import numpy as np
 
 from .._atomic import write_text_atomic
-from .._schema import MAX_DOCUMENT_BYTES, check_model_document, reject_constant
 from ..errors import DataError, InputError
 from ..records import Scan, ScanFRF, ScanSpectra
 from ..rig import Rig, rig_to_dict
+from ..schema.json_files import MAX_DOCUMENT_BYTES, object_pairs, reject_constant
+from ..schema.model_file import check_model_document
 from .basis import PolynomialBasis, ShapeFit, shape_similarity
 from .coverage import check_scan_coverage, check_scan_on_rig
 from .inertia import mass_coupling
@@ -331,7 +332,8 @@ def read_model_document(path: str | Path) -> Any:
         raise InputError(f"model '{path}': {path.stat().st_size} bytes; a model file is at most "
                          f"{MAX_DOCUMENT_BYTES} bytes")
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=reject_constant)
+        doc = json.loads(path.read_text(encoding="utf-8"), parse_constant=reject_constant,
+                         object_pairs_hook=object_pairs)
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise InputError(f"model '{path}': not JSON ({exc})") from None
     except RecursionError:

@@ -22,6 +22,7 @@ from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor, TypeB
 from ..structures import Beam, Body, Plate
 from .integrate import Response
 from .lab import LabErrors, measure_lab_run, measure_lab_scan, record_lab_run, record_lab_scan
+from .magnet import Magnet
 from .physics import (
     Model,
     Truth,
@@ -43,6 +44,12 @@ from .presets import BodySpec, PlateSpec, Preset, RunSpec
 __all__: list[str] = []
 
 
+def _own_flux(preset: Preset, magnet: Magnet) -> str | None:
+    """A pole's flux channel where the preset's magnets are several (each pole on its own
+    core names its own); None with one magnet, whose flux the actuator's names."""
+    return magnet.flux_channel if len(preset.magnets) > 1 else None
+
+
 def public_rig(preset: Preset) -> Rig:
     """What the lab writes in its rig file: geometry, masses, channels; no stiffness, no truth.
 
@@ -62,7 +69,7 @@ def public_rig(preset: Preset) -> Rig:
             gauges=tuple(Gauge(name=n, x=x, y=y, z=z, direction=_unit(d))
                          for n, x, y, z, *d in _rows(b.gauges)),
             forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, z=p.z, gap=p.gap,
-                                    direction=_unit(p.direction))
+                                    direction=_unit(p.direction), flux=_own_flux(preset, m))
                          for m in preset.magnets for p in m.poles),
             sensors=tuple(Sensor(name=n, x=x, y=y, z=z, direction=_unit(d))
                           for n, x, y, z, *d in _rows(preset.sensors)),
@@ -77,7 +84,8 @@ def public_rig(preset: Preset) -> Rig:
                             masses=tuple(LumpedMass(x=x, y=y, mass=m)
                                          for x, y, m in _rows(b.masses))),
             gauges=tuple(Gauge(name=n, x=x, y=y) for n, x, y in _rows(b.gauges)),
-            forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, gap=p.gap)
+            forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, gap=p.gap,
+                                    flux=_own_flux(preset, m))
                          for m in preset.magnets for p in m.poles),
             sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
@@ -89,7 +97,7 @@ def public_rig(preset: Preset) -> Rig:
         structure=Beam(length=b.length, mass_per_length=b.mass_per_length,
                        masses=tuple(LumpedMass(x=x, mass=m) for x, m in _rows(b.masses))),
         gauges=tuple(Gauge(name=n, x=x) for n, x in _rows(b.gauges)),
-        forces=tuple(ForcePoint(name=p.name, x=p.x, gap=p.gap)
+        forces=tuple(ForcePoint(name=p.name, x=p.x, gap=p.gap, flux=_own_flux(preset, m))
                      for m in preset.magnets for p in m.poles),
         sensors=tuple(Sensor(name=n, x=x) for n, x in _rows(preset.sensors)),
         actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,

@@ -20,7 +20,7 @@ Two kinds of coordinates appear:
 from __future__ import annotations
 
 from abc import ABC, abstractmethod
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar, Protocol
 
@@ -30,7 +30,6 @@ from ..errors import InputError
 from ..model.basis import fit_shape
 
 if TYPE_CHECKING:
-    from .._toml import TableReader
     from ..model.basis import ShapeFit
     from ..model.vector_basis import VectorShapeFit
 
@@ -282,9 +281,11 @@ class Structure(ABC):
 
     @classmethod
     @abstractmethod
-    def from_table(cls, reader: TableReader, table: dict[str, Any],
-                   masses: tuple[LumpedMass, ...]) -> Structure:
-        """Read this kind's keys of the rig file's ``[structure]`` table."""
+    def from_keys(cls, keys: Any, masses: tuple[LumpedMass, ...],
+                  fail: Callable[[str, str], Exception]) -> Structure:
+        """This kind from the rig file's ``[structure]`` table, validated against its schema
+        (:data:`forcecal.schema.rig_file.STRUCTURE_KEYS`); ``fail(key, what)`` is the error
+        for what the schema cannot say."""
 
     # -------------------------------------------------------------- helpers
 

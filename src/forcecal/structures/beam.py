@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from .base import LumpedMass, OutOfPlane, ranges_text
-
-if TYPE_CHECKING:
-    from .._toml import TableReader
 
 __all__ = ["Beam"]
 
@@ -77,9 +75,6 @@ class Beam(OutOfPlane):
                 "mass_per_length": self.mass_per_length}
 
     @classmethod
-    def from_table(cls, reader: TableReader, table: dict[str, Any],
-                   masses: tuple[LumpedMass, ...]) -> Beam:
-        return cls(length=reader.required(table, "length", "structure", positive=True),
-                   mass_per_length=reader.required(table, "mass_per_length", "structure",
-                                                   positive=True),
-                   masses=masses)
+    def from_keys(cls, keys: Any, masses: tuple[LumpedMass, ...],
+                  fail: Callable[[str, str], Exception]) -> Beam:
+        return cls(length=keys.length, mass_per_length=keys.mass_per_length, masses=masses)

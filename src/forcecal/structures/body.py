@@ -11,7 +11,7 @@ node entering once per axis.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any, ClassVar
 
@@ -22,7 +22,6 @@ from ..model.vector_basis import AXES, VectorShapeFit, fit_vector_shape
 from .base import Frame, Located, LumpedMass, Structure, locations
 
 if TYPE_CHECKING:
-    from .._toml import TableReader
     from ..model.basis import ShapeFit
     from ..model.vector_basis import VectorShapeFit
 
@@ -143,10 +142,9 @@ class Body(Structure):
                 "blocks": [{"min": list(lo), "max": list(hi)} for lo, hi in self.blocks]}
 
     @classmethod
-    def from_table(cls, reader: TableReader, table: dict[str, Any],
-                   masses: tuple[LumpedMass, ...]) -> Body:
-        density = reader.required(table, "density", "structure", positive=True)
-        return cls(blocks=_read_blocks(reader, table), density=density, masses=masses)
+    def from_keys(cls, keys: Any, masses: tuple[LumpedMass, ...],
+                  fail: Callable[[str, str], Exception]) -> Body:
+        return cls(blocks=_blocks(fail, keys.blocks), density=keys.density, masses=masses)
 
 
 def _along_axes(points: np.ndarray) -> np.ndarray:
@@ -155,26 +153,21 @@ def _along_axes(points: np.ndarray) -> np.ndarray:
                       for e in np.eye(3)])
 
 
-def _read_blocks(reader: TableReader, table: dict[str, Any]) -> tuple[Block, ...]:
-    """A body's ``structure.blocks``: axis-aligned boxes {min = [x, y, z], max = [x, y, z]}."""
-    raw = table.get("blocks")
-    if not isinstance(raw, list) or not raw:
-        raise reader.fail("structure.blocks", "must list at least one block "
-                          "{min = [x, y, z], max = [x, y, z]} (m)")
+def _blocks(fail: Callable[[str, str], Exception], keys: Sequence[Any]) -> tuple[Block, ...]:
+    """A body's ``structure.blocks``: axis-aligned boxes {min = [x, y, z], max = [x, y, z]},
+    each non-empty, none overlapping another."""
     out: list[Block] = []
-    for k, blk in enumerate(raw):
+    for k, blk in enumerate(keys):
         key = f"structure.blocks[{k}]"
-        item = blk if isinstance(blk, dict) else {}
-        lo, hi = (reader.vector(item, end, key, 3, "a corner [x, y, z] of three numbers (m)",
-                                quote=False) for end in ("min", "max"))
+        lo, hi = blk.min, blk.max
         if not all(a < b for a, b in zip(lo, hi, strict=True)):
-            raise reader.fail(f"{key}.max", f"= {list(hi)} must exceed min = {list(lo)} in x, y "
-                              "and z")
+            raise fail(f"{key}.max", f"= {list(hi)} must exceed min = {list(lo)} in x, y "
+                       "and z")
         for j, (lo2, hi2) in enumerate(out):
             if all(max(a, c) < min(b, d) - 1e-12 for a, b, c, d in zip(lo, hi, lo2, hi2,
                                                                      strict=True)):
-                raise reader.fail(key, f"overlaps structure.blocks[{j}] (its mass would count "
-                                  "twice)")
+                raise fail(key, f"overlaps structure.blocks[{j}] (its mass would count "
+                           "twice)")
         out.append(((lo[0], lo[1], lo[2]), (hi[0], hi[1], hi[2])))
     return tuple(out)
 

@@ -3,16 +3,13 @@ gauges; its mass quadrature (ear clipping, collapsed Gauss rules on the triangle
 
 from __future__ import annotations
 
-import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 
 from .base import LumpedMass, OutOfPlane, ranges_text
-
-if TYPE_CHECKING:
-    from .._toml import TableReader
 
 __all__ = ["Plate", "inside_polygon"]
 
@@ -94,21 +91,10 @@ class Plate(OutOfPlane):
                 "outline": [list(v) for v in self.outline]}
 
     @classmethod
-    def from_table(cls, reader: TableReader, table: dict[str, Any],
-                   masses: tuple[LumpedMass, ...]) -> Plate:
-        mpa = reader.required(table, "mass_per_area", "structure", positive=True)
-        outline = table.get("outline")
-        if (not isinstance(outline, list) or len(outline) < 3
-                or not all(isinstance(v, list) and len(v) == 2 for v in outline)):
-            raise reader.fail("structure.outline", "must list at least 3 [x, y] vertices")
-        vertices = []
-        for k, v in enumerate(outline):
-            if not all(isinstance(c, int | float) and not isinstance(c, bool)
-                       and math.isfinite(c) for c in v):
-                raise reader.fail(f"structure.outline[{k}]",
-                                  f"must be a vertex [x, y] of two finite numbers; found {v!r}")
-            vertices.append((float(v[0]), float(v[1])))
-        return cls(outline=tuple(vertices), mass_per_area=mpa, masses=masses)
+    def from_keys(cls, keys: Any, masses: tuple[LumpedMass, ...],
+                  fail: Callable[[str, str], Exception]) -> Plate:
+        return cls(outline=tuple((float(x), float(y)) for x, y in keys.outline),
+                   mass_per_area=keys.mass_per_area, masses=masses)
 
 
 def inside_polygon(polygon: np.ndarray, points: np.ndarray, tol: float = 1e-9) -> np.ndarray:

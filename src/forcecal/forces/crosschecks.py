@@ -1,0 +1,353 @@
+"""The estimate against the data's own redundancy: each pole's force against the Maxwell force of
+its flux (METHOD.md section 6; docs/method.md section 7).
+
+A pole face of area A carrying the flux Phi pulls with Maxwell's stress Phi^2 / (2 mu0 A), to
+within fringing; poles of one core carry one flux and pull alike. The reconstructed forces
+must follow it at every harmonic, in magnitude and in phase, up to one factor c common to the
+poles (the fringing). The declared type-B sources that move every harmonic alike (each gauge's
+scale, the inertia's) are fitted as parameters held to their declared uncertainties.
+:func:`flux_notes` draws a note when the whole misfit, or the gain of freeing one sensor's
+mistake (a gauge's scale or offset, a delay of the gauges or of the probes against the other
+channels, the inertia's scale: a mass, a probe's scale, the probes' sign), is beyond chance at
+a stated false-alarm rate; the note names the mistakes that explain it, the best first with
+the size each would have, the rig's geometry (a position, a swap) beside them where the data
+cannot tell them apart.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import partial
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+from scipy.special import gammaincinv
+
+from ..model.relaxation import force_matrix
+from ..records import Run
+from ..rig import Rig
+from ..signals.harmonics import fit_harmonics
+from .diagnostics import FALSE_ALARM
+
+__all__ = ["NUISANCE", "EstimateTerms", "flux_notes"]
+
+MU0 = 4e-7 * math.pi
+FRINGING = 0.02
+"""[1] relative standard deviation of each pole's force about c Phi^2 / (2 mu0 A) at every
+harmonic: fringing that differs between poles at unequal gaps and changes with the gap over a
+cycle. A lab mistake that moves a force by less is not told from it."""
+
+
+ALIKE = 4.0
+"""Causes whose chi-squares lie within this of the best one's are told apart by less than
+two standard deviations: the note says the data cannot tell them apart."""
+SHIFT_MM = 200.0
+"""[mm] the farthest a point is looked for from where the rig puts it."""
+NUISANCE = ("gauge sensitivity", "probe sensitivity", "masses")
+"""The type-B sources of the uncertainty budget that the check fits as parameters, each held
+to its declared uncertainty (a gauge's scale, the inertia's scale), rather than as noise on
+every harmonic: a systematic error moves every harmonic alike."""
+
+
+@dataclass(frozen=True)
+class EstimateTerms:
+    """The parts of a steady estimate a lab mistake would change (forces = pinv (J - R)).
+
+    Attributes
+    ----------
+    force : (n_f, H+1) complex ndarray [N]
+    std : (n_f, H+1) ndarray [N]
+        Standard uncertainty of Re and of Im of each force: its noise and the rig's declared
+        type-B uncertainties but those of :data:`NUISANCE`, which the check fits.
+    reactions : (n_g, H+1) complex ndarray [N]
+    inertia : (n_g, H+1) complex ndarray [N]
+    pinv : (n_f, n_g) ndarray
+        The force rows of Psi^+.
+    kept : (H+1,) bool ndarray
+        The harmonics estimated; the DC among them only where the gauges observe it.
+    w0 : float [rad/s]
+    """
+
+    force: np.ndarray
+    std: np.ndarray
+    reactions: np.ndarray
+    inertia: np.ndarray
+    pinv: np.ndarray
+    kept: np.ndarray
+    w0: float
+
+
+def pole_fluxes(rig: Rig, run: Run) -> dict[int, np.ndarray]:
+    """[Wb] each force's pole flux over the record, by the force's index: its own channel
+    (``forces[].flux``) or the actuator's (``actuator.flux``), scaled; forces without one, or
+    whose channel the run lacks, are left out."""
+    out = {}
+    for k, f in enumerate(rig.forces):
+        name = f.flux or rig.actuator.flux
+        if name is not None and name in run.channels:
+            out[k] = rig.actuator.flux_scale * run.channel(name)
+    return out
+
+
+def _maxwell(flux: np.ndarray, area: float, fs: float, f0: float, h: int,
+             t0: float) -> tuple[np.ndarray, np.ndarray]:
+    """Phasors of Phi^2 / (2 mu0 A) and their standard uncertainties."""
+    fit = fit_harmonics(flux**2 / (2 * MU0 * area), fs, f0, h, t0=t0)
+    return fit.phasors, fit.phasor_std
+
+
+@dataclass(frozen=True)
+class _Cause:
+    """One lab mistake: its name, the unit of its size, and the forces it would leave,
+    ``forces(size)`` (the estimate's own forces with the mistake undone)."""
+
+    name: str
+    unit: str
+    forces: Callable[[float], np.ndarray]
+    form: str = "relative"
+    """``relative``: forces(x) = F + d x / (100 + x), x in %; ``linear``: F + d x; ``delay``
+    and ``shift``: nonlinear in x; ``swap``: no size."""
+    prior: float = 0.0
+    """[1] the standard uncertainty the rig declares for it (type B, relative): within it, a
+    mistake is not one, and every fit allows it."""
+
+
+def _rescaled(force: np.ndarray, d: np.ndarray, x: float) -> np.ndarray:
+    return force + d * (x / (100 + x))
+
+
+def _offset(force: np.ndarray, d: np.ndarray, x: float) -> np.ndarray:
+    return force + d * x
+
+
+def _moved(rig: Rig, t: EstimateTerms, group: str, k: int, axis: str, mm: float) -> np.ndarray:
+    """The forces were point ``k`` of ``group`` (gauges or forces) ``mm`` further along
+    ``axis`` than the rig says."""
+    points = list(getattr(rig, group))
+    points[k] = dataclasses.replace(points[k], **{axis: getattr(points[k], axis) + mm / 1e3})
+    moved_rig = (dataclasses.replace(rig, forces=tuple(points)) if group == "forces"
+                 else dataclasses.replace(rig, gauges=tuple(points)))
+    psi = force_matrix(moved_rig)
+    moved: np.ndarray = np.linalg.pinv(psi) @ (t.inertia - t.reactions)
+    return moved
+
+
+def _swapped(t: EstimateTerms, rows: list[int], of: str, _: float) -> np.ndarray:
+    if of == "gauges":
+        return t.pinv @ (t.inertia - t.reactions[rows])
+    return t.force[rows]
+
+
+def _geometry(rig: Rig, t: EstimateTerms) -> list[_Cause]:
+    """Mistakes of the rig's geometry: a gauge's or a force point's position along each axis
+    of the structure, two gauges' columns or two forces' names swapped."""
+    out: list[_Cause] = []
+    for group, what in (("forces", "force"), ("gauges", "gauge")):
+        items = getattr(rig, group)
+        for k, item in enumerate(items):
+            out += [_Cause(f"{group}[{k}].{axis} ({what} '{item.name}')", "mm",
+                           partial(_moved, rig, t, group, k, axis), "shift")
+                    for axis in rig.structure.axes]
+        for a in range(len(items)):
+            for b in range(a):
+                rows = list(range(len(items)))
+                rows[a], rows[b] = b, a
+                where = ("their columns in the run, or [channels]" if group == "gauges"
+                         else "their names in the rig")
+                out.append(_Cause(f"the {what}s '{items[b].name}' and '{items[a].name}' "
+                                  f"swapped ({where})", "", partial(_swapped, t, rows, group),
+                                  "swap"))
+    return out
+
+
+def _causes(rig: Rig, t: EstimateTerms) -> list[_Cause]:
+    """The single mistakes tried. A gauge's scale off by x leaves reactions (1 + x) R and
+    forces that differ by x / (1 + x) Psi^+ R_g, linear in that; an offset, the inertia's
+    scale alike; a delay tau turns harmonic n by n w0 tau, undone exactly."""
+    jw = 1j * np.arange(t.force.shape[1]) * t.w0
+    out: list[_Cause] = []
+    for g, name in enumerate(rig.gauge_names):
+        col, r_g = t.pinv[:, g:g + 1], t.reactions[g]
+        out.append(_Cause(f"gauge '{name}' scale (its 'scale' in the rig)", "%",
+                          partial(_rescaled, t.force, col * r_g), prior=rig.type_b.gauge_scale))
+        if t.kept[0]:
+            out.append(_Cause(f"gauge '{name}' offset (a tare missing or wrong)", "N",
+                              partial(_offset, t.force, col * (jw == 0)), "linear"))
+    out.append(_Cause(
+        "a delay of the gauges " + ", ".join(rig.gauge_names) + " behind the other channels "
+        "(DAQ skew)", "ms", lambda ms: t.pinv @ (t.inertia - t.reactions * np.exp(jw * ms / 1e3)),
+        "delay"))
+    out.append(_Cause(
+        "a delay of the probes " + ", ".join(rig.sensor_names) + " behind the other channels "
+        "(DAQ skew)", "ms", lambda ms: t.pinv @ (t.inertia * np.exp(jw * ms / 1e3) - t.reactions),
+        "delay"))
+    out.append(_Cause("the inertia's scale (a mass: structure.mass_per_length or a lumped "
+                      "mass, the probes' scale, or at -200 % the probes' sign)", "%",
+                      partial(_rescaled, t.force, -(t.pinv @ t.inertia)),
+                      prior=math.hypot(rig.type_b.mass, rig.type_b.probe_scale)))
+    return out + _geometry(rig, t)
+
+
+@dataclass(frozen=True)
+class _Problem:
+    """The forces of the poles (selected harmonics, stacked) against c times Maxwell's, with
+    the declared type-B mistakes as nuisance parameters held to their priors."""
+
+    m: np.ndarray
+    w: np.ndarray
+    nuisance: tuple[tuple[str, np.ndarray, float], ...]
+
+    def freeing(self, name: str) -> _Problem:
+        """The problem with the nuisance ``name`` left out (a cause fitted free in its place)."""
+        return dataclasses.replace(self, nuisance=tuple(n for n in self.nuisance
+                                                        if n[0] != name))
+
+    def fit(self, y: np.ndarray, extra: tuple[np.ndarray, ...] = ()) -> tuple[float, np.ndarray]:
+        """(chi-square, coefficients [c, nuisance..., extra...]) of ``y`` (complex)."""
+        cols = [self.m, *(d for _, d, _ in self.nuisance), *extra]
+        a = np.stack([np.concatenate([c.real, c.imag]) for c in cols], axis=1) * self.w[:, None]
+        b = np.concatenate([y.real, y.imag]) * self.w
+        prior = np.zeros((len(self.nuisance), len(cols)))
+        for j, (_, _, sigma) in enumerate(self.nuisance):
+            prior[j, 1 + j] = 1.0 / sigma
+        a, b = np.vstack([a, prior]), np.concatenate([b, np.zeros(len(self.nuisance))])
+        coef, *_ = np.linalg.lstsq(a, b, rcond=None)
+        return float(np.sum((b - a @ coef) ** 2)), coef
+
+
+def _column(cause: _Cause, pick: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+    """The change a ``relative`` cause makes per unit of b = x / (1 + x) (x as a fraction), or a
+    ``linear`` one per unit of x, with the sign that adds it to the truth."""
+    base = pick(cause.forces(0.0))
+    if cause.form == "linear":
+        return base - pick(cause.forces(1.0))
+    return -2 * (pick(cause.forces(100.0)) - base)          # x = 100 % gives b = 1/2
+
+
+def _size(cause: _Cause, problem: _Problem, pick: Callable[[np.ndarray], np.ndarray],
+          period_ms: float) -> tuple[float, float]:
+    """(chi-square, size) of the forces with ``cause`` free against c times Maxwell's."""
+    if cause.form != "delay":
+        c2, coef = problem.freeing(cause.name).fit(pick(cause.forces(0.0)),
+                                                   (_column(cause, pick),))
+        b = float(coef[-1])
+        if cause.form == "linear":
+            return c2, b
+        return c2, (100 * b / (1 - b) if b != 1 else math.inf)
+    if cause.form == "swap":
+        return problem.fit(pick(cause.forces(0.0)))[0], math.nan
+    bound = period_ms / 2 if cause.form == "delay" else SHIFT_MM
+    best = minimize_scalar(lambda x: problem.fit(pick(cause.forces(x)))[0],
+                           bounds=(-bound, bound), method="bounded",
+                           options={"xatol": 1e-4 * bound})
+    size = float(best.x)
+    return float(best.fun), (-size if cause.form == "shift" else size)
+
+
+def _cause_text(name: str, unit: str, size: float) -> str:
+    return name if math.isnan(size) else f"{name} off by {size:+.3g} {unit}"
+
+
+def _limit(dof: int, rate: float = FALSE_ALARM) -> float:
+    """The chi-square of ``dof`` degrees of freedom that chance exceeds at ``rate``."""
+    return float(2 * gammaincinv(dof / 2, 1 - rate))
+
+
+def _weighed(fluxes: dict[int, np.ndarray], poles: list[int], area: float, run: Run,
+             terms: EstimateTerms) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The poles' Maxwell phasors (n_poles, H+1), the harmonics compared (the kept ones, the
+    DC where observed) and the weights of their real and imaginary parts, stacked."""
+    h = terms.force.shape[1] - 1
+    m = np.zeros((len(poles), h + 1), dtype=complex)
+    m_std = np.zeros((len(poles), h + 1))
+    for j, k in enumerate(poles):
+        m[j], m_std[j] = _maxwell(fluxes[k], area, run.fs, terms.w0 / (2 * np.pi), h, run.t0)
+    sel = np.zeros((len(poles), h + 1), dtype=bool)
+    sel[:, terms.kept] = True
+    sel[:, 0] &= bool(terms.kept[0])
+    scale = np.abs(m).max(axis=1, keepdims=True)
+    sigma = np.sqrt(terms.std[poles] ** 2 + m_std**2 + (FRINGING * np.abs(m)) ** 2
+                    + (1e-6 * scale) ** 2)
+    w = np.concatenate([(1 / sigma)[sel], np.where(np.arange(h + 1)[None, :] > 0, 1 / sigma,
+                                                   0.0)[sel]])
+    return m, sel, w
+
+
+def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]:
+    """A note when the forces contradict their poles' Maxwell forces (see the module
+    docstring), naming the causes that explain it.
+
+    Parameters
+    ----------
+    rig : Rig
+        With ``actuator.pole_area`` and a flux channel (``forces[].flux`` or
+        ``actuator.flux``); without them the check is not made.
+    run : Run
+    terms : EstimateTerms
+    what : str
+        The run, at the start of the note.
+
+    Returns
+    -------
+    list of str
+    """
+    fluxes = pole_fluxes(rig, run)
+    area = rig.actuator.pole_area
+    if not fluxes or area is None:
+        return []
+    h = terms.force.shape[1] - 1
+    poles = sorted(fluxes)
+    dc = max(abs(float(np.mean(fluxes[k]))) for k in poles)
+    ac = max(float(np.std(fluxes[k])) for k in poles)
+    if h >= 2 and dc < 0.05 * ac and (np.abs(terms.force[poles, 1]).sum()
+                                      > np.abs(terms.force[poles, 2]).sum()):
+        return [f"{what}: the flux holds no DC though the forces pull mostly at the drive's "
+                "fundamental (an AC-coupled flux sensor, a search coil?): the forces are not "
+                "checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
+    m, sel, w = _weighed(fluxes, poles, area, run, terms)
+
+    def pick(forces: np.ndarray) -> np.ndarray:
+        return forces[poles][sel]
+
+    causes = _causes(rig, terms)
+    problem = _Problem(m[sel], w, tuple((c.name, _column(c, pick), c.prior) for c in causes
+                                        if c.prior > 0))
+    dof = int(np.count_nonzero(w)) - 1
+    chi2, coef = problem.fit(pick(terms.force))
+    if dof < 2:
+        return []
+    period_ms = 1e3 * 2 * np.pi / (terms.w0 * max(h, 1))
+    # the sensors' mistakes, one parameter each, decide: either the whole misfit or one of
+    # their gains is beyond chance, each at half the rate; the geometry's (a search over
+    # positions, a swap) only explain what they decided
+    sensors = [c for c in causes if c.form in ("relative", "linear", "delay")]
+    tried = sorted((c2, c.name, c.unit, size) for c in sensors
+                   for c2, size in [_size(c, problem, pick, period_ms)])
+    gain = _limit(1, FALSE_ALARM / (2 * len(sensors)))
+    best_gain = chi2 - tried[0][0]
+    if chi2 <= _limit(dof, FALSE_ALARM / 2) and best_gain <= gain:
+        return []
+    tried = sorted(tried + [(c2, c.name, c.unit, size) for c in causes if c not in sensors
+                            for c2, size in [_size(c, problem, pick, period_ms)]])
+    explain = [t for t in tried if chi2 - t[0] > gain and t[0] <= _limit(dof - 1)]
+    head = (f"{what}: the forces {', '.join(rig.force_names[k] for k in poles)} disagree with "
+            f"their poles' Maxwell force Phi^2 / (2 mu0 A) (A = actuator.pole_area, c = "
+            f"{coef[0]:.3g}): chi-square {chi2:.3g} for {dof} degrees of freedom (chance "
+            f"exceeds {_limit(dof, FALSE_ALARM / 2):.3g} at a {FALSE_ALARM / 2:g} rate), "
+            f"{best_gain:.3g} less with one sensor's mistake free (chance: {gain:.3g})")
+    if not explain:
+        best = tried[0]
+        return [head + "; no single cause tried explains it (a gauge's scale or offset, a delay "
+                "of the gauges or the probes, the inertia's scale, a gauge's or a force's "
+                f"position, a swap); the closest: {_cause_text(best[1], best[2], best[3])} "
+                f"(chi-square then {best[0]:.3g})"]
+    alike = sum(1 for t in explain if t[0] - explain[0][0] <= ALIKE)
+    names = {c.name for c in sensors}          # among causes alike, a sensor's first: the
+    explain[:alike] = sorted(explain[:alike], key=lambda t: t[1] not in names)  # likelier
+    said = "; ".join(f"{_cause_text(name, unit, size)} (chi-square then {c2:.3g})"
+                     for c2, name, unit, size in explain[:max(alike, 3)])
+    return [head + f"; explained by {said}" + (
+        f" (the data cannot tell the first {alike} apart)" if alike > 1 else "")]

@@ -1,0 +1,195 @@
+"""Jobs carry their inputs, never a path: a campaign's calibration job holds its manifest's rows
+and records read by the client, so a worker that cannot see the client's files (another
+working folder, the files gone) computes the serial path's result bit for bit; the rig and
+the model that every job shares go to a cluster once, and the jobs are taken (their campaigns
+read) as the workers need them."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import multiprocessing
+import os
+import shutil
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import forcecal
+from forcecal.campaign import calibrate_campaign
+from forcecal.campaign.runs import CampaignInputs
+from forcecal.cli.main import main
+from forcecal.cluster import pool
+from forcecal.cluster.jobs import calibrate_job, calibrate_jobs
+from forcecal.cluster.pool import run_jobs
+from forcecal.model.spatial import build_spatial_model
+
+MANIFESTS = ("manifest_small.csv", "second.csv")
+
+
+def _identical(a: object, b: object, where: str = "result") -> None:
+    """``a`` and ``b`` hold the same values, arrays bit for bit (dataclasses, containers)."""
+    if isinstance(a, np.ndarray):
+        assert isinstance(b, np.ndarray) and a.dtype == b.dtype and a.shape == b.shape, where
+        assert a.tobytes() == b.tobytes(), where
+    elif dataclasses.is_dataclass(a) and not isinstance(a, type):
+        assert type(a) is type(b), where
+        for f in dataclasses.fields(a):
+            _identical(getattr(a, f.name), getattr(b, f.name), f"{where}.{f.name}")
+    elif isinstance(a, dict):
+        assert isinstance(b, dict) and list(a) == list(b), where
+        for key in a:
+            _identical(a[key], b[key], f"{where}[{key!r}]")
+    elif isinstance(a, list | tuple):
+        assert type(a) is type(b) and len(a) == len(b), where
+        for k, (x, y) in enumerate(zip(a, b, strict=True)):
+            _identical(x, y, f"{where}[{k}]")
+    else:
+        assert a == b, where
+
+
+def _same_results(got: list, serial: list) -> None:
+    for x, y in zip(got, serial, strict=True):
+        assert json.dumps(x.to_json()) == json.dumps(y.to_json())
+        _identical(x.runs, y.runs, "runs")
+        _identical(x.calibration, y.calibration, "calibration")
+
+
+@pytest.fixture(scope="module")
+def moved(campaign_dir, tmp_path_factory):
+    """Two campaigns (the small one under two manifest names) copied into a folder, their
+    jobs taken from the copy, the first one's serial result computed from its paths, then the
+    folder renamed: (jobs, [serial result], an empty folder for the workers' working
+    folder)."""
+    base = tmp_path_factory.mktemp("remote")
+    folder = base / "campaign"
+    (folder / "runs").mkdir(parents=True)
+    manifest = campaign_dir / MANIFESTS[0]
+    for line in manifest.read_text(encoding="utf-8").splitlines()[1:]:
+        shutil.copy(campaign_dir / line.split(",")[0], folder / "runs")
+    for name in MANIFESTS:
+        shutil.copy(manifest, folder / name)
+    shutil.copy(campaign_dir / "rig.toml", folder)
+    rig = forcecal.load_rig(folder / "rig.toml")
+    model = build_spatial_model(rig, forcecal.read_scan(campaign_dir / "scan.uff", rig=rig))
+    manifests = [str(folder / name) for name in MANIFESTS]
+    jobs = list(calibrate_jobs(rig, model, manifests, False))   # each job taken: read
+    serial = [calibrate_campaign(rig, model, manifests[0], workers=1)]
+    folder.rename(base / "elsewhere")                  # no path of the jobs leads anywhere now
+    (base / "empty").mkdir()
+    return jobs, serial, base / "empty"
+
+
+def test_a_job_holds_its_records_and_no_path(moved):
+    jobs, _, _ = moved
+    rig, model, campaign, ac_only = jobs[0]
+    assert isinstance(campaign, CampaignInputs) and ac_only is False
+    assert sorted(Path(p).name for p in campaign.records) == [
+        "g0800_dc06_ac02.csv", "g1000_dc06_ac02.csv", "g1200_dc06_ac02.csv", "tare.csv"]
+    assert jobs[1][0] is rig and jobs[1][1] is model          # shared, to be sent once
+    assert not any(Path(p).exists() for p in campaign.records)
+
+
+def test_a_worker_without_the_files_calibrates_as_the_serial_path(moved):
+    jobs, serial, empty = moved
+    with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn"),
+                             initializer=os.chdir, initargs=(str(empty),)) as workers:
+        got = list(workers.map(calibrate_job, jobs[:1]))
+    _same_results(got, serial)
+    assert list(empty.iterdir()) == []
+
+
+@pytest.fixture(scope="module")
+def scheduler(moved):
+    """The address of a local Dask cluster of one worker process started in the empty
+    folder."""
+    distributed = pytest.importorskip("distributed")
+    here = os.getcwd()
+    os.chdir(moved[2])                                  # the worker starts in the empty folder
+    try:
+        cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                           dashboard_address=None)
+    finally:
+        os.chdir(here)
+    with cluster:
+        yield cluster.scheduler_address
+
+
+def test_a_dask_cluster_in_another_folder_calibrates_as_the_serial_path(moved, scheduler):
+    jobs, serial, empty = moved
+    _same_results(run_jobs(calibrate_job, jobs[:1], scheduler=scheduler), serial)
+    assert list(empty.iterdir()) == []
+
+
+class _Taken(Sequence):
+    """Jobs ``-k``, recording which are taken."""
+
+    def __init__(self, n: int) -> None:
+        self.n = n
+        self.taken: list[int] = []
+
+    def __len__(self) -> int:
+        return self.n
+
+    def __getitem__(self, k):
+        self.taken.append(k)
+        return -k
+
+
+def test_jobs_are_taken_as_the_workers_need_them(scheduler):
+    jobs, seen = _Taken(8), []
+    out = run_jobs(abs, jobs, scheduler=scheduler,
+                   progress=lambda done, total, name: seen.append((done, len(jobs.taken))))
+    assert out == list(range(8)) and jobs.taken == list(range(8))     # each once, in order
+    assert all(taken <= done + 2 for done, taken in seen)   # one worker thread: two at once
+
+
+class _Client:
+    """A Dask client's ``scatter``, recorded."""
+
+    def __init__(self) -> None:
+        self.sent: list[list[object]] = []
+
+    def scatter(self, items: list[object], hash: bool = True) -> list[str]:
+        self.sent.append(items)
+        return [f"future-{k}" for k in range(len(items))]
+
+
+def test_inputs_that_jobs_share_are_sent_once():
+    rig, model = {"rig": 1}, [0.0] * 3
+    jobs = [(rig, model, {"runs": k}, False, 0) for k in range(3)]
+    client = _Client()
+    shared = pool._share(client, jobs[:2])
+    assert client.sent == [[rig, model]]
+    sent = [pool._with_shared(job, shared) for job in jobs]
+    assert [job[:2] for job in sent] == [("future-0", "future-1")] * 3
+    assert [job[2:] for job in sent] == [job[2:] for job in jobs]    # the rest within each job
+    assert pool._share(client, ["a", "b"]) == {} and pool._share(client, jobs[:1]) == {}
+    assert len(client.sent) == 1
+
+
+def test_a_campaign_is_read_when_its_job_is_taken(campaign_dir, tmp_path):
+    manifest = shutil.copy(campaign_dir / MANIFESTS[0], tmp_path / "m.csv")
+    (tmp_path / "runs").symlink_to(campaign_dir / "runs")
+    rig = forcecal.load_rig(campaign_dir / "rig.toml")
+    jobs = calibrate_jobs(rig, None, [str(manifest)], False)
+    assert len(jobs) == 1 and jobs[:0] == []
+    Path(manifest).write_text("run\nnowhere.csv\n", encoding="utf-8")
+    with pytest.raises(forcecal.errors.InputError, match=r"nowhere\.csv"):
+        jobs[0]
+    with pytest.raises(forcecal.errors.InputError, match=r"nowhere\.csv"):
+        calibrate_jobs(rig, None, [str(manifest)], False)
+
+
+def test_a_bad_manifest_among_several_is_refused_before_any_job(campaign_dir, tmp_path, capsys):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("run\nnowhere.csv\n", encoding="utf-8")
+    code = main(["calibrate", str(campaign_dir / "rig.toml"), str(campaign_dir / "scan.uff"),
+                 "--manifest", str(campaign_dir / MANIFESTS[0]), str(bad), "-o",
+                 str(tmp_path / "out"), "-q"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert code == 2 and len(err) == 1 and "nowhere.csv" in err[0]
+    assert not (tmp_path / "out").exists()
