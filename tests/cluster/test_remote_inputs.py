@@ -111,7 +111,7 @@ def scheduler(moved):
     os.chdir(moved[2])                                  # the worker starts in the empty folder
     try:
         cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                           dashboard_address=None)
+                                           dashboard_address=":0")
     finally:
         os.chdir(here)
     with cluster:

@@ -332,8 +332,10 @@ def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
 
     check_main_guard(workers)
     with limited(), dask.config.set(_QUIET_WORKERS):
+        # its HTTP server on a free port: two clusters on one machine (two commands at once)
+        # do not both ask for Dask's default 8787
         cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
+                               dashboard_address=":0", silence_logs=logging.ERROR)
     with cluster, Client(cluster) as client:
         client.run(importlib.import_module, "forcecal.cluster.jobs")  # imports paid at the start
         yield client

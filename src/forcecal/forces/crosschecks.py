@@ -324,9 +324,11 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     # their gains is beyond chance, each at half the rate; the geometry's (a search over
     # positions, a swap) only explain what they decided
     sensors = [c for c in causes if c.form in ("relative", "linear", "delay")]
+    gain = _limit(1, FALSE_ALARM / (2 * len(sensors)))
+    if chi2 <= min(gain, _limit(dof, FALSE_ALARM / 2)):
+        return []                    # no cause can gain more than the whole chi-square
     tried = sorted((c2, c.name, c.unit, size) for c in sensors
                    for c2, size in [_size(c, problem, pick, period_ms)])
-    gain = _limit(1, FALSE_ALARM / (2 * len(sensors)))
     best_gain = chi2 - tried[0][0]
     if chi2 <= _limit(dof, FALSE_ALARM / 2) and best_gain <= gain:
         return []
