@@ -313,7 +313,7 @@ def _with_shared(job: Any, shared: dict[int, tuple[Any, Any]]) -> Any:
 def _client(workers: int, scheduler: str | None) -> Iterator[Any]:
     """A Dask client: to the scheduler at ``scheduler``, or to a local cluster of ``workers``
     processes of one task each, started under the caller's thread limit (:mod:`.threads`),
-    that lives as long as the client (no dashboard, quiet logs)."""
+    that lives as long as the client (its HTTP server on a free port, quiet logs)."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - a dependency; kept for a trimmed install
