@@ -211,6 +211,13 @@ class Rig:
     :mod:`forcecal.forces.transient`)."""
 
     @property
+    def flux_channels(self) -> list[str]:
+        """The run files' flux channels: ``actuator.flux`` and every ``forces[].flux``, once
+        each, in that order."""
+        names = [self.actuator.flux, *(f.flux for f in self.forces)]
+        return list(dict.fromkeys(n for n in names if n is not None))
+
+    @property
     def gauge_names(self) -> list[str]:
         return [g.name for g in self.gauges]
 
@@ -345,8 +352,8 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     _check_names(fail, gauges, forces, sensors, actuator)
     _check_statics(fail, structure, gauges, forces, sensors)
     names = [g.name for g in gauges] + [s.name for s in sensors] + [actuator.current]
-    names += [actuator.flux] if actuator.flux is not None else []
-    names += [f.flux for f in forces if f.flux is not None and f.flux not in names]
+    names += [n for n in [actuator.flux, *(f.flux for f in forces)]
+              if n is not None and n not in names]
     names += ["time"]                   # the run files' time column
     channels = channel_map(fail, keys.channels, names)
     type_b = (TypeB(**keys.uncertainty.model_dump(), declared=True)

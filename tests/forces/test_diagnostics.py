@@ -10,6 +10,7 @@ import pytest
 
 from forcecal.errors import DataError, RigError
 from forcecal.forces.diagnostics import mains_notes
+from forcecal.forces.estimate import waveform_std_series
 from forcecal.forces.steady import implied_phasors, reconstruct, solve_inputs
 from forcecal.model.spatial import build_spatial_model
 from forcecal.records import Run
@@ -253,6 +254,10 @@ def test_harmonics_left_out_are_said_and_counted_in_the_waveform(paper):
     assert 1.0 < cut.dropped_rms[-1] / shown < 2.5
     assert cut.waveform_std == pytest.approx(
         np.hypot(cut.dropped_rms[-1], np.sqrt(np.sum(cut.total_std[1:] ** 2))), rel=0.01)
+    per_sample = waveform_std_series(cut)      # each force's and the total's, at mid-record
+    floor = np.sqrt(np.sum(np.vstack([cut.force_std, cut.total_std]) ** 2, axis=1)
+                    + cut.dropped_rms**2)
+    np.testing.assert_allclose(per_sample.min(axis=1), floor, rtol=1e-3)
 
 
 def test_a_wrong_nominal_frequency_on_a_short_run_is_taken_from_the_scan(paper):

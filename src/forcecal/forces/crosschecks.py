@@ -270,7 +270,7 @@ def _weighed(fluxes: dict[int, np.ndarray], poles: list[int], area: float, run: 
     sel[:, 0] &= bool(terms.kept[0])
     scale = np.abs(m).max(axis=1, keepdims=True)
     sigma = np.sqrt(terms.std[poles] ** 2 + m_std**2 + (FRINGING * np.abs(m)) ** 2
-                    + (1e-6 * scale) ** 2)
+                    + (1e-6 * scale) ** 2) + 1e-300
     w = np.concatenate([(1 / sigma)[sel], np.where(np.arange(h + 1)[None, :] > 0, 1 / sigma,
                                                    0.0)[sel]])
     return m, sel, w
@@ -298,15 +298,21 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     area = rig.actuator.pole_area
     if not fluxes or area is None:
         return []
+    notes = [f"{what}: force '{f.name}': its flux channel '{f.flux}' (forces[{k}].flux) is not "
+             "in the run; its force is not checked against Maxwell's stress"
+             for k, f in enumerate(rig.forces) if f.flux is not None and k not in fluxes]
     h = terms.force.shape[1] - 1
     poles = sorted(fluxes)
     dc = max(abs(float(np.mean(fluxes[k]))) for k in poles)
     ac = max(float(np.std(fluxes[k])) for k in poles)
+    if ac <= 1e-12 * dc:                 # a constant channel, to rounding
+        return [*notes, f"{what}: the flux is constant, without any drive: the forces are not "
+                "checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
     if h >= 2 and dc < 0.05 * ac and (np.abs(terms.force[poles, 1]).sum()
                                       > np.abs(terms.force[poles, 2]).sum()):
-        return [f"{what}: the flux holds no DC though the forces pull mostly at the drive's "
-                "fundamental (an AC-coupled flux sensor, a search coil?): the forces are not "
-                "checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
+        return [*notes, f"{what}: the flux holds no DC though the forces pull mostly at the "
+                "drive's fundamental (an AC-coupled flux sensor, a search coil?): the forces are "
+                "not checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
     m, sel, w = _weighed(fluxes, poles, area, run, terms)
 
     def pick(forces: np.ndarray) -> np.ndarray:
@@ -318,7 +324,7 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     dof = int(np.count_nonzero(w)) - 1
     chi2, coef = problem.fit(pick(terms.force))
     if dof < 2:
-        return []
+        return notes
     period_ms = 1e3 * 2 * np.pi / (terms.w0 * max(h, 1))
     # the sensors' mistakes, one parameter each, decide: either the whole misfit or one of
     # their gains is beyond chance, each at half the rate; the geometry's (a search over
@@ -326,12 +332,12 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     sensors = [c for c in causes if c.form in ("relative", "linear", "delay")]
     gain = _limit(1, FALSE_ALARM / (2 * len(sensors)))
     if chi2 <= min(gain, _limit(dof, FALSE_ALARM / 2)):
-        return []                    # no cause can gain more than the whole chi-square
+        return notes                 # no cause can gain more than the whole chi-square
     tried = sorted((c2, c.name, c.unit, size) for c in sensors
                    for c2, size in [_size(c, problem, pick, period_ms)])
     best_gain = chi2 - tried[0][0]
     if chi2 <= _limit(dof, FALSE_ALARM / 2) and best_gain <= gain:
-        return []
+        return notes
     tried = sorted(tried + [(c2, c.name, c.unit, size) for c in causes if c not in sensors
                             for c2, size in [_size(c, problem, pick, period_ms)]])
     explain = [t for t in tried if chi2 - t[0] > gain and t[0] <= _limit(dof - 1)]
@@ -340,16 +346,22 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
             f"{coef[0]:.3g}): chi-square {chi2:.3g} for {dof} degrees of freedom (chance "
             f"exceeds {_limit(dof, FALSE_ALARM / 2):.3g} at a {FALSE_ALARM / 2:g} rate), "
             f"{best_gain:.3g} less with one sensor's mistake free (chance: {gain:.3g})")
+    return [*notes, head + _explained(tried, explain, {c.name for c in sensors})]
+
+
+def _explained(tried: list[tuple[float, str, str, float]],
+               explain: list[tuple[float, str, str, float]], sensors: set[str]) -> str:
+    """The note's tail: the causes that explain the misfit, the best first (among those the
+    data cannot tell apart, a sensor's first: the likelier), or the closest when none does."""
     if not explain:
         best = tried[0]
-        return [head + "; no single cause tried explains it (a gauge's scale or offset, a delay "
-                "of the gauges or the probes, the inertia's scale, a gauge's or a force's "
-                f"position, a swap); the closest: {_cause_text(best[1], best[2], best[3])} "
-                f"(chi-square then {best[0]:.3g})"]
+        return ("; no single cause tried explains it (a gauge's scale or offset, a delay of the "
+                "gauges or the probes, the inertia's scale, a gauge's or a force's position, a "
+                f"swap); the closest: {_cause_text(best[1], best[2], best[3])} (chi-square "
+                f"then {best[0]:.3g})")
     alike = sum(1 for t in explain if t[0] - explain[0][0] <= ALIKE)
-    names = {c.name for c in sensors}          # among causes alike, a sensor's first: the
-    explain[:alike] = sorted(explain[:alike], key=lambda t: t[1] not in names)  # likelier
+    explain[:alike] = sorted(explain[:alike], key=lambda t: t[1] not in sensors)
     said = "; ".join(f"{_cause_text(name, unit, size)} (chi-square then {c2:.3g})"
                      for c2, name, unit, size in explain[:max(alike, 3)])
-    return [head + f"; explained by {said}" + (
-        f" (the data cannot tell the first {alike} apart)" if alike > 1 else "")]
+    return f"; explained by {said}" + (
+        f" (the data cannot tell the first {alike} apart)" if alike > 1 else "")

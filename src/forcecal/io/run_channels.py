@@ -100,8 +100,8 @@ def _rig_channels(rig: Rig) -> Iterator[tuple[str, str, float, str]]:
         yield s.name, "length", s.scale, f"sensors[{k}].scale"
     act = rig.actuator
     yield act.current, "current", act.current_scale, "actuator.current_scale"
-    if act.flux is not None:
-        yield act.flux, "flux", act.flux_scale, "actuator.flux_scale"
+    for name in rig.flux_channels:
+        yield name, "flux", act.flux_scale, "actuator.flux_scale"
 
 
 def _check_units(run: Run, units: Mapping[str, str], sources: Mapping[str, str],

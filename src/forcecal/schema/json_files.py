@@ -14,7 +14,7 @@ from typing import Annotated, Any
 from pydantic import ConfigDict, Field
 
 from ..errors import InputError
-from .keys import Keys, Number, nearest_key
+from .keys import Keys, Number, nearest_key, short
 
 __all__ = ["MAX_DOCUMENT_BYTES", "reject_constant"]
 
@@ -110,14 +110,6 @@ def _first_twice(doc: Any) -> str | None:
             continue
         stack.extend(reversed(items))
     return None
-
-
-def short(value: Any) -> str:
-    """``value`` for a message: its repr, cut to 40 characters (a huge integer by its bits)."""
-    if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
-        return f"an integer of {value.bit_length()} bits"
-    text = repr(value)
-    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def opened(doc: Any, label: str, key: str, expected: str, what: str = "") -> Faults:

@@ -27,7 +27,7 @@ from pydantic.fields import FieldInfo
 
 from ..errors import InputError
 
-__all__ = ["Keys", "Number", "nearest_key", "validate"]
+__all__ = ["Keys", "Number", "nearest_key", "short", "validate"]
 
 
 class Keys(BaseModel):
@@ -197,7 +197,8 @@ def nearest_key(word: str, keys: list[str]) -> str | None:
 # messages
 
 
-def _found(value: Any) -> str:
+def short(value: Any) -> str:
+    """``value`` for a message: its repr, cut to 40 characters (a huge integer by its bits)."""
     if isinstance(value, int) and not isinstance(value, bool) and value.bit_length() > 64:
         return f"an integer of {value.bit_length()} bits"
     text = repr(value)
@@ -248,9 +249,9 @@ def _what(root: type[Keys], err: dict[str, Any]) -> tuple[str, str]:
         if fault == "union_tag_invalid":
             tag = str(ctx.get("discriminator", "")).strip("'").removesuffix("()")
             key, value = f"{key}.{tag}".strip("."), ctx.get("tag")
-        return key, f"must be one of {expected}, found {_found(value)}"
+        return key, f"must be one of {expected}, found {short(value)}"
     if fault == "union_tag_not_found":
-        return key, f"must be a table, found {_found(value)}"
+        return key, f"must be a table, found {short(value)}"
     if fault == "finite_number":
         return key, f"must be finite, found {value!r}"
     if fault.startswith(("greater_than", "less_than")):
@@ -265,8 +266,8 @@ def _what(root: type[Keys], err: dict[str, Any]) -> tuple[str, str]:
     base = fault.removesuffix("_type").removesuffix("_parsing")
     if base in _TYPES:
         expected = _TYPES["model" if _model(here) else base]
-        return key, f"must be {expected}, found {_found(value)}"
-    return key, f"is not valid ({err.get('msg', fault)}), found {_found(value)}"
+        return key, f"must be {expected}, found {short(value)}"
+    return key, f"is not valid ({err.get('msg', fault)}), found {short(value)}"
 
 
 def _bound(fault: str, value: Any, ctx: dict[str, Any], info: FieldInfo | None) -> str:
@@ -277,14 +278,14 @@ def _bound(fault: str, value: Any, ctx: dict[str, Any], info: FieldInfo | None) 
     below = fault.startswith("greater_than")
     if below and isinstance(value, int | float) and value <= 0 and (
             bound > 0 or fault == "greater_than"):
-        return f"must be positive, found {_found(value)}"
+        return f"must be positive, found {short(value)}"
     if below and bound == 0:
-        return f"must not be negative, found {_found(value)}"
+        return f"must not be negative, found {short(value)}"
     hint = _extra(info, "hint")
     if hint:
-        return f"= {_found(value)}{u} is {hint}"
+        return f"= {short(value)}{u} is {hint}"
     size, side = ("small", "at least") if below else ("large", "at most")
-    return f"= {_found(value)}{u} is implausibly {size} ({side} {bound:g}{u}; a unit mistake?)"
+    return f"= {short(value)}{u} is implausibly {size} ({side} {bound:g}{u}; a unit mistake?)"
 
 
 def _expected_length(ctx: dict[str, Any]) -> str:
@@ -336,7 +337,7 @@ def validate(model: type[K], doc: Any, label: str,
         ``LABEL: key 'KEY' WHAT`` for the first fault (see the module docstring).
     """
     if not isinstance(doc, dict):
-        raise error(f"{label}: expected a table of keys, found {_found(doc)}")
+        raise error(f"{label}: expected a table of keys, found {short(doc)}")
     try:
         return model.model_validate(doc)
     except ValidationError as exc:

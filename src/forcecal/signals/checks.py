@@ -234,8 +234,8 @@ def check_run_for_rig(rig: Rig, run: Run, f0: float | None = None) -> None:
     items += [(s.name, s.scale, "sensor", f"sensors[{k}].scale")
               for k, s in enumerate(rig.sensors)]
     items.append((act.current, act.current_scale, "current", "actuator.current_scale"))
-    if act.flux is not None and act.flux in run.channels:
-        items.append((act.flux, act.flux_scale, "flux", "actuator.flux_scale"))
+    items += [(name, act.flux_scale, "flux", "actuator.flux_scale")
+              for name in rig.flux_channels if name in run.channels]
     driven = False
     for name, scale, kind, key in items:
         raw = run.channel(name)
