@@ -6,9 +6,11 @@ job), calibrated as ``forcecal calibrate RIG MODEL --manifest M1 M2 ... --worker
 (:func:`forcecal.cluster.run_jobs` with the CLI's own jobs, each campaign's manifest and records
 read by the client and carried in its job, the reading timed with the jobs). Reported for each W:
 the wall time (cluster start included; one worker too, a cluster of one), the cluster's start
-alone, the speed-up over the serial path, and the overhead per job (the worker time a job
-costs beyond its serial compute: ``(W (wall - start) - serial) / jobs``). The results are
-checked identical to the serial ones.
+alone, the speed-up over the serial path and the parallel efficiency (speed-up / W), and the
+overhead per job (the worker time a job costs beyond its serial compute:
+``(W wall - serial) / jobs``) with its breakdown (:func:`breakdown`: start, slower compute,
+transfer, deserialisation, idle workers, the client's reading). The results are checked
+identical to the serial ones.
 
 From the measured figures: what a 10,000-actuator batch would cost on a cluster of C cores,
 ``10000 * (serial_per_job + overhead_per_job) / C + start`` (the overhead the least measured).
@@ -23,10 +25,12 @@ import argparse
 import dataclasses
 import json
 import os
+import pickle
 import platform
 import sys
 import tempfile
 import time
+from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
@@ -81,16 +85,63 @@ def campaigns(folder: Path, n_jobs: int):
     return rig, model, manifests
 
 
-def spread_over(rig, model, manifests: list[str], workers: int) -> list:
+class _Timed(Sequence):
+    """The jobs, the client's time spent taking each (reading its campaign) added up."""
+
+    def __init__(self, jobs) -> None:
+        self.jobs, self.seconds, self.bytes = jobs, 0.0, 0
+
+    def __len__(self) -> int:
+        return len(self.jobs)
+
+    def __getitem__(self, k):
+        t0 = time.perf_counter()
+        job = self.jobs[k]
+        self.seconds += time.perf_counter() - t0
+        self.bytes += len(pickle.dumps(job[2]))          # the campaign's records, sent per job
+        return job
+
+
+def spread_over(rig, model, manifests: list[str], workers: int) -> tuple[list, dict]:
     """The campaigns calibrated over a local cluster of ``workers`` processes, started for the
     call as the command starts it (one worker too: the cluster's own cost, with no
-    parallelism)."""
-    if workers > 1:
-        return run_jobs(_calibrate_job, _calibrate_jobs(rig, model, manifests, False),
-                        workers=workers)
-    with _client(1, None) as client:
-        return run_jobs(_calibrate_job, _calibrate_jobs(rig, model, manifests, False),
-                        scheduler=client.scheduler.address)
+    parallelism), and where the time went: the cluster's start (worker processes, their
+    imports), the client's reading of the campaigns, and from the scheduler's task stream each
+    job's compute, its inputs' transfer and deserialisation on the workers."""
+    from distributed import get_task_stream
+
+    t0 = time.perf_counter()
+    with _client(workers, None) as client:
+        start = time.perf_counter() - t0
+        jobs = _Timed(_calibrate_jobs(rig, model, manifests, False))
+        t0 = time.perf_counter()
+        with get_task_stream(client) as stream:
+            out = run_jobs(_calibrate_job, jobs, scheduler=client.scheduler.address)
+        wall = time.perf_counter() - t0
+    spent = {"compute": 0.0, "transfer": 0.0, "deserialize": 0.0}
+    for task in stream.data:
+        for part in task["startstops"]:
+            if part["action"] in spent:
+                spent[part["action"]] += part["stop"] - part["start"]
+    return out, {"seconds_start": start, "seconds_wall": start + wall, "seconds_jobs": wall,
+                 "client_reading_s": jobs.seconds, "records_bytes_per_job": jobs.bytes / len(jobs),
+                 **{f"worker_{k}_s": v for k, v in spent.items()}}
+
+
+def breakdown(row: dict, serial_per_job: float, n_jobs: int) -> dict:
+    """Where each job's overhead went, in seconds per job: the cluster's start shared by the
+    jobs, the compute slower than the serial path's (the workers share the cores and memory with
+    each other and with the client), the inputs' transfer and deserialisation, the client's
+    reading of the campaigns, and the workers' idle time (waiting for a job: scheduling, the
+    client's submitting, the last jobs' tail)."""
+    w = row["workers"]
+    busy = row["worker_compute_s"] + row["worker_transfer_s"] + row["worker_deserialize_s"]
+    return {"start": row["seconds_start"] * w / n_jobs,
+            "slower_compute": row["worker_compute_s"] / n_jobs - serial_per_job,
+            "transfer": row["worker_transfer_s"] / n_jobs,
+            "deserialize": row["worker_deserialize_s"] / n_jobs,
+            "idle": (w * row["seconds_jobs"] - busy) / n_jobs,
+            "client_reading": row["client_reading_s"] / n_jobs}
 
 
 def main(argv=None) -> int:
@@ -111,17 +162,12 @@ def main(argv=None) -> int:
         rows = []
         for w in args.workers:
             print(f"local cluster of {w} workers", flush=True)
-            t0 = time.perf_counter()
-            with _client(w, None):
-                pass
-            start = time.perf_counter() - t0
-            t0 = time.perf_counter()
-            out = spread_over(rig, model, manifests, w)
-            wall = time.perf_counter() - t0
-            same = [r.calibration.params.tolist() for r in out] == reference
-            rows.append({"workers": w, "seconds_wall": wall, "seconds_start": start,
-                         "speed_up": t_serial / wall, "identical": same,
-                         "overhead_per_job_s": (w * (wall - start) - t_serial) / args.jobs})
+            out, row = spread_over(rig, model, manifests, w)
+            row = {"workers": w, **row, "speed_up": t_serial / row["seconds_wall"],
+                   "identical": [r.calibration.params.tolist() for r in out] == reference,
+                   "overhead_per_job_s": (w * row["seconds_wall"] - t_serial) / args.jobs}
+            row["overhead_breakdown_s_per_job"] = breakdown(row, t_serial / args.jobs, args.jobs)
+            rows.append(row)
     per_job = t_serial / args.jobs
     spread = [r for r in rows if r["workers"] > 1] or rows
     best = min(spread, key=lambda r: r["overhead_per_job_s"])
@@ -137,11 +183,19 @@ def main(argv=None) -> int:
     RESULTS.write_text(json.dumps(res, indent=2) + "\n")
     print(f"\n{args.jobs} campaigns of 8 runs (+ tare), {os.cpu_count()} cores; serial "
           f"{t_serial:.1f} s ({per_job:.2f} s per campaign)")
-    print(f"{'workers':>8}{'wall s':>9}{'start s':>9}{'speed-up':>10}{'overhead/job s':>16}"
-          f"{'identical':>11}")
+    print(f"{'workers':>8}{'wall s':>9}{'start s':>9}{'speed-up':>10}{'efficiency':>11}"
+          f"{'overhead/job s':>16}{'identical':>11}")
     for r in rows:
         print(f"{r['workers']:>8}{r['seconds_wall']:9.2f}{r['seconds_start']:9.2f}"
-              f"{r['speed_up']:10.2f}{r['overhead_per_job_s']:16.3f}{r['identical']!s:>11}")
+              f"{r['speed_up']:10.2f}{r['speed_up'] / r['workers']:11.2f}"
+              f"{r['overhead_per_job_s']:16.3f}{r['identical']!s:>11}")
+    parts = list(rows[0]["overhead_breakdown_s_per_job"])
+    print(f"\noverhead per job, s (of {per_job:.2f} s of serial compute):")
+    print(f"{'workers':>8}" + "".join(f"{k:>16}" for k in parts))
+    for r in rows:
+        print(f"{r['workers']:>8}" + "".join(
+            f"{r['overhead_breakdown_s_per_job'][k]:16.3f}" for k in parts))
+    print(f"records sent per job: {rows[0]['records_bytes_per_job'] / 1e6:.2f} MB")
     print(f"10,000 actuators at {per_job:.2f} s of compute and {cost - per_job:.2f} s of overhead "
           "each (the least of the measured): "
           + ", ".join(f"{k.split('_')[0]} cores {v:.2f} h" for k, v in batch.items()))

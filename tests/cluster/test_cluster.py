@@ -1,7 +1,9 @@
 """Many jobs over Dask: a local cluster of two workers gives the serial path's results, in
 order, with progress as jobs complete, one BLAS thread per worker, and no worker left after
-the command; the CLI spreads runs and campaigns over it with outputs identical to the serial
-ones."""
+the command; the CLI spreads runs over it with outputs identical to the serial ones. The
+module's tests start and close local clusters one after another (a batch script calling
+forcecal in a loop): each finishes, none hangs, none leaves a process. A worker that dies, or a
+cluster without workers, is one clear error, never a wait without end."""
 
 from __future__ import annotations
 
@@ -11,13 +13,14 @@ import os
 import shutil
 from pathlib import Path
 
+import dask
 import pytest
 import tomli_w
 
 from forcecal.cli.main import main
 from forcecal.cluster import pool as cluster
 from forcecal.cluster.pool import run_jobs
-from forcecal.errors import InputError
+from forcecal.errors import ForcecalError, InputError
 from forcecal.io.manifest import write_manifest
 from forcecal.simulate.export import rig_to_dict
 
@@ -58,6 +61,24 @@ def test_a_failing_job_raises_as_it_did_and_closes_the_cluster():
     assert multiprocessing.active_children() == []
 
 
+def test_a_worker_that_dies_is_one_clear_error_naming_the_job():
+    """A job that kills its worker process (out of memory, say) is given up with one line
+    naming it, not retried without end."""
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            pytest.raises(ForcecalError, match=r"job 'dies': the worker process running it died"):
+        run_jobs(os._exit, [3, 3], names=["dies", "dies"], workers=2)
+    assert multiprocessing.active_children() == []
+
+
+def test_a_cluster_without_workers_gives_the_jobs_up_with_a_clear_error(monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    monkeypatch.setattr(cluster, "WORKERLESS_S", 0.5)
+    said = r"has had no worker for 0\.5 s with 2 jobs not done"
+    with distributed.LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as empty, \
+            pytest.raises(ForcecalError, match=said):
+        run_jobs(abs, [-1, -2], scheduler=empty.scheduler_address)
+
+
 def test_one_worker_or_one_job_runs_serially_in_process():
     assert run_jobs(os.getpid, [None][:0], workers=2) == []
     assert run_jobs(abs, [-1, -2], workers=1) == [1, 2]
@@ -79,21 +100,6 @@ def test_reconstruct_spreads_runs_over_two_workers_with_the_serial_outputs(paper
     assert main([*args, "-o", str(tmp_path / "serial"), "--workers", "1", "-q"]) == 0
     assert main([*args, "-o", str(tmp_path / "dask"), "--workers", "2", "-q"]) == 0
     _same_outputs(tmp_path / "serial", tmp_path / "dask")
-
-
-def test_calibrate_spreads_campaigns_each_into_its_folder(campaign_files, tmp_path, capsys):
-    rig, model, manifest = campaign_files
-    other = manifest.with_name("batch2.csv")
-    shutil.copy(manifest, other)
-    assert main(["calibrate", rig, model, "--manifest", str(manifest), "-o",
-                 str(tmp_path / "one"), "--no-report", "-q"]) == 0
-    assert main(["calibrate", rig, model, "--manifest", str(manifest), str(other), "-o",
-                 str(tmp_path / "two"), "--no-report", "--workers", "2", "-q"]) == 0
-    out = capsys.readouterr().out.split()
-    assert out[-2:] == [str(tmp_path / "two" / "manifest" / "calibration.json"),
-                        str(tmp_path / "two" / "batch2" / "calibration.json")]
-    _same_outputs(tmp_path / "one", tmp_path / "two" / "manifest")
-    _same_outputs(tmp_path / "one", tmp_path / "two" / "batch2", ("manifest.csv", "batch2.csv"))
 
 
 def test_two_manifests_of_one_name_are_refused(campaign_files, tmp_path, capsys):

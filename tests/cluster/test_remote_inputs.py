@@ -11,6 +11,9 @@ import json
 import multiprocessing
 import os
 import shutil
+import subprocess
+import sys
+import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -73,6 +76,7 @@ def moved(campaign_dir, tmp_path_factory):
     for name in MANIFESTS:
         shutil.copy(manifest, folder / name)
     shutil.copy(campaign_dir / "rig.toml", folder)
+    shutil.copy(campaign_dir / "scan.uff", folder)
     rig = forcecal.load_rig(folder / "rig.toml")
     model = build_spatial_model(rig, forcecal.read_scan(campaign_dir / "scan.uff", rig=rig))
     manifests = [str(folder / name) for name in MANIFESTS]
@@ -103,25 +107,72 @@ def test_a_worker_without_the_files_calibrates_as_the_serial_path(moved):
 
 
 @pytest.fixture(scope="module")
-def scheduler(moved):
-    """The address of a local Dask cluster of one worker process started in the empty
-    folder."""
-    distributed = pytest.importorskip("distributed")
-    here = os.getcwd()
-    os.chdir(moved[2])                                  # the worker starts in the empty folder
+def scheduler(moved, tmp_path_factory):
+    """The address of a Dask cluster of separate processes, as a lab's cluster is: a ``dask
+    scheduler`` and two ``dask worker`` processes on localhost, the workers started in the
+    empty folder (they see none of the client's files)."""
+    pytest.importorskip("distributed")
+    info = tmp_path_factory.mktemp("dask") / "scheduler.json"
+    env = {**os.environ, "OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1"}
+    common = ["--no-dashboard"]
+    started = [subprocess.Popen([sys.executable, "-m", "dask", "scheduler", "--host",
+                                 "127.0.0.1", "--port", "0", "--scheduler-file", str(info),
+                                 *common], cwd=moved[2], env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)]
     try:
-        cluster = distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
-                                           dashboard_address=":0")
+        _wait_for(info.exists, "the scheduler's file")
+        started += [subprocess.Popen([sys.executable, "-m", "dask", "worker", "--scheduler-file",
+                                      str(info), "--nthreads", "1", "--nworkers", "1",
+                                      "--no-nanny", *common], cwd=moved[2], env=env,
+                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+                    for _ in range(2)]
+        address = json.loads(info.read_text(encoding="utf-8"))["address"]
+        with distributed_client(address) as client:
+            client.wait_for_workers(2, timeout=60)
+        yield address
     finally:
-        os.chdir(here)
-    with cluster:
-        yield cluster.scheduler_address
+        for process in started:            # nothing of theirs to keep: no graceful close
+            process.kill()
+            process.wait(timeout=20)
+
+
+def _wait_for(ready, what: str, seconds: float = 30.0) -> None:
+    deadline = time.monotonic() + seconds
+    while not ready():
+        assert time.monotonic() < deadline, f"{what} did not appear in {seconds:g} s"
+        time.sleep(0.1)
+
+
+def distributed_client(address: str):
+    from distributed import Client
+
+    return Client(address, timeout=30)
 
 
 def test_a_dask_cluster_in_another_folder_calibrates_as_the_serial_path(moved, scheduler):
     jobs, serial, empty = moved
     _same_results(run_jobs(calibrate_job, jobs[:1], scheduler=scheduler), serial)
     assert list(empty.iterdir()) == []
+
+
+def test_calibrate_on_a_remote_scheduler_writes_the_serial_paths_results(moved, scheduler,
+                                                                          tmp_path, capsys):
+    """``forcecal calibrate --scheduler tcp://...`` against the separate processes: each
+    campaign's calibration.json, in a folder named after its manifest, holds the serial path's
+    result."""
+    folder = moved[2].parent / "elsewhere"
+    assert main(["calibrate", str(folder / "rig.toml"), str(folder / "scan.uff"), "--no-report",
+                 "--manifest", *(str(folder / m) for m in MANIFESTS), "-o", str(tmp_path),
+                 "--scheduler", scheduler]) == 0
+    out = capsys.readouterr().out
+    assert [line for line in out.splitlines() if line.endswith("calibration.json")] == [
+        str(tmp_path / Path(name).stem / "calibration.json") for name in MANIFESTS]
+    serial = json.dumps(moved[1][0].to_json())           # its files read before the move
+    for name in MANIFESTS:
+        want = serial.replace(str(folder.with_name("campaign")), str(folder))
+        want = want.replace(f"{folder}/{MANIFESTS[0]}", f"{folder}/{name}")
+        assert json.loads((tmp_path / Path(name).stem / "calibration.json")
+                          .read_text(encoding="utf-8")) == json.loads(want)
 
 
 class _Taken(Sequence):
@@ -144,7 +195,7 @@ def test_jobs_are_taken_as_the_workers_need_them(scheduler):
     out = run_jobs(abs, jobs, scheduler=scheduler,
                    progress=lambda done, total, name: seen.append((done, len(jobs.taken))))
     assert out == list(range(8)) and jobs.taken == list(range(8))     # each once, in order
-    assert all(taken <= done + 2 for done, taken in seen)   # one worker thread: two at once
+    assert all(taken <= done + 4 for done, taken in seen)   # two worker threads: four at once
 
 
 class _Client:

@@ -38,7 +38,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from pathlib import Path
 from typing import Any, TypeVar
 
-from ..errors import InputError
+from ..errors import ForcecalError, InputError
 from .threads import THREAD_VARIABLES as THREAD_VARIABLES  # re-exported: the variables set
 from .threads import LimitedJob, current_threads, limited
 
@@ -238,17 +238,16 @@ def _spread(client: Any, job: LimitedJob, jobs: Sequence[Any], labels: list[str]
     running or queued at once: a sequence that reads a job's inputs when the job is taken
     (:func:`forcecal.cluster.jobs.calibrate_jobs`) reads the next while the workers compute,
     and the client holds the inputs of a few jobs only. The inputs the first two jobs share
-    go to the cluster once (:func:`_share`). On a failure the jobs not done are cancelled.
+    go to the cluster once (:func:`_share`). On a failure the jobs not done are cancelled; a
+    job whose worker died, or a cluster left without workers, is one clear error
+    (:func:`_result`, :func:`_finished`), never a wait without end.
     """
-    from distributed import as_completed as completed
-
     total = len(jobs)
     first = [jobs[k] for k in range(min(2, total))]
     shared = _share(client, first)
     taken = enumerate(_taken(first, jobs))
     out: list[Any] = [None] * total
     running: dict[str, tuple[int, Any]] = {}
-    done = completed()
 
     def top_up() -> None:
         """Submit the next jobs until the window is full or no job is left."""
@@ -258,20 +257,66 @@ def _spread(client: Any, job: LimitedJob, jobs: Sequence[Any], labels: list[str]
             future = client.submit(job, _with_shared(args, shared),
                                    key=f"forcecal-{k}-{labels[k]}", pure=False)
             running[future.key] = (k, future)
-            done.add(future)
 
+    count = 0
     try:
         top_up()
-        for count, future in enumerate(done, start=1):
-            k, _ = running.pop(future.key)
-            out[k] = future.result()
+        while running:
+            for future in _finished(client, [f for _, f in running.values()], total - count):
+                k, _ = running.pop(future.key)
+                out[k] = _result(future, labels[k])
+                count += 1
+                if progress is not None:
+                    progress(count, total, labels[k])
             top_up()
-            if progress is not None:
-                progress(count, total, labels[k])
     except BaseException:
         client.cancel([future for _, future in running.values()])
         raise
     return out
+
+
+WORKERLESS_S = 60.0
+"""How long a cluster may have no worker while jobs wait before the jobs are given up [s]."""
+_POLL_S = 1.0
+"""How often the jobs' client looks at the cluster's workers while it waits [s]."""
+
+
+def _finished(client: Any, futures: list[Any], left: int) -> list[Any]:
+    """The futures done, once at least one is; a :class:`~forcecal.errors.ForcecalError`
+    when the cluster has had no worker for :data:`WORKERLESS_S` (its workers died, or never
+    came) while ``left`` jobs wait."""
+    from distributed import wait
+
+    alone_since: float | None = None
+    while True:
+        try:
+            return list(wait(futures, timeout=_POLL_S, return_when="FIRST_COMPLETED").done)
+        except TimeoutError:
+            pass
+        if client.nthreads():
+            alone_since = None
+            continue
+        now = time.monotonic()
+        alone_since = now if alone_since is None else alone_since
+        if now - alone_since >= WORKERLESS_S:
+            raise ForcecalError(
+                f"the Dask cluster at {client.scheduler.address} has had no worker for "
+                f"{WORKERLESS_S:g} s with {left} job{'s' if left != 1 else ''} not done (its "
+                "workers died or never started: out of memory, killed, or not installed); "
+                "the jobs were given up")
+
+
+def _result(future: Any, label: str) -> Any:
+    """A job's result; its failure as the job raised it, or one clear error when the worker
+    running it died each time it was tried (Dask's ``KilledWorker``)."""
+    from distributed import KilledWorker
+
+    try:
+        return future.result()
+    except KilledWorker:
+        raise ForcecalError(
+            f"job '{label}': the worker process running it died (out of memory, or killed) "
+            "each time it was tried; the other jobs were cancelled") from None
 
 
 def _taken(first: list[Any], jobs: Sequence[Any]) -> Iterator[Any]:
