@@ -7,7 +7,7 @@ STAMP := $(VENV)/.installed
 # BLAS threads: forcecal sets its own (--threads, FORCECAL_THREADS; one by default), and the
 # tests' direct calls are pinned by tests/conftest.py.
 
-.PHONY: demo test lint bench clean docs
+.PHONY: demo test lint bench clean docs tutorial
 
 $(STAMP): pyproject.toml
 	test -d $(VENV) || $(PYTHON) -m venv $(VENV)
@@ -35,6 +35,19 @@ $(DOCS_STAMP): $(STAMP)
 
 docs: $(DOCS_STAMP)
 	$(BIN)/python -m sphinx -b html -q docs docs/_build/html
+
+# docs/tutorial.ipynb executed in place, its outputs stored for the docs page: a Jupyter kernel
+# (nbclient, ipykernel; figures inline as PNG) runs it in a scratch folder. The simulation is
+# seeded, no timings are recorded and each cell's printed lines are kept as one output, so the
+# outputs change only when the results do.
+tutorial: $(DOCS_STAMP)
+	$(BIN)/python -c 'import tempfile, nbclient, nbformat; \
+	nb = nbformat.read("docs/tutorial.ipynb", as_version=4); \
+	scratch = tempfile.TemporaryDirectory(); \
+	nbclient.NotebookClient(nb, timeout=600, kernel_name="python3", record_timing=False, \
+	                        coalesce_streams=True, \
+	                        resources={"metadata": {"path": scratch.name}}).execute(); \
+	nbformat.write(nb, "docs/tutorial.ipynb")'
 
 # the benchmarks call the stages directly, not the commands that limit their own threads
 bench: export OPENBLAS_NUM_THREADS ?= 1

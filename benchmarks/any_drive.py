@@ -28,12 +28,19 @@ compares:
   windows, each force's and the total's error over its stated uncertainty, and on the sweep
   rig the stepped sines.
 
-Run:  .venv/bin/python benchmarks/any_drive.py
-Writes benchmarks/results/any_drive.json.
+Run:  .venv/bin/python benchmarks/any_drive.py [--only sweep|random] [--ratios auto|spline|modal]
+Writes benchmarks/results/any_drive.json (with --only or --ratios spline,
+any_drive_<preset>_<ratios>.json). ``--only`` runs one preset's drive runs (seed 0 and the
+worst windows of seeds 1-2; the sweep's stepped sines at seed 0) without the stepped sines'
+other seeds and the lab rig; ``--ratios spline`` keeps the splines' ratios whatever the
+criterion says (:func:`forcecal.model.broadband.choose_ratios`), the estimate before the
+modal model, and ``--ratios modal`` takes the modal model's wherever one is identified.
 """
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import json
 import math
 import sys
@@ -46,6 +53,7 @@ import pandas as pd
 import scipy.ndimage
 import scipy.signal
 
+import forcecal.model.broadband as broadband
 from forcecal.cli.main import main
 from forcecal.io.run_files import read_run
 from forcecal.model.broadband import load_any_model
@@ -54,6 +62,8 @@ from forcecal.rig import load_rig
 from forcecal.simulate.export import write_simulation
 
 RESULTS = Path(__file__).parent / "results"
+MODE_HZ = 69.0
+"""The sweep rig's first bending mode, closed loop at 1 mm and 0.6 A."""
 
 
 def _in_band(x: np.ndarray, fs: float, top: float) -> np.ndarray:
@@ -109,6 +119,17 @@ def _stated(est: pd.DataFrame, claimed: np.ndarray) -> dict:
             "within_2u": float(np.mean(np.abs(err) <= 2 * u))}
 
 
+def _stated_windows(est: pd.DataFrame, claimed: np.ndarray, width: float) -> list[float]:
+    """Each window's RMS error (against the truth as claimed) over its RMS stated
+    uncertainty."""
+    t = est["time"].to_numpy()
+    n = int(round(width / (t[1] - t[0])))
+    err = est["total"].to_numpy() - claimed
+    u = est["total_std"].to_numpy()
+    return [float(np.sqrt(np.mean(err[k:k + n] ** 2) / np.mean(u[k:k + n] ** 2)))
+            for k in range(0, len(err) - n + 1, n)]
+
+
 def _oracle(folder: Path, model: Path, run: str, truth: pd.DataFrame, claimed: np.ndarray
             ) -> list[float]:
     """Each 0.5 s window's error, against the truth as claimed, of the estimate before
@@ -160,7 +181,11 @@ def _drive_run(folder: Path, run: str) -> dict:
     apart = live["total"].to_numpy() - est["total"].to_numpy()
     claimed = _claimed(folder, model, run, truth)
     as_claimed = truth.assign(total=claimed)
-    return {"windows": _windows(est, truth, "total", 0.5),
+    return {"ratio_model": json.loads(model.read_text()).get("ratio_model"),
+            "windows_stated": _stated_windows(est, claimed, 0.5),
+            "windows_short": _windows(est, truth, "total", 0.1),
+            "windows_short_stated": _stated_windows(est, claimed, 0.1),
+            "windows": _windows(est, truth, "total", 0.5),
             "windows_claimed": _windows(est, as_claimed, "total", 0.5),
             "windows_in_band": _windows(est, truth, "total", 0.5, top=band[1]),
             "windows_static": _windows(est, truth, "total_static", 0.5),
@@ -241,10 +266,12 @@ def _lab(tmp: Path, preset: str, seed: int) -> dict:
     return out
 
 
-def run(seeds: int = 4, drive_seeds: int = 3) -> dict:
+def run(seeds: int = 4, drive_seeds: int = 3, only: str | None = None) -> dict:
     results: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
         for preset, run_name in (("sweep", "sweep"), ("random", "random")):
+            if only not in (None, preset):
+                continue
             folder = Path(tmp) / preset
             start = time.perf_counter()
             write_simulation(folder, preset, seed=0)
@@ -254,6 +281,8 @@ def run(seeds: int = 4, drive_seeds: int = 3) -> dict:
                 results["stepped_sines"] = _campaign(folder)
             results[f"{preset}_seeds"] = [_worst_windows(Path(tmp), preset, seed)
                                           for seed in range(1, drive_seeds)]
+        if only is not None:
+            return results
         # the stepped sines again under other noise: the targets hold for the rig, not a draw
         results["stepped_sines_seeds"] = [results["stepped_sines"]] + [
             _campaign_seed(Path(tmp), seed) for seed in range(1, seeds)]
@@ -264,7 +293,13 @@ def run(seeds: int = 4, drive_seeds: int = 3) -> dict:
 
 def report(res: dict) -> None:
     for preset, target in (("sweep", 0.005), ("random", 0.02)):
+        if preset not in res:
+            continue
         r = res[preset]
+        choice = r.get("ratio_model") or {"source": "spline (a model without the choice)"}
+        print(f"{preset}: ratios from the {choice['source']}; AIC spline "
+              f"{choice.get('aic_spline')}, modal {choice.get('aic_modal')}; modes "
+              f"{choice.get('modes')}")
         print(f"{preset}: worst 0.5 s window {max(r['windows']):.2%} of the AC RMS (target "
               f"{target:.1%}); reactions only {max(r['windows_static']):.1%}; "
               f"reconstruct {r['reconstruct_s']:.2f} s")
@@ -274,7 +309,15 @@ def report(res: dict) -> None:
         print("  in band  " + " ".join(f"{w:7.2%}" for w in r["windows_in_band"]))
         print("  oracle   " + " ".join(f"{w:7.2%}" for w in r["windows_oracle"])
               + "   (as claimed, the best gains of the truth's own power)")
+        print("  err/u    " + " ".join(f"{w:7.2f}" for w in r["windows_stated"])
+              + "   (each window's error as claimed over its stated uncertainty, RMS)")
         print("  static   " + " ".join(f"{w:7.1%}" for w in r["windows_static"]))
+        if preset == "sweep":                 # 10 -> 150 Hz in 4 s: the mode at 1.7 s
+            mode = int((MODE_HZ - 10.0) / (140.0 / 4.0) / 0.1)
+            near = slice(mode - 3, mode + 4)
+            print(f"  0.1 s windows from {near.start / 10:.1f} s: "
+                  + " ".join(f"{w:6.2%}" for w in r["windows_short"][near]) + "; err/u "
+                  + " ".join(f"{w:.2f}" for w in r["windows_short_stated"][near]))
         print("  stream   " + " ".join(f"{w:7.2%}" for w in r["windows_stream"])
               + f"   (stream - batch: {r['stream_vs_batch_rms_in_stated_std']:.2f} of the "
               f"stated std RMS; stream {r['stream_s']:.2f} s)")
@@ -287,6 +330,8 @@ def report(res: dict) -> None:
             print(f"  seed {o['seed']}: worst window {o['worst']:.2%} (as claimed "
                   f"{o['worst_claimed']:.2%}, stream {o['worst_stream']:.2%}), observed / "
                   f"stated {o['observed_to_stated']:.2f}")
+    if "stepped_sines" not in res:
+        return
     c = res["stepped_sines"]
     print(f"stepped sines: tau {c['tau'] * 1e3:.4f} +/- {c['tau_std'] * 1e3:.4f} ms (true "
           f"{c['tau_true'] * 1e3:g} ms)")
@@ -295,6 +340,8 @@ def report(res: dict) -> None:
     for s in c["steps"]:
         print(f"  {s['frequency']:8.2f} {s['gain_error']:9.2%} {s['gain_std']:7.2%} "
               f"{s['lag_error_deg']:8.3f}° {s['lag_std_deg']:6.3f}°")
+    if "stepped_sines_seeds" not in res:
+        return
     print("stepped sines over seeds: the worst step of each (K(f), lag), tau, and the RMS of "
           "the steps' errors over their stated uncertainty")
     for seed, c in enumerate(res["stepped_sines_seeds"]):
@@ -320,9 +367,38 @@ def report(res: dict) -> None:
                   f"tau {c['tau'] * 1e3:.4f} +/- {c['tau_std'] * 1e3:.4f} ms")
 
 
+def _keep_splines(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice]:
+    """:func:`forcecal.model.broadband.choose_ratios` before the modal model: the splines'."""
+    ratios, std = broadband.smooth_ratios(frequencies, coords, cov)
+    return ratios, std, broadband.RatioChoice()
+
+
+_CHOOSE = broadband.choose_ratios
+
+
+def _take_modal(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
+                ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice]:
+    """The modal model's ratios wherever :func:`forcecal.model.modal.identify` finds one,
+    whatever the criterion says."""
+    ratios, std, choice = _CHOOSE(frequencies, coords, cov)
+    fit = broadband.identify(frequencies, coords, cov)
+    if fit is None:
+        return ratios, std, choice
+    return (*fit.ratios(frequencies), dataclasses.replace(choice, source="modal"))
+
+
 if __name__ == "__main__":
-    res = run()
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--only", choices=("sweep", "random"))
+    parser.add_argument("--ratios", choices=("auto", "spline", "modal"), default="auto")
+    args = parser.parse_args()
+    if args.ratios != "auto":                     # the build looks it up when it runs
+        broadband.choose_ratios = {"spline": _keep_splines, "modal": _take_modal}[args.ratios]
+    res = run(only=args.only)
     report(res)
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "any_drive.json").write_text(json.dumps(res, indent=1))
+    name = ("any_drive.json" if args.only is None and args.ratios == "auto"
+            else f"any_drive_{args.only or 'all'}_{args.ratios}.json")
+    (RESULTS / name).write_text(json.dumps(res, indent=1))
     sys.exit(0)

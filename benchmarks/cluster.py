@@ -38,6 +38,7 @@ import numpy as np
 from forcecal.cluster.jobs import calibrate_job as _calibrate_job
 from forcecal.cluster.jobs import calibrate_jobs as _calibrate_jobs
 from forcecal.cluster.pool import _client, run_jobs
+from forcecal.cluster.threads import limited
 from forcecal.io.manifest import write_manifest
 from forcecal.io.run_files import write_run_csv
 from forcecal.model.spatial import build_spatial_model
@@ -149,14 +150,14 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=8, help="campaigns (default 8)")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2, 4])
     args = ap.parse_args(argv)
-    os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
     with tempfile.TemporaryDirectory(prefix="forcecal-cluster-") as tmp:
         print(f"simulating {args.jobs} campaigns", flush=True)
         rig, model, manifests = campaigns(Path(tmp), args.jobs)
         print("serial", flush=True)
         t0 = time.perf_counter()
-        serial = run_jobs(_calibrate_job, _calibrate_jobs(rig, model, manifests, False),
-                          workers=1)
+        with limited():                      # as the command runs it: one BLAS thread
+            serial = run_jobs(_calibrate_job, _calibrate_jobs(rig, model, manifests, False),
+                              workers=1)
         t_serial = time.perf_counter() - t0
         reference = [r.calibration.params.tolist() for r in serial]
         rows = []

@@ -27,8 +27,10 @@ for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import platform  # noqa: E402
+import resource  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -51,6 +53,8 @@ from forcecal.simulate.export import write_simulation  # noqa: E402
 from forcecal.simulate.presets import NoiseSpec  # noqa: E402
 
 RESULTS = Path(__file__).resolve().parent / "results" / "speed.json"
+ONLY_RESULTS = RESULTS.with_name("speed_reconstruct.json")     # of ``--only reconstruct``
+STREAM_RESULTS = RESULTS.with_name("speed_stream.json")        # of ``--only stream``
 FS_STREAM = 51_200.0          # [Hz] streaming rate of the benchmark
 BLOCK = 256                   # samples per block
 BASE_SAMPLES = 131_072        # 2.56 s at 51.2 kS/s ...
@@ -60,6 +64,8 @@ TARGET_RATE = 1_000_000       # [samples/s] streaming target on one core
 LONG_TARGET_S = 20.0          # [s] wall time of `forcecal reconstruct` on 10 min at 10 kHz
 LONG_TARGET_MB = 1000.0       # [MB] its peak RSS (1 GB)
 KERNEL_TARGET = 10_000_000    # [samples/s] the compiled kernel alone, 5 channels, H = 6
+STREAM_TARGET_S = 3.0         # [s] `forcecal stream` of 60 s at 10.24 kHz to CSV (idle)
+STREAM_TARGET_MB = 200.0      # [MB] its peak RSS on 10 minutes, CSV out
 
 
 @dataclass
@@ -370,7 +376,8 @@ def long_run_file(ctx: Context, path: Path, seconds: float, fs: float = 10_000.0
 def time_cli_reconstruct(ctx: Context, minutes: list[float], csv_minutes: float = 0.0) -> dict:
     """``python -m forcecal reconstruct RIG SCAN RUN -o OUT --format hdf5`` end to end on runs of
     ``minutes`` at 10 kHz (:func:`long_run_file`: 7 channels, 4.8 MB per channel-minute):
-    wall time and the child's peak RSS (VmHWM), each run beside the targets for 10 minutes;
+    wall time, the child's CPU time (user + system) and its peak RSS (VmHWM), each run beside
+    the targets for 10 minutes;
     the time and peak extrapolated linearly to 10 minutes from the shorter runs (an upper
     estimate of the peak: reading dominates short runs and grows faster than the rest); with
     ``csv_minutes``, the same with the default CSV output."""
@@ -382,12 +389,16 @@ def time_cli_reconstruct(ctx: Context, minutes: list[float], csv_minutes: float 
     def measure(m: float, fmt: str) -> dict:
         path = long_run_file(ctx, work / f"run{m:g}min.h5", 60.0 * m)
         out = work / f"out-{fmt}-{m:g}"
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         code, err, wall, peak = _run_measured(["reconstruct", str(rig_path), str(scan_path),
                                                str(path), "-o", str(out), "--format", fmt])
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
         if code != 0:
             print(f"forcecal reconstruct, {m:g} min: failed (exit {code}): "
                   f"{err.strip().splitlines()[-1:] or ''}")
         row = {"minutes": m, "format": fmt, "ok": code == 0, "seconds_wall": wall,
+               "seconds_cpu": (after.ru_utime - before.ru_utime
+                               + after.ru_stime - before.ru_stime),
                "peak_rss_mb": peak, "input_mb": path.stat().st_size / 2**20,
                "samples": round(60.0 * m * 10_000.0)}
         path.unlink()
@@ -437,12 +448,42 @@ def _run_measured(argv: list[str]) -> tuple[int, str, float, float]:
     return done.returncode, done.stderr, wall, peak[-1] if peak else float("nan")
 
 
-def time_cli_stream(ctx: Context, long_minutes: float = 0.0) -> dict:
+def _run_cpu(argv: list[str], **env: str) -> dict:
+    """:func:`_run_measured` with the child's CPU seconds (user + system), under ``env`` added
+    to this process's environment."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    with _environ(**env):
+        code, err, wall, peak = _run_measured(argv)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime
+    if code != 0:
+        print(f"forcecal {' '.join(argv[:1])} ({Path(argv[-1]).name}): failed (exit {code}): "
+              f"{err.strip().splitlines()[-1:] or ''}")
+    return {"ok": code == 0, "seconds_wall": wall, "seconds_cpu": cpu, "peak_rss_mb": peak}
+
+
+@contextlib.contextmanager
+def _environ(**env: str):
+    """The environment with ``env`` set, as it was afterwards."""
+    saved = {k: os.environ.get(k) for k in env}
+    os.environ.update(env)
+    try:
+        yield
+    finally:
+        for k, v in saved.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+def time_cli_stream(ctx: Context, long_minutes: float = 0.0, cold: bool = False) -> dict:
     """``python -m forcecal stream RIG MODEL RUN -o OUT`` end to end on a 60 s, 10.24 kHz HDF5
-    run built from the simulated paper run's phasors: HDF5 and CSV output, wall time and the
-    child's peak RSS; with ``long_minutes``, the peak RSS of a run that long (memory flat in
-    the record's length). The first call of the command compiles (or loads) the compiled
-    code: one unmeasured call comes first."""
+    run built from the simulated paper run's phasors: HDF5 and CSV output, wall and CPU time
+    and the child's peak RSS; with ``long_minutes``, the same on a run that long, CSV and HDF5
+    out (memory flat in the record's length). The first call of the command loads the compiled
+    code (or compiles it): it comes first, apart (``first_call``); with ``cold``, a first call
+    with an empty Numba cache (it compiles and saves) and a second (it loads)."""
     probe = subprocess.run([sys.executable, "-m", "forcecal", "stream", "--help"],
                            capture_output=True, text=True, check=False)
     if probe.returncode != 0:
@@ -461,29 +502,66 @@ def time_cli_stream(ctx: Context, long_minutes: float = 0.0) -> dict:
 
     run_path = run_file(duration, "cli")
     model_path = ctx.model.save(work / "model.json")
-    rig_path = ctx.work / "paper" / "rig.toml"
-    base = ["stream", str(rig_path), str(model_path)]
-    _run_measured([*base, str(run_path), "-o", str(work / "warm.csv")])
-    result: dict = {"available": True, "samples": round(fs * duration), "duration_s": duration}
+    base = ["stream", str(ctx.work / "paper" / "rig.toml"), str(model_path)]
+    result: dict = {"available": True, "samples": round(fs * duration), "duration_s": duration,
+                    "target_seconds": STREAM_TARGET_S, "target_mb": STREAM_TARGET_MB,
+                    "first_call": _run_cpu([*base, str(run_path), "-o", str(work / "first.csv")])}
     for label, out in (("hdf5", work / "cli.forces.h5"), ("csv", work / "cli.forces.csv")):
-        code, err, wall, peak = _run_measured([*base, str(run_path), "-o", str(out)])
-        ok = code == 0 and out.is_file()
-        if not ok:
-            print(f"forcecal stream CLI ({label} output): failed (exit {code}): "
-                  f"{err.strip().splitlines()[-1:] or ''}")
-        result[label] = {"ok": ok, "seconds_wall": wall, "rate_wall": result["samples"] / wall,
-                         "realtime_factor": duration / wall, "peak_rss_mb": peak}
+        row = _run_cpu([*base, str(run_path), "-o", str(out)])
+        row["ok"] = row["ok"] and out.is_file()
+        result[label] = {**row, "rate_wall": result["samples"] / row["seconds_wall"],
+                         "realtime_factor": duration / row["seconds_wall"]}
     if long_minutes:
         long_path = run_file(60.0 * long_minutes, "long")
-        code, err, wall, peak = _run_measured([*base, str(long_path), "-o",
-                                               str(work / "long.forces.h5")])
-        result["long"] = {"ok": code == 0, "minutes": long_minutes, "seconds_wall": wall,
-                          "peak_rss_mb": peak, "input_mb": long_path.stat().st_size / 2**20}
+        for label, suffix in (("long", "csv"), ("long_hdf5", "h5")):
+            row = _run_cpu([*base, str(long_path), "-o", str(work / f"long.forces.{suffix}")])
+            result[label] = {**row, "minutes": long_minutes, "format": suffix,
+                             "input_mb": long_path.stat().st_size / 2**20}
         long_path.unlink()
+    if cold:
+        with tempfile.TemporaryDirectory(prefix="forcecal-numba-") as cache:
+            result["numba_cache"] = {
+                "first_call_empty_cache": _run_cpu([*base, str(run_path), "-o",
+                                                    str(work / "cold.csv")], NUMBA_CACHE_DIR=cache),
+                "second_call": _run_cpu([*base, str(run_path), "-o", str(work / "cached.csv")],
+                                        NUMBA_CACHE_DIR=cache)}
     # the headline figure: HDF5 in, HDF5 out
     result.update({k: result["hdf5"][k] for k in ("ok", "seconds_wall", "rate_wall",
                                                    "realtime_factor")})
     return result
+
+
+def cli_stream_rows(cli: dict) -> list[tuple[str, str]]:
+    """The rows of ``forcecal stream`` end to end (:func:`time_cli_stream`)."""
+    if not cli["available"]:
+        return [("forcecal stream CLI, 60 s at 10.24 kHz, HDF5 in", "n/a")]
+
+    def verdict(value: float, target: float, unit: str) -> str:
+        return f"{'meets' if value <= target else 'MISSES'} <= {target:g} {unit}"
+
+    h5, csv = cli["hdf5"], cli["csv"]
+    rows = [("forcecal stream CLI, 60 s at 10.24 kHz, HDF5 in",
+             f"HDF5 out {h5['seconds_wall']:.2f} s wall ({h5['seconds_cpu']:.2f} s CPU) = "
+             f"{h5['realtime_factor']:.0f}x real time (target 20x), peak "
+             f"{h5['peak_rss_mb']:.0f} MB; CSV out {csv['seconds_wall']:.2f} s wall "
+             f"({csv['seconds_cpu']:.2f} s CPU; "
+             f"{verdict(csv['seconds_wall'], cli['target_seconds'], 's')}), peak "
+             f"{csv['peak_rss_mb']:.0f} MB")]
+    for key in ("long", "long_hdf5"):
+        if cli.get(key):
+            r = cli[key]
+            rows.append((f"forcecal stream CLI, {r['minutes']:g} min at 10.24 kHz, "
+                         f"{r['format'].upper().replace('H5', 'HDF5')} out",
+                         f"{r['seconds_wall']:.1f} s wall ({r['seconds_cpu']:.1f} s CPU), peak "
+                         f"{r['peak_rss_mb']:.1f} MB (input {r['input_mb']:.0f} MB; "
+                         f"{verdict(r['peak_rss_mb'], cli['target_mb'], 'MB')})"))
+    cache = cli.get("numba_cache")
+    if cache:
+        a, b = cache["first_call_empty_cache"], cache["second_call"]
+        rows.append(("forcecal stream CLI, 60 s CSV: empty Numba cache, then cached",
+                     f"{a['seconds_wall']:.1f} s wall, peak {a['peak_rss_mb']:.0f} MB (compiles);"
+                     f" then {b['seconds_wall']:.1f} s, peak {b['peak_rss_mb']:.0f} MB"))
+    return rows
 
 
 # ------------------------------------------------------------------------------ report
@@ -492,7 +570,17 @@ def time_cli_stream(ctx: Context, long_minutes: float = 0.0) -> dict:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="shorter stream, fewer sizes")
+    parser.add_argument("--only", choices=["reconstruct", "stream"],
+                        help="one row alone: 'reconstruct' is `forcecal reconstruct` on 10 min "
+                             f"at 10 kHz, HDF5 and CSV out (written to {ONLY_RESULTS.name}); "
+                             "'stream' is `forcecal stream` on 60 s and 10 min at 10.24 kHz, "
+                             "CSV and HDF5 out, and with an empty Numba cache then a full one "
+                             f"(written to {STREAM_RESULTS.name})")
     args = parser.parse_args(argv)
+    if args.only == "reconstruct":
+        return only_reconstruct()
+    if args.only == "stream":
+        return only_stream()
     quick = args.quick
     res: dict = {"machine": {"python": platform.python_version(), "numpy": np.__version__,
                              "cpu": platform.processor() or platform.machine(),
@@ -557,6 +645,51 @@ def main(argv=None) -> int:
     return 0
 
 
+def only_reconstruct(minutes: float = 10.0) -> int:
+    """``--only reconstruct``: :func:`time_cli_reconstruct` on ``minutes`` at 10 kHz, HDF5 and
+    CSV out, written to :data:`ONLY_RESULTS` (the full run's results stay as they are)."""
+    res: dict = {"machine": {"python": platform.python_version(), "numpy": np.__version__,
+                             "cpu": platform.processor() or platform.machine(),
+                             "cores": os.cpu_count(),
+                             "load_average": os.getloadavg() if hasattr(os, "getloadavg")
+                             else None}}
+    with tempfile.TemporaryDirectory(prefix="forcecal-bench-") as tmp:
+        say("simulating the paper preset")
+        ctx = setup(Path(tmp))
+        say(f"forcecal reconstruct on {minutes:g} min, HDF5 and CSV out")
+        res["cli_reconstruct"] = time_cli_reconstruct(ctx, [minutes], csv_minutes=minutes)
+    ONLY_RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    ONLY_RESULTS.write_text(json.dumps(res, indent=2, default=float) + "\n")
+    rows = long_rows(res)
+    width = max(len(r[0]) for r in rows)
+    print("\n".join(f"{name:<{width}}  {value}" for name, value in rows))
+    print(f"\nwritten: {ONLY_RESULTS}")
+    return 0
+
+
+def only_stream(minutes: float = 10.0) -> int:
+    """``--only stream``: :func:`time_cli_stream` with a run of ``minutes`` and the Numba cache
+    empty then full, written to :data:`STREAM_RESULTS` (the full run's results stay as they
+    are)."""
+    res: dict = {"machine": {"python": platform.python_version(), "numpy": np.__version__,
+                             "cpu": platform.processor() or platform.machine(),
+                             "cores": os.cpu_count(),
+                             "load_average": os.getloadavg() if hasattr(os, "getloadavg")
+                             else None}}
+    with tempfile.TemporaryDirectory(prefix="forcecal-bench-") as tmp:
+        say("simulating the paper preset")
+        ctx = setup(Path(tmp))
+        say(f"forcecal stream on 60 s and {minutes:g} min, CSV and HDF5 out")
+        res["cli_stream"] = time_cli_stream(ctx, minutes, cold=True)
+    STREAM_RESULTS.parent.mkdir(parents=True, exist_ok=True)
+    STREAM_RESULTS.write_text(json.dumps(res, indent=2, default=float) + "\n")
+    rows = cli_stream_rows(res["cli_stream"])
+    width = max(len(r[0]) for r in rows)
+    print("\n".join(f"{name:<{width}}  {value}" for name, value in rows))
+    print(f"\nwritten: {STREAM_RESULTS}")
+    return 0
+
+
 def say(msg: str) -> None:
     print(f"... {msg}", file=sys.stderr, flush=True)
 
@@ -618,20 +751,9 @@ def table(res: dict) -> str:
             f"{n}: {t:.2f} s" for n, t in zip(ss["samples"], ss["seconds_cpu_by_samples"],
                                               strict=True))
          + f"  -> order {ss['order_in_samples']:.2f}"),
-        ("forcecal stream CLI, 60 s at 10.24 kHz, HDF5 in",
-         "n/a" if not cli["available"] else
-         f"HDF5 out {cli['hdf5']['seconds_wall']:.2f} s wall = "
-         f"{cli['hdf5']['realtime_factor']:.0f}x real time (target 20x), peak "
-         f"{cli['hdf5']['peak_rss_mb']:.0f} MB; CSV out {cli['csv']['seconds_wall']:.2f} s = "
-         f"{cli['csv']['realtime_factor']:.0f}x (target 3 s), peak "
-         f"{cli['csv']['peak_rss_mb']:.0f} MB"),
     ]
+    rows += cli_stream_rows(cli)
     rows += long_rows(res)
-    if cli.get("long"):
-        rows.append((f"forcecal stream CLI, {cli['long']['minutes']:g} min at 10.24 kHz, HDF5",
-                     f"{cli['long']['seconds_wall']:.1f} s wall, peak "
-                     f"{cli['long']['peak_rss_mb']:.0f} MB (input "
-                     f"{cli['long']['input_mb']:.0f} MB; target 200 MB)"))
     width = max(len(r[0]) for r in rows)
     return "\n".join(f"{name:<{width}}  {value}" for name, value in rows)
 
@@ -656,8 +778,9 @@ def long_rows(res: dict) -> list[tuple[str, str]]:
 
     for r in rec["runs"]:
         label = f"batch reconstruct, {r['minutes']:g} min at 10 kHz"
-        value = (f"HDF5 out: {r['seconds_wall']:.1f} s wall, peak {r['peak_rss_mb']:.0f} MB "
-                 f"(input {r['input_mb']:.0f} MB)" if r["ok"] else "failed")
+        value = (f"HDF5 out: {r['seconds_wall']:.1f} s wall{_cpu(r)}, peak "
+                 f"{r['peak_rss_mb']:.0f} MB (input {r['input_mb']:.0f} MB)" if r["ok"]
+                 else "failed")
         if r["minutes"] == 10.0 and r["ok"]:
             value += f"; {verdict(r['seconds_wall'], r['peak_rss_mb'])}"
         rows.append((label, value))
@@ -670,9 +793,17 @@ def long_rows(res: dict) -> list[tuple[str, str]]:
     csv = rec.get("csv")
     if csv:
         rows.append((f"batch reconstruct, {csv['minutes']:g} min, CSV out",
-                     f"{csv['seconds_wall']:.1f} s wall, peak {csv['peak_rss_mb']:.0f} MB"
+                     f"{csv['seconds_wall']:.1f} s wall{_cpu(csv)}, peak "
+                     f"{csv['peak_rss_mb']:.0f} MB"
+                     + (f"; {'meets' if csv['peak_rss_mb'] <= rec['target_mb'] else 'MISSES'}"
+                        f" <= {rec['target_mb'] / 1000:g} GB" if csv["minutes"] == 10.0 else "")
                      if csv["ok"] else "failed"))
     return rows
+
+
+def _cpu(row: dict) -> str:
+    """`` (S s CPU)`` of a reconstruct row that has its CPU time (user + system)."""
+    return f" ({row['seconds_cpu']:.1f} s CPU)" if "seconds_cpu" in row else ""
 
 
 if __name__ == "__main__":

@@ -2,7 +2,8 @@
 
 Build with ``make docs`` (HTML into ``docs/_build/html``). Everything builds offline: no
 intersphinx, no notebook execution. The tutorial notebook is shown as a page by a small parser
-below (its Markdown cells as text, its code cells as code, no outputs): myst-nb is not needed.
+below: its Markdown cells as text, its code cells as code, each followed by the outputs the
+notebook stores (``make tutorial`` executes it): myst-nb is not needed.
 """
 
 from __future__ import annotations
@@ -59,17 +60,63 @@ html_theme_options = {"description": "forces on a vibrating structure; actuator 
 
 def notebook_markdown(text: str) -> str:
     """A notebook (nbformat 4 JSON) as MyST Markdown: Markdown cells as they are, code cells as
-    ``python`` code blocks; outputs are not shown (the notebook stores none)."""
+    ``python`` code blocks, each followed by its stored outputs (:func:`output_markdown`)."""
     notebook = json.loads(text)
     parts = []
     for cell in notebook.get("cells", []):
-        source = cell.get("source", "")
-        source = "".join(source) if isinstance(source, list) else source
+        source = _text(cell.get("source", ""))
         if cell.get("cell_type") == "markdown":
             parts.append(source)
         elif cell.get("cell_type") == "code":
-            parts.append(f"```python\n{source}\n```")
-    return "\n\n".join(parts) + "\n"
+            parts.append(_fenced("python", source))
+            shown = (output_markdown(output) for output in cell.get("outputs", []))
+            parts.extend(_fenced("{container} nboutput", s) for s in shown if s)
+    return "\n\n".join([*parts, _fenced("{raw} html", _OUTPUT_STYLE)]) + "\n"
+
+
+_OUTPUT_STYLE = ("<style>div.nboutput div.highlight {background: none; "
+                 "border-left: 3px solid #ccc}</style>")
+"""An output's text set apart from the code above it (the theme draws both alike)."""
+
+
+_RICHEST = ("image/png", "text/html", "text/plain")
+"""The MIME types of a displayed value shown, the first one the output holds."""
+_ANSI = re.compile(r"\x1b\[[0-9;]*[A-Za-z]")
+
+
+def output_markdown(output: dict) -> str:
+    """One stored output as MyST Markdown: printed text (stdout, stderr) and a value's
+    ``text/plain`` as literal blocks, an ``image/png`` as an image (a data URI: the page carries
+    it), a ``text/html`` (a DataFrame, a result's table) as raw HTML, an error as its traceback;
+    of a value's several MIME types the richest (:data:`_RICHEST`). Nothing for other types."""
+    kind = output.get("output_type")
+    if kind == "stream":
+        return _fenced("text", _text(output.get("text", "")))
+    if kind == "error":
+        return _fenced("text", _ANSI.sub("", "\n".join(output.get("traceback", []))))
+    data = output.get("data", {})
+    mime = next((m for m in _RICHEST if m in data), None)
+    if mime == "image/png":
+        png = "".join(_text(data[mime]).split())
+        return f"```{{image}} data:image/png;base64,{png}\n:alt: figure\n```"
+    if mime == "text/html":
+        return _fenced("{raw} html", _text(data[mime]))
+    if mime == "text/plain":
+        return _fenced("text", _text(data[mime]))
+    return ""
+
+
+def _text(value: str | list[str]) -> str:
+    """A notebook's multi-line string: stored whole or as a list of lines."""
+    return "".join(value) if isinstance(value, list) else value
+
+
+def _fenced(info: str, body: str) -> str:
+    """``body`` in a backtick fence longer than any run of backticks in it."""
+    longest = max((len(run) for run in re.findall(r"`+", body)), default=0)
+    fence = "`" * max(3, longest + 1)
+    body = body.rstrip("\n")
+    return f"{fence}{info}\n{body}\n{fence}"
 
 
 class NotebookParser(MystParser):

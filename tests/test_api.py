@@ -19,7 +19,7 @@ from forcecal.model import spatial
 STEPS = ("load_rig", "read_scan", "read_run", "build_spatial_model", "load_model",
          "reconstruct", "calibrate", "write_calibration", "load_calibration", "predict",
          "predict_flux", "stream")
-MAX_REPR = 400
+MAX_REPR = 300
 """A repr longer than this is a dump, not a summary."""
 
 
@@ -122,13 +122,19 @@ def test_force_estimate_prints_a_summary(chain):
     assert f"{abs(est.static[0, 1]):.4g}" in html
 
 
-def test_force_estimate_to_dataframe(chain):
+def test_force_estimate_to_dataframe(chain, tmp_path):
+    from forcecal.io.results import write_estimate
+
     est = chain.est
     df = est.to_dataframe()
     names = list(est.force_names)
+    series, _ = write_estimate(est, tmp_path)                 # what `forcecal reconstruct` writes
+    header = series.read_text(encoding="utf-8").split("\n", 1)[0].split(",")
+    assert [df.index.name, *df.columns] == header
     assert list(df.columns) == [*names, "total", *(f"{n}_static" for n in names),
-                                "total_static"]
-    assert df.index.name == "time"
+                                "total_static", *(f"{n}_std" for n in names), "total_std"]
+    for name, values in est.columns().items():
+        np.testing.assert_array_equal(df[name].to_numpy(), values, err_msg=name)
     np.testing.assert_array_equal(df.index.to_numpy(), est.time)
     np.testing.assert_array_equal(df[names].to_numpy().T, est.series)
     np.testing.assert_array_equal(df[[f"{n}_static" for n in names]].to_numpy().T,
@@ -143,15 +149,20 @@ def test_force_estimate_harmonics_frame(chain):
     frame = est.harmonics_frame()
     assert frame.index.names == ["force", "harmonic"]
     assert len(frame) == est.force.size
+    kept = est.kept.astype(bool)
+    assert kept.any() and not kept.all()           # the paper run drops its upper harmonics
+    estimated = ["amplitude", "phase", "std", "static_amplitude"]
     for k, name in enumerate(est.force_names):
         rows = frame.loc[name]
         np.testing.assert_array_equal(rows.index.to_numpy(), est.harmonics)
-        np.testing.assert_array_equal(rows["amplitude"].to_numpy(), np.abs(est.force[k]))
-        np.testing.assert_array_equal(rows["phase"].to_numpy(), np.angle(est.force[k]))
-        np.testing.assert_array_equal(rows["std"].to_numpy(), est.force_std[k])
-        np.testing.assert_array_equal(rows["static_amplitude"].to_numpy(),
-                                      np.abs(est.static[k]))
+        for column, values in (("amplitude", np.abs(est.force[k])),
+                               ("phase", np.angle(est.force[k])), ("std", est.force_std[k]),
+                               ("static_amplitude", np.abs(est.static[k]))):
+            np.testing.assert_array_equal(rows[column].to_numpy()[kept], values[kept])
         np.testing.assert_array_equal(rows["with_inertia"].to_numpy(), est.with_inertia)
+        np.testing.assert_array_equal(rows["kept"].to_numpy(), kept)
+        # a harmonic the data do not support has no estimate: NaN, not amplitude 0 at phase pi
+        assert np.isnan(rows[estimated].to_numpy()[~kept]).all(), rows[~kept]
 
 
 def test_spatial_model_prints_a_summary(chain):
@@ -195,3 +206,27 @@ def test_predict_at_the_top_level_is_the_actuator_s(chain):
     own = predict(chain.cal, current=current, gaps=gap)
     np.testing.assert_array_equal(top.total, own.total)
     assert forcecal.predict is predict
+
+
+def test_predict_gives_floats_for_scalars_and_arrays_for_arrays():
+    from forcecal.actuator import Calibration
+
+    cal = Calibration(law="k_i2_s2", params=np.array([9e-6]), covariance=np.array([[1e-18]]),
+                      n_poles=2, current_range=(0.8, 1.2), gap_range=(0.0008, 0.001))
+    one = forcecal.predict(cal, 0.9, 0.0009)
+    assert isinstance(one.total, float) and isinstance(one.std, float)
+    assert one.per_pole.shape == (2,)
+    assert one.total == pytest.approx(2 * 9e-6 * 0.9**2 / 0.0009**2, rel=1e-12)
+    per_pole = forcecal.predict(cal, np.float64(0.9), [0.0009, 0.00095])   # a gap per pole
+    assert isinstance(per_pole.total, float) and per_pole.per_pole.shape == (2,)
+    for current, gaps, shape in (([0.9], 0.0009, (1,)), ([0.85, 0.9, 0.95], 0.0009, (3,)),
+                                 (0.9, [[0.0009, 0.0009], [0.00095, 0.00095]], (2,))):
+        many = forcecal.predict(cal, current, gaps)
+        assert isinstance(many.total, np.ndarray) and many.total.shape == shape
+        assert many.std.shape == shape and many.per_pole.shape == (*shape, 2)
+    assert forcecal.predict(cal, [0.9], 0.0009).total[0] == one.total
+    flux_cal = Calibration(law="flux", params=np.array([4e-4]), covariance=np.array([[1e-14]]),
+                           n_poles=2, current_range=(0.8, 1.2), gap_range=(0.0008, 0.001),
+                           flux_range=(1e-5, 1e-4))
+    assert isinstance(forcecal.predict_flux(flux_cal, 5e-5).total, float)
+    assert forcecal.predict_flux(flux_cal, [5e-5]).total.shape == (1,)

@@ -16,9 +16,7 @@ The public names are re-exported here; internals live in the stage modules. The 
 estimates under a steady drive, forces sample by sample under any drive.
 """
 
-from __future__ import annotations
-
-from typing import TYPE_CHECKING, Any
+import typing as _typing
 
 from ._version import __version__
 from .errors import (
@@ -33,7 +31,7 @@ from .errors import (
 from .records import Run, Scan, ScanFRF, ScanSpectra
 from .rig import Rig, load_rig
 
-if TYPE_CHECKING:
+if _typing.TYPE_CHECKING:
     from .api import (
         build_spatial_model,
         calibrate,
@@ -84,7 +82,7 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> Any:
+def __getattr__(name: str) -> object:
     """The method's steps of :mod:`forcecal.api`, imported on first use."""
     if name in _LAZY:
         from . import api
@@ -96,4 +94,6 @@ def __getattr__(name: str) -> Any:
 
 
 def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(__all__))
+    """The public names (``__all__``) and the module's own dunder attributes: what a user
+    completes ``forcecal.`` to. The subpackages are imported by name (``forcecal.actuator``)."""
+    return sorted({*__all__, *(n for n in globals() if n.startswith("__"))})

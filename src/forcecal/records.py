@@ -53,6 +53,22 @@ def _check_quantity(quantity: str, where: str) -> None:
                              "displacement")
 
 
+_MOST_NAMES = 8
+"""Channel names a record's repr lists before it counts the rest."""
+
+
+def _names(names: Any) -> str:
+    """Names joined by commas, the first :data:`_MOST_NAMES` of them and a count of the rest."""
+    names = [str(n) for n in names]
+    more = len(names) - _MOST_NAMES
+    return ", ".join(names[:_MOST_NAMES]) + (f", ... ({more} more)" if more > 0 else "")
+
+
+def _lines(frequencies: np.ndarray) -> str:
+    """A spectrum's lines in a few words: count, span [Hz]."""
+    return f"{frequencies.size} lines {frequencies[0]:g}-{frequencies[-1]:g} Hz"
+
+
 @dataclass(frozen=True)
 class Scan(_ScanPoints):
     """A sequential SLDV scan: one response record and one reference record per point.
@@ -94,11 +110,15 @@ class Scan(_ScanPoints):
             )
         _check_quantity(self.quantity, f"scan '{self.source}'")
 
-
     @property
     def n_samples(self) -> int:
         """Number of samples per record."""
         return self.response.shape[1]
+
+    def __repr__(self) -> str:
+        """One line: the source, points by samples, the sampling rate, a record's duration."""
+        return (f"Scan('{self.source}', {self.n_points} points x {self.n_samples} samples at "
+                f"{self.fs:g} Hz ({self.n_samples / self.fs:g} s a record), {self.quantity})")
 
 
 @dataclass(frozen=True)
@@ -163,6 +183,10 @@ class ScanSpectra(_ScanPoints):
             raise DimensionError(f"{where}: amplitude convention '{self.amplitude}' is neither "
                                  "'peak' nor 'rms'")
 
+    def __repr__(self) -> str:
+        """One line: the source, points by lines, the lines' span, the conventions."""
+        return (f"ScanSpectra('{self.source}', {self.n_points} points x "
+                f"{_lines(self.frequencies)}, {self.quantity}, {self.amplitude})")
 
     @property
     def n_lines(self) -> int:
@@ -237,6 +261,10 @@ class ScanFRF(_ScanPoints):
         object.__setattr__(self, "coherence", np.minimum(coh, 1.0))
         _check_quantity(self.quantity, where)
 
+    def __repr__(self) -> str:
+        """One line: the source, points by lines, the lines' span, the quantity."""
+        return (f"ScanFRF('{self.source}', {self.n_points} points x {_lines(self.frequencies)}, "
+                f"{self.quantity} per A)")
 
 
 @dataclass(frozen=True)
@@ -300,6 +328,12 @@ class Run:
     def n_samples(self) -> int:
         """Number of samples per channel."""
         return len(next(iter(self.channels.values())))
+
+    def __repr__(self) -> str:
+        """One line: the name, the channels, samples, sampling rate, duration and start."""
+        return (f"Run('{self.name}', {len(self.channels)} channels ({_names(self.channels)}), "
+                f"{self.n_samples} samples at {self.fs:g} Hz ({self.n_samples / self.fs:g} s "
+                f"from t0 = {self.t0:g} s))")
 
     @property
     def time(self) -> np.ndarray:

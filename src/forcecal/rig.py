@@ -172,6 +172,12 @@ class TypeB:
                 "defaults used: ") + text
 
 
+def _listed(names: Sequence[str], most: int = 6) -> str:
+    """Names joined by commas, the first ``most`` of them and a count of the rest."""
+    more = len(names) - most
+    return ", ".join(names[:most]) + (f", ... ({more} more)" if more > 0 else "")
+
+
 @dataclass(frozen=True)
 class Rig:
     """A complete rig description (INTERFACES.md section 1)."""
@@ -209,6 +215,16 @@ class Rig:
     """``acquisition.drive``: "steady" (periodic at one fundamental, the harmonic path) or
     "any" (swept, multi-tone or random: forces sample by sample,
     :mod:`forcecal.forces.transient`)."""
+
+    def __repr__(self) -> str:
+        """One line: the name, the structure, the gauges, forces and sensors, the drive."""
+        drive = (f"{self.drive} drive" + (f" at {self.frequency:g} Hz" if self.frequency else "")
+                 + (f", band {self.band[0]:g}-{self.band[1]:g} Hz" if self.band else ""))
+        points = "; ".join(f"{len(names)} {what} ({_listed(names)})" for what, names in (
+            ("gauges", self.gauge_names), ("forces", self.force_names),
+            ("sensors", self.sensor_names)))
+        return (f"Rig('{self.name}' from '{self.source}': {type(self.structure).__name__}; "
+                f"{points}; {drive})")
 
     @property
     def flux_channels(self) -> list[str]:

@@ -1,8 +1,9 @@
-"""Tests of the actuator's law over frequency (``forcecal.actuator.frequency``, ``frequency_fit``)
-and of predictions at a frequency.
+"""Tests of the actuator's law over frequency (``forcecal.actuator.frequency``, ``frequency_fit``,
+``frequency_models``, ``frequency_selection``) and of predictions at a frequency.
 
 The stepped-sine campaigns are synthesised here from the exact law, independently of the
-fit's code: the magnetising current's phasors ``I_n / (1 + j n w tau)`` summed in closed form,
+fit's code: the magnetising current's phasors ``I_n / (1 + j n w tau)`` (a solid core's:
+``I_n tanh(sqrt(j n w tau)) / sqrt(j n w tau)``) summed in closed form,
 ``f = K i_m^2 sum_p 1/(s_p + s_fe)^2`` at 64 instants over one period, three static gaps, seven
 frequencies log-spaced from 10 to 100 Hz (each run's fundamental a little off its step), a
 gap at each of two poles that closes as the force rises (amplitude 2-3 %, the structure's
@@ -14,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import typing
 import warnings
 from types import SimpleNamespace
 
@@ -30,9 +32,11 @@ from forcecal.actuator import (
     ideal_k,
     predict,
 )
+from forcecal.actuator.frequency_models import FREQUENCY_MODELS
 from forcecal.campaign import CalibrationSamples
 from forcecal.campaign.noise import CoordinateNoise, RunNoise
 from forcecal.errors import DimensionError, FitError, InputError
+from forcecal.schema.calibration_file import FrequencyModelName
 
 K = ideal_k(400, 4.0e-4)  # [N m^2/A^2]
 SFE = 0.2e-3  # [m]
@@ -45,6 +49,20 @@ CURRENT = np.array([1.0, 0.6 * np.exp(0.4j), 0.05 * np.exp(0.3j)])  # [A] phasor
 SIGMA = 0.15  # [N] standard uncertainty of Re and Im of every force phasor (about 0.5 %)
 WITHIN = 4.0  # a single fit: errors within this many stated standard uncertainties
 N_SEEDS = 50
+FIRST = ("first-order",)  # the model fitted alone where the truth's model is not in question
+TAU_D = 5.0e-3  # [s] a solid core's diffusion time: 6 to 39 degrees of lag over 10-100 Hz
+
+
+def first_order(z):
+    """``1 / (1 + z)`` at ``z = s tau``."""
+    return 1 / (1 + np.asarray(z))
+
+
+def slab(z):
+    """``tanh(sqrt(z)) / sqrt(z)`` at ``z = s tau``, 1 at ``z = 0``: a solid core."""
+    z = np.asarray(z, dtype=complex)
+    r = np.sqrt(np.where(z == 0, 1.0, z))
+    return np.where(z == 0, 1.0, np.tanh(r) / r)
 
 
 def gain_and_lag(f, tau=TAU):
@@ -53,21 +71,23 @@ def gain_and_lag(f, tau=TAU):
     return 1 / np.sqrt(1 + x**2), np.degrees(np.arctan(x))
 
 
-def run(s0, f0, tau=TAU, n=N):
+def run(s0, f0, tau=TAU, n=N, response=first_order):
     """Current, gaps (n, 2) and noise-free total force of one steady run over one period."""
     theta = 2 * np.pi * np.arange(n) / n
     w = 2 * np.pi * f0
     harm = np.arange(CURRENT.size)
     e = np.exp(1j * np.outer(harm, theta))
     i = (CURRENT @ e).real
-    i_m = ((CURRENT / (1 + 1j * harm * w * tau)) @ e).real
-    phase = theta + 0.4 - np.arctan(w * tau) - np.arctan2(f0, 60.0)  # the gap follows the force
+    i_m = ((CURRENT * response(1j * harm * w * tau)) @ e).real
+    lag = np.angle(response(1j * w * tau))
+    phase = theta + 0.4 + lag - np.arctan2(f0, 60.0)  # the gap follows the force
     gaps = np.stack([s0 * (1 - a * np.cos(phase - 0.3 * p)) for p, a in enumerate((0.03, 0.02))],
                     axis=1)
     return i, gaps, K * i_m**2 * np.sum((gaps + SFE) ** -2.0, axis=1)
 
 
-def records(seed, sigma=SIGMA, tau=TAU, freqs=FREQS, gaps=GAPS, with_std=True):
+def records(seed, sigma=SIGMA, tau=TAU, freqs=FREQS, gaps=GAPS, with_std=True,
+            response=first_order):
     """A noisy stepped-sine campaign: one record per (gap, frequency)."""
     rng = np.random.default_rng(seed)
     theta = 2 * np.pi * np.arange(N) / N
@@ -75,7 +95,7 @@ def records(seed, sigma=SIGMA, tau=TAU, freqs=FREQS, gaps=GAPS, with_std=True):
     for s0 in gaps:
         for f in freqs:
             f0 = f * (1 + 0.002 * rng.uniform(-1, 1))
-            i, g, force = run(s0, f0, tau)
+            i, g, force = run(s0, f0, tau, response=response)
             phasors = np.fft.rfft(force)[: H + 1] / N
             phasors[1:] *= 2
             phasors += sigma * rng.standard_normal(H + 1)
@@ -91,6 +111,12 @@ def records(seed, sigma=SIGMA, tau=TAU, freqs=FREQS, gaps=GAPS, with_std=True):
 @pytest.fixture(scope="module")
 def law():
     return fit_frequency_law(records(7))
+
+
+@pytest.fixture(scope="module")
+def solid_law():
+    """The law of a solid core's campaign, its model chosen."""
+    return fit_frequency_law(records(11, tau=TAU_D, response=slab))
 
 
 def calibration(frequency_law=None):
@@ -114,6 +140,75 @@ def test_law_reproduces_the_synthesised_force_exactly():
     # without the lag the force would differ: the check can fail
     i, g, force = run(1.0e-3, 100.0)
     assert np.max(np.abs(exact.periodic_force(i, g, 1.0) - force)) > 1e-2 * np.ptp(force)
+
+
+def test_half_order_response_is_the_slab_closed_form():
+    """The half-order model against ``tanh(sqrt(z)) / sqrt(z)`` (its series below |z| = 0.01,
+    the closed form above), its tau-derivative against central differences, and its limits:
+    first order with tau / 3 at low frequency, a lag of 45 degrees at high frequency."""
+    half = FREQUENCY_MODELS["half-order"]
+    w = 2 * np.pi * np.array([0.0, 1e-3, 0.3, 1.0, 10.0, 100.0, 1e3, 1e6])
+    h, dh = half.response(w, TAU_D)
+    np.testing.assert_allclose(h, slab(1j * w * TAU_D), rtol=1e-12)
+    e = 1e-6 * TAU_D
+    fd = (half.response(w, TAU_D + e)[0] - half.response(w, TAU_D - e)[0]) / (2 * e)
+    np.testing.assert_allclose(dh, fd, rtol=1e-6, atol=1e-7)
+    low = 2 * np.pi * 0.3
+    np.testing.assert_allclose(h[2], 1 / (1 + 1j * low * TAU_D / 3), rtol=1e-5)  # z^2 / 45
+    assert abs(np.degrees(-np.angle(h[-1])) - 45.0) < 0.01
+    assert abs(h[2] - 1 / (1 + 1j * low * TAU_D)) > 1e-3     # not first order with tau itself
+
+
+def test_a_solid_core_law_reproduces_its_force():
+    exact = FrequencyLaw(k=K, s_fe=SFE, tau=TAU_D, covariance=np.zeros((3, 3)), n_poles=2,
+                         frequency_range=(10.0, 100.0), current_range=(0.0, 2.0),
+                         gap_range=(0.5e-3, 1.5e-3), model="half-order")
+    for f0 in (10.0, 100.0, 400.0):
+        i, g, force = run(1.0e-3, f0, TAU_D, response=slab)
+        np.testing.assert_allclose(exact.periodic_force(i, g, f0), force, rtol=1e-12)
+        h = slab(2j * np.pi * f0 * TAU_D)
+        np.testing.assert_allclose(exact.gain(f0)[0], abs(h), rtol=1e-12)
+        np.testing.assert_allclose(exact.k_at(f0)[0], K * abs(h), rtol=1e-12)
+        np.testing.assert_allclose(exact.lag_deg(f0)[0], -np.degrees(np.angle(h)), rtol=1e-12)
+        total, per_pole, _ = exact.forces(np.array([0.8]), np.array([[1e-3, 1.1e-3]]),
+                                          np.array([f0]))
+        np.testing.assert_allclose(per_pole, K * abs(h) * 0.64 / (np.array(
+            [[1e-3, 1.1e-3]]) + SFE) ** 2, rtol=1e-12)
+        np.testing.assert_allclose(total, per_pole.sum(axis=1), rtol=1e-15)
+    first = dataclasses.replace(exact, model="first-order")
+    i, g, force = run(1.0e-3, 100.0, TAU_D, response=slab)
+    assert np.max(np.abs(first.periodic_force(i, g, 100.0) - force)) > 1e-2 * np.ptp(force)
+    with pytest.raises(InputError, match="frequency model 'quarter-order' is unknown"):
+        dataclasses.replace(exact, model="quarter-order")
+
+
+def test_the_model_is_chosen_by_held_out_steps(law, solid_law):
+    """A first-order core's campaign keeps first order, a solid core's takes half order; each
+    recovers its truth, the candidates' scores kept."""
+    assert law.model == "first-order" and solid_law.model == "half-order"
+    for fit, truth_model in ((law, "first-order"), (solid_law, "half-order")):
+        rows = {c["model"]: c for c in fit.candidates}
+        assert set(rows) == {"first-order", "half-order"} and truth_model in fit.reason
+        other = next(n for n in rows if n != truth_model)
+        assert rows[other]["held_out"] > 1.1 * rows[truth_model]["held_out"]
+        assert rows[other]["bic"] > rows[truth_model]["bic"] + 10
+        assert len(rows[truth_model]["held_out_steps"]) == FREQS.size
+    z = (solid_law.params - np.array([K, SFE, TAU_D])) / solid_law.stderr
+    assert np.all(np.abs(z) < WITHIN), z
+    for step in solid_law.steps:
+        h = slab(2j * np.pi * step.frequency * TAU_D)
+        assert abs(step.gain - abs(h)) < WITHIN * step.gain_std, step
+        assert abs(step.lag_deg + np.degrees(np.angle(h))) < WITHIN * step.lag_deg_std, step
+    assert solid_law.steps[-1].lag_deg > 35                   # half order: towards 45 degrees
+    two = fit_frequency_law(records(5, freqs=(20.0, 80.0)))   # no step can be left out
+    assert "lowest BIC" in two.reason
+    assert all(c["held_out"] is None and c["held_out_steps"] == [] for c in two.candidates)
+    with pytest.raises(InputError, match="frequency model 'quarter-order' is unknown"):
+        fit_frequency_law(records(1), models=("quarter-order",))
+
+
+def test_the_file_names_the_models_it_knows():
+    assert typing.get_args(FrequencyModelName) == tuple(FREQUENCY_MODELS)
 
 
 def test_recovers_k_sfe_and_tau_within_their_stated_uncertainty(law):
@@ -148,7 +243,7 @@ def test_stated_uncertainty_covers_the_truth_over_seeds():
     the same checks fail with the covariance halved or doubled."""
     d2, z_tau, z_lag = [], [], []
     for seed in range(N_SEEDS):
-        fit = fit_frequency_law(records(100 + seed))
+        fit = fit_frequency_law(records(100 + seed), models=FIRST)
         err = fit.params - TRUTH
         d2.append(float(err @ np.linalg.solve(fit.covariance, err)))
         z_tau.append(err[2] / fit.stderr[2])
@@ -199,8 +294,9 @@ def test_errors_the_runs_of_a_step_share_are_in_its_uncertainty():
     z_with, z_without, z_tau = [], [], []
     for seed in range(30):
         recs = _shared_campaign(200 + seed, 1e-2)
-        for label, fit in (("with", fit_frequency_law(recs)), ("without", fit_frequency_law(
-                [dataclasses.replace(r, shared=()) for r in recs]))):
+        for label, fit in (("with", fit_frequency_law(recs, models=FIRST)), (
+                "without", fit_frequency_law([dataclasses.replace(r, shared=()) for r in recs],
+                                             models=FIRST))):
             z = [(s.gain - gain_and_lag(s.frequency)[0]) / s.gain_std for s in fit.steps]
             (z_with if label == "with" else z_without).extend(z)
             if label == "with":
@@ -213,14 +309,14 @@ def test_errors_the_runs_of_a_step_share_are_in_its_uncertainty():
 
 
 def test_without_force_uncertainty_the_scatter_sets_the_level(law):
-    bare = fit_frequency_law(records(7, with_std=False))
+    bare = fit_frequency_law(records(7, with_std=False), models=FIRST)
     assert bare.covariance_scale == pytest.approx(SIGMA**2, rel=0.25)
     np.testing.assert_allclose(bare.stderr, law.stderr, rtol=0.25)
     assert np.all(np.abs((bare.params - TRUTH) / bare.stderr) < WITHIN)
 
 
 def test_no_lag_is_found_where_there_is_none():
-    fit = fit_frequency_law(records(3, tau=0.0))
+    fit = fit_frequency_law(records(3, tau=0.0), models=FIRST)
     assert abs(fit.tau) < WITHIN * fit.stderr[2]
     assert fit.stderr[2] < 0.02 * TAU
 
@@ -288,6 +384,7 @@ def test_json_round_trip(law, tmp_path):
         (law.frequency_range, law.gap_range, law.current_range, law.n_poles)
     assert (back.chi2, back.dof, back.covariance_scale) == \
         (law.chi2, law.dof, law.covariance_scale)
+    assert (back.model, back.candidates, back.reason) == (law.model, law.candidates, law.reason)
     path = calibration(law).save(tmp_path / "calibration.json")
     doc = json.loads(path.read_text(encoding="utf-8"))
     assert set(doc["frequency_law"]["params"]) == {"K", "s_fe", "tau"}
@@ -299,6 +396,22 @@ def test_json_round_trip(law, tmp_path):
     np.testing.assert_array_equal(a.total, b.total)
     np.testing.assert_array_equal(a.std, b.std)
     assert "frequency_law" not in calibration().to_json()   # a one-frequency file is unchanged
+
+
+def test_a_solid_cores_law_is_read_back_and_an_old_file_is_first_order(solid_law):
+    doc = json.loads(json.dumps(solid_law.to_json(), allow_nan=False))
+    assert doc["frequency_model"] == "half-order"
+    assert [c["model"] for c in doc["selection"]["candidates"]] == ["first-order", "half-order"]
+    back = FrequencyLaw.from_json(doc)
+    assert back.model == "half-order" and back.candidates == solid_law.candidates
+    np.testing.assert_array_equal(back.lag_deg([20.0, 90.0])[0], solid_law.lag_deg([20.0, 90.0])[0])
+    for key in ("frequency_model", "selection"):          # as written before the choice
+        del doc[key]
+    old = FrequencyLaw.from_json(doc)
+    assert old.model == "first-order" and old.candidates == () and old.reason == ""
+    doc["frequency_model"] = "third-order"
+    with pytest.raises(InputError, match="frequency_model"):
+        FrequencyLaw.from_json(doc, "cal.json")
 
 
 def test_calibration_file_refuses_a_broken_frequency_law(law, tmp_path):

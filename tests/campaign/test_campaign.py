@@ -230,8 +230,8 @@ def test_reactions_only_calibration_is_further_off(campaign, calibrated):
     magnet = campaign.preset.magnets[0]
     truth = 2 * magnet.static_force(0.6, 1.1e-3)
     ro_fit = next(c.fit for c in ro.selection.candidates if c.name == calibrated.law)
-    err = predict(calibrated.calibration, 0.6, 1.1e-3).total[0] / truth - 1
-    err_ro = predict(Calibration.from_fit(ro_fit), 0.6, 1.1e-3).total[0] / truth - 1
+    err = predict(calibrated.calibration, 0.6, 1.1e-3).total / truth - 1
+    err_ro = predict(Calibration.from_fit(ro_fit), 0.6, 1.1e-3).total / truth - 1
     assert abs(err) < 0.002
     assert abs(err_ro) > 5 * abs(err)
 

@@ -606,20 +606,33 @@ def test_outputs_say_where_they_come_from(paper_dir, tmp_path):
 
 
 def test_quiet_and_verbose(paper_dir, tmp_path, capsys, monkeypatch):
-    """-q: no progress on stderr; by default progress on a terminal only; -v: every force's
-    uncertainty budget on stdout."""
+    """-q: nothing on stdout or stderr on success; by default the paths on stdout and progress
+    on a terminal only; -v: every force's uncertainty budget on stdout, as an aligned table."""
     rig, scan, run = (str(paper_dir / "rig.toml"), str(paper_dir / "scan.uff"),
                       str(paper_dir / "runs" / "paper.csv"))
     copy = tmp_path / "again.csv"
     copy.write_bytes(Path(run).read_bytes())
     assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "a"), "-q"]) == 0
     out = capsys.readouterr()
-    assert out.err == "" and "uncertainty budget" not in out.out
+    assert (out.out, out.err) == ("", "")
+    assert sorted(p.name for p in (tmp_path / "a").iterdir())[:2] == ["again.forces.csv",
+                                                                      "again.json"]
     assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "b")]) == 0
-    assert capsys.readouterr().err == ""              # stderr is not a terminal: no progress
+    out = capsys.readouterr()
+    assert out.err == ""                              # stderr is not a terminal: no progress
+    assert out.out.splitlines()[0].startswith(str(tmp_path / "b" / "paper.forces.csv"))
     monkeypatch.setattr(sys.modules["forcecal.cli.main"], "_interactive", lambda: True)
     assert main(["reconstruct", rig, scan, run, str(copy), "-o", str(tmp_path / "d")]) == 0
     assert "left)" in capsys.readouterr().err                      # progress with the time left
     assert main(["reconstruct", rig, scan, run, "-o", str(tmp_path / "c"), "-v"]) == 0
     text = capsys.readouterr().out
     assert "uncertainty budget" in text and "gauge noise" in text and "expanded k = 2" in text
+    lines = text.splitlines()
+    head = next(k for k, line in enumerate(lines) if "uncertainty budget" in line)
+    table = lines[head + 1: lines.index(next(x for x in lines if "expanded k = 2" in x)) + 1]
+    assert table[0].split() == ["F1", "F2", "total"]
+    assert table[1].split() == ["source", *["DC", "n", "=", "1"] * 3]
+    assert len(table) > 4 and len({len(line) for line in table}) == 1, text
+    ends = {m.end() for line in table[1:]                # after each row's label, its cells
+            for m in list(re.finditer(r"\S+(?= {2,}|$)", line))[1:]}
+    assert len(ends) == 6, text                         # right-aligned: one end per column

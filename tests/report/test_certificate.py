@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import tomli_w
+from matplotlib.figure import Figure
 
 from forcecal.campaign import (
     CampaignResult,
@@ -177,22 +178,28 @@ def _two_digits(values: list[float]) -> list[float]:
 # the law and its uncertainties
 
 
-def test_parameters_state_u_and_u_expanded_with_k2(certified):
+def _si(unit: str) -> float:
+    """The factor from a unit the certificate writes to SI."""
+    return {"µm": 1e-6, "mm": 1e-3, "µA": 1e-6, "mA": 1e-3, "µWb": 1e-6, "mWb": 1e-3}.get(
+        unit, 1.0)
+
+
+def test_parameters_state_u_and_u_expanded_with_k2_in_lab_units(certified):
     doc = certified.doc
     rows = _table(certified.page, "Calibrated parameters")
     header, params = rows[0], _by_first(rows)
     assert doc["uncertainty"]["coverage_factor"] == 2
-    assert "expanded uncertainty U (k = 2)" in header
-    u_col, big_u_col = header.index("standard uncertainty u"), header.index(
-        "expanded uncertainty U (k = 2)")
+    u_col, big_u_col = header.index("std. uncertainty u"), header.index("expanded U (k = 2)")
     assert set(doc["param_names"]) <= set(params)
     for name in doc["param_names"]:
         row = params[name]
+        f = _si(row[2])
         u = doc["stderr"][name]
-        assert float(row[1]) == pytest.approx(doc["params"][name], abs=VALUE_ROUNDING * u)
-        assert float(row[u_col]) == float(f"{u:.2g}")
-        assert float(row[big_u_col]) == float(f"{2 * u:.2g}")
+        assert f * float(row[1]) == pytest.approx(doc["params"][name], abs=VALUE_ROUNDING * u)
+        assert f * float(row[u_col]) == pytest.approx(float(f"{u:.2g}"), rel=1e-12)
+        assert f * float(row[big_u_col]) == pytest.approx(float(f"{2 * u:.2g}"), rel=1e-12)
         assert float(row[big_u_col]) == pytest.approx(2 * float(row[u_col]), rel=0.06)
+    assert params["s_fe"][2] == "µm"          # 4.97e-05 m as a laboratory writes it
     kt = params["K_total = 2 K"]
     assert float(kt[u_col]) == float(f"{doc['k_total']['stderr']:.2g}")
     assert float(kt[big_u_col]) == float(f"{doc['k_total']['expanded']:.2g}")
@@ -229,8 +236,10 @@ def test_calibrated_range_is_the_campaigns_min_and_max(certified):
     assert expected["static air gap (every pole)"] == pytest.approx((min(GAPS), max(GAPS)))
     for label, (lo, hi) in expected.items():
         tol = {"abs": FREQUENCY_ATOL} if "frequency" in label else {"rel": RANGE_RTOL}
-        assert float(rows[label][1]) == pytest.approx(lo, **tol), label
-        assert float(rows[label][2]) == pytest.approx(hi, **tol), label
+        f = _si(rows[label][3])
+        assert f * float(rows[label][1]) == pytest.approx(lo, **tol), label
+        assert f * float(rows[label][2]) == pytest.approx(hi, **tol), label
+    assert rows["instantaneous air gap s"][3] == rows["static air gap (every pole)"][3] == "mm"
     assert tuple(certified.doc["current_range"]) == pytest.approx(
         expected["coil current i"], rel=RANGE_RTOL)
 
@@ -240,18 +249,26 @@ def test_budget_rows_are_the_sources_of_calibration_json(certified):
     names = unc["param_names"]
     rows = _table(certified.page, "Uncertainty budget")
     body = _by_first(rows)
-    cols = [rows[0].index(next(h for h in rows[0] if h.startswith(f"u({n})"))) for n in names]
+    heads = [next(h for h in rows[0] if h.startswith(f"u({n})")) for n in names]
+    cols = [rows[0].index(h) for h in heads]
+    factors = np.array([_si(h[h.index("[") + 1:h.index("]")]) for h in heads])
     assert len(unc["budget"]) >= 6
     assert {k["kind"] for k in unc["budget"].values()} == {"statistical", "type B"}
+
+    def shown(row: list[str]) -> np.ndarray:
+        return factors * np.array(_numbers([row[c] for c in cols]))
+
     for source, entry in unc["budget"].items():
         row = body[source]
         assert row[1].startswith(entry["kind"]), source
-        assert _numbers([row[c] for c in cols]) == _two_digits([entry[n] for n in names]), source
+        np.testing.assert_allclose(shown(row), _two_digits([entry[n] for n in names]),
+                                   rtol=1e-12, err_msg=source)
     for label, part in (("statistical, combined", unc["statistical"]["stderr"]),
                         ("type B, combined", unc["type_b"]["stderr"]),
                         ("combined standard uncertainty u", unc["stderr"]),
                         ("expanded uncertainty U = k u (k = 2)", unc["expanded"])):
-        assert _numbers([body[label][c] for c in cols]) == _two_digits([part[n] for n in names])
+        np.testing.assert_allclose(shown(body[label]), _two_digits([part[n] for n in names]),
+                                   rtol=1e-12, err_msg=label)
 
 
 def test_budget_says_which_type_b_inputs_are_defaults(certified):
@@ -348,3 +365,59 @@ def test_rig_temperature_is_read_checked_and_written_back(certified, tmp_path):
         _rig_file(tmp_path / "kelvin.toml", certified.rig, acquisition={"temperature": 296.15})
     with pytest.raises(RigError, match=r"acquisition\.temperature' must be a number"):
         _rig_file(tmp_path / "text.toml", certified.rig, acquisition={"temperature": "warm"})
+
+
+# --------------------------------------------------------------------------------------------
+# presentation: lab units, paths, the figure's format
+
+
+def test_runs_state_gaps_in_mm_and_digits_by_their_uncertainty(certified):
+    rows = _table(certified.page, "The campaign's runs")
+    header, runs = rows[0], _by_first(rows)
+    assert header[1] == "static gap [mm]"
+    assert {runs[r.name][1] for r in certified.result.runs} == {"0.800", "1.000", "1.200"}
+    for r in certified.result.runs:
+        mean, u = r.estimate.total[0].real, r.estimate.total_std[0]
+        shown = runs[r.name][header.index("mean force [N]")]
+        assert float(shown) == pytest.approx(mean, abs=VALUE_ROUNDING * u)
+        # the last digit shown is that of u's second significant one
+        assert 10 ** -len(shown.split(".")[1]) == pytest.approx(
+            10 ** (np.floor(np.log10(float(f"{u:.2g}"))) - 1))
+
+
+def test_every_input_path_is_relative_to_the_stated_root(certified):
+    page = html.unescape(certified.page)
+    root = str(certified.folder)
+    assert f"<code>{root}</code>" in page
+    inputs = _table(certified.page, "Input files")[1:]
+    assert {row[0] for row in inputs} >= {"rig.toml", "manifest.csv", "runs/tare.csv"}
+    assert not [row[0] for row in inputs if row[0].startswith("/")]
+    assert "<dt>Rig file</dt><dd><code>rig.toml</code>" in page
+    assert "<dt>Campaign manifest</dt><dd><code>manifest.csv</code>" in page
+
+
+@pytest.mark.parametrize("fmt", ["svg", "pdf"])
+def test_the_figure_is_written_in_the_format_asked_for(certified, tmp_path, fmt, monkeypatch):
+    drawn = []
+
+    def small(points, law):                   # fig. 9 is tested apart; a cheap stand-in here
+        drawn.append(points.n_runs)
+        fig = Figure(figsize=(12.0, 3.0))
+        fig.add_subplot().plot([0, 1], [1, 0])
+        return fig
+
+    monkeypatch.setattr("forcecal.report.pipeline.fig_calibration", small)
+    out = tmp_path / "out"
+    page = calibration_report(certified.rig, certified.model, certified.result, out,
+                              figure_format=fmt).read_text(encoding="utf-8")
+    assert drawn == [len(certified.result.runs)]
+    assert [p.name for p in (out / "figures").iterdir()] == [f"calibration.{fmt}"]
+    data = (out / "figures" / f"calibration.{fmt}").read_bytes()
+    if fmt == "svg":                       # embedded as it is
+        assert b"<svg" in data and page.count('src="data:image/svg+xml;base64,') == 1
+    else:                                  # linked, beside an embedded PNG preview
+        assert data.startswith(b"%PDF")
+        assert '<a href="figures/calibration.pdf"><img src="data:image/png;base64,' in page
+    # shown at the size it was drawn at: 12 inches at 96 CSS pixels each
+    assert re.search(r'<img src="data:[^"]+" width="1152"', page)
+    assert "Fig. 1 (after the paper&#39;s fig. 9)" in page

@@ -13,11 +13,10 @@ from flux.
 The modules: :mod:`.laws` (:class:`Law`, every law, :func:`get_law`), :mod:`.ac_only`,
 :mod:`.data` (:class:`CalibrationData`), :mod:`.fitting` (:func:`fit_law`), :mod:`.propagation`
 (the covariance from described errors), :mod:`.selection` (:func:`select_law`),
-:mod:`.prediction` (:class:`Calibration`, :func:`predict`), :mod:`.frequency` and
-:mod:`.frequency_fit` (the law over frequency).
-
-Shapes: ``n_obs`` observations, ``n_poles`` poles, ``n_params`` parameters of a law. SI units
-throughout.
+:mod:`.prediction` (:class:`Calibration`, :func:`predict`), :mod:`.frequency`,
+:mod:`.frequency_models`, :mod:`.frequency_fit` and :mod:`.frequency_selection` (the law over
+frequency: the core's response, first or half order, fitted and chosen). Shapes: ``n_obs``
+observations, ``n_poles`` poles, ``n_params`` parameters of a law; SI units throughout.
 """
 
 from __future__ import annotations

@@ -1,12 +1,11 @@
 """The actuator's law over frequency: eddy currents in the core lower and delay the force.
 
-The magnetising current ``i_m`` follows the coil current ``i`` through a first-order lag,
-``tau di_m/dt + i_m = i``, and the total force is ``f = K i_m^2 sum_p 1 / (s_p + s_fe)^2``
-(the law ``k_i2_sfe2`` with ``i_m`` in place of ``i``). For a steady run at fundamental f0
-whose current has phasors I_n (n = 0..H), ``I_m,n = I_n / (1 + j n 2 pi f0 tau)``, the DC
-unchanged. Small-signal, at a fixed gap, the force's component at f relative to i^2's is
-``H(f) = 1 / (1 + j 2 pi f tau)``: ``K(f) = K / sqrt(1 + (2 pi f tau)^2)``, and the force lags
-i^2 by ``atan(2 pi f tau)`` (METHOD.md section 5, a law beyond eq. 18).
+The magnetising current ``i_m`` follows the coil current through the core's response
+``H(s; tau)`` (:mod:`.frequency_models`: first order, ``tau di_m/dt + i_m = i``, or half
+order, a solid core), and the total force is ``f = K i_m^2 sum_p 1 / (s_p + s_fe)^2`` (the law
+``k_i2_sfe2`` with ``i_m`` for ``i``). A steady run at f0 whose current has phasors I_n has
+``I_m,n = H(j n 2 pi f0) I_n``. Small-signal, at a fixed gap, the force's component at f over
+i^2's is ``H(j 2 pi f)``: ``K(f) = K |H|``, lagging by ``-angle(H)`` (METHOD.md section 5).
 
 A stepped-sine campaign gives one :class:`SteadyRecord` per run: the current, the gaps and the
 reconstructed total force at ``n`` instants over exactly one period of the run's fundamental
@@ -30,6 +29,7 @@ import numpy as np
 
 from ..errors import DimensionError, InputError
 from ..schema.calibration_file import check_frequency_law
+from .frequency_models import FREQUENCY_MODELS, frequency_model
 from .gaps import fourier_series
 
 __all__ = ["FrequencyLaw", "SteadyRecord"]
@@ -37,7 +37,6 @@ __all__ = ["FrequencyLaw", "SteadyRecord"]
 FREQUENCY_PARAM_NAMES = ("K", "s_fe", "tau")
 """The parameters of a :class:`FrequencyLaw`, in the order of its covariance."""
 FREQUENCY_PARAM_UNITS = ("N m^2/A^2", "m", "s")
-_MODEL = "f = K i_m^2 / (s + s_fe)^2, tau di_m/dt + i_m = i"
 _TWO_PI = 2.0 * math.pi
 
 
@@ -250,7 +249,8 @@ def _as_array(frequency: Any) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class FrequencyLaw:
-    """The first-order frequency law ``K(f) = K / sqrt(1 + (2 pi f tau)^2)`` of the actuator.
+    """The actuator's law over frequency: ``K(f) = K |H(j 2 pi f)|``, lagging by
+    ``-angle(H)``, ``H`` its ``model``'s (first order: ``K / sqrt(1 + (2 pi f tau)^2)``).
 
     Attributes
     ----------
@@ -259,7 +259,8 @@ class FrequencyLaw:
     s_fe : float [m]
         Iron-path offset of the gap.
     tau : float [s]
-        Time constant of the magnetising current's lag.
+        Time constant of the magnetising current's lag (first order), or the core's
+        diffusion time ``sigma mu d^2`` (half order).
     covariance : (3, 3) array
         Covariance of (K, s_fe, tau).
     n_poles : int
@@ -277,6 +278,15 @@ class FrequencyLaw:
     covariance_scale : float
         The factor ``c`` applied to ``(J^T J)^-1`` (see
         :func:`~forcecal.actuator.frequency_fit.fit_frequency_law`).
+    model : str
+        The core's response, a name of :data:`.frequency_models.FREQUENCY_MODELS`:
+        ``"first-order"`` or ``"half-order"``.
+    candidates : tuple of dict
+        Every model tried, with its parameters and scores (held-out error, AIC, BIC), as the
+        calibration file's ``frequency_law.selection.candidates``; empty when one model was
+        fitted.
+    reason : str
+        Why ``model`` was chosen (empty when one model was fitted).
     """
 
     k: float
@@ -291,8 +301,12 @@ class FrequencyLaw:
     chi2: float | None = None
     dof: int = 0
     covariance_scale: float = 1.0
+    model: str = "first-order"
+    candidates: tuple[dict[str, Any], ...] = ()
+    reason: str = ""
 
     def __post_init__(self) -> None:
+        frequency_model(self.model)
         cov = np.asarray(self.covariance, dtype=float)
         if cov.shape != (3, 3) or not np.all(np.isfinite(cov)):
             raise DimensionError(f"frequency law: covariance {cov.shape}; expected finite (3, 3)")
@@ -300,6 +314,7 @@ class FrequencyLaw:
             raise InputError("frequency law: K, s_fe and tau must be finite")
         object.__setattr__(self, "covariance", cov)
         object.__setattr__(self, "steps", tuple(self.steps))
+        object.__setattr__(self, "candidates", tuple(self.candidates))
 
     @property
     def params(self) -> np.ndarray:
@@ -316,10 +331,18 @@ class FrequencyLaw:
         text = ", ".join(f"{n} = {v:.6g} ± {e:.2g} {u}" for n, v, e, u in zip(
             FREQUENCY_PARAM_NAMES, self.params, self.stderr, FREQUENCY_PARAM_UNITS, strict=True))
         lo, hi = self.frequency_range
-        return f"FrequencyLaw({text}; {lo:.4g} to {hi:.4g} Hz, {len(self.steps)} steps)"
+        return (f"FrequencyLaw({self.model}: {text}; {lo:.4g} to {hi:.4g} Hz, "
+                f"{len(self.steps)} steps)")
+
+    def _gain(self, frequency: Any) -> tuple[np.ndarray, np.ndarray]:
+        """``|H|`` and its derivative with respect to tau at ``frequency`` [Hz]."""
+        h, dh = FREQUENCY_MODELS[self.model].response(_TWO_PI * _as_array(frequency), self.tau)
+        g = np.abs(h)
+        return g, (h.real * dh.real + h.imag * dh.imag) / g
 
     def gain(self, frequency: Any) -> tuple[np.ndarray, np.ndarray]:
-        """``K(f) / K = 1 / sqrt(1 + (2 pi f tau)^2)`` and its standard uncertainty (tau's).
+        """``K(f) / K = |H(j 2 pi f)|`` (first order: ``1 / sqrt(1 + (2 pi f tau)^2)``) and its
+        standard uncertainty (tau's).
 
         Parameters
         ----------
@@ -329,9 +352,8 @@ class FrequencyLaw:
         -------
         gain, std : arrays shaped as ``frequency`` [-]
         """
-        w = _TWO_PI * _as_array(frequency)
-        x = 1.0 + (w * self.tau) ** 2
-        return x**-0.5, np.abs(w**2 * self.tau * x**-1.5) * self.stderr[2]
+        g, dg = self._gain(frequency)
+        return g, np.abs(dg) * self.stderr[2]
 
     def k_at(self, frequency: Any) -> tuple[np.ndarray, np.ndarray]:
         """``K(f)`` [N m^2/A^2] and its standard uncertainty (K's and tau's, correlated).
@@ -344,14 +366,14 @@ class FrequencyLaw:
         -------
         k, std : arrays shaped as ``frequency``
         """
-        w = _TWO_PI * _as_array(frequency)
-        x = 1.0 + (w * self.tau) ** 2
-        grad = np.stack([x**-0.5, np.zeros_like(x), -self.k * w**2 * self.tau * x**-1.5], -1)
+        g, dg = self._gain(frequency)
+        grad = np.stack([g, np.zeros_like(g), self.k * dg], -1)
         var = np.einsum("...p,pq,...q->...", grad, self.covariance, grad)
-        return self.k * x**-0.5, np.sqrt(np.maximum(var, 0.0))
+        return self.k * g, np.sqrt(np.maximum(var, 0.0))
 
     def lag_deg(self, frequency: Any) -> tuple[np.ndarray, np.ndarray]:
-        """The force's lag behind i^2, ``atan(2 pi f tau)`` [deg], and its standard uncertainty.
+        """The force's lag behind i^2, ``-angle(H)`` [deg] (first order:
+        ``atan(2 pi f tau)``), and its standard uncertainty.
 
         Parameters
         ----------
@@ -361,9 +383,9 @@ class FrequencyLaw:
         -------
         lag, std : arrays shaped as ``frequency`` [deg]
         """
-        w = _TWO_PI * _as_array(frequency)
-        std = w / (1.0 + (w * self.tau) ** 2) * self.stderr[2]
-        return np.degrees(np.arctan(w * self.tau)), np.degrees(std)
+        h, dh = FREQUENCY_MODELS[self.model].response(_TWO_PI * _as_array(frequency), self.tau)
+        std = np.abs((dh / np.where(h == 0, 1.0, h)).imag) * self.stderr[2]
+        return -np.degrees(np.angle(h)), np.degrees(std)
 
     def forces(self, current: np.ndarray, gaps: np.ndarray, frequency: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -385,15 +407,13 @@ class FrequencyLaw:
         if np.any(gaps + self.s_fe <= 0):
             raise InputError(f"frequency law: a gap of {1e3 * float(gaps.min()):.4f} mm plus "
                              f"s_fe = {1e3 * self.s_fe:.4f} mm is not positive")
-        w = _TWO_PI * frequency
-        x = 1.0 + (w * self.tau) ** 2
-        g = x**-0.5
+        g, dg = self._gain(frequency)
         u = gaps + self.s_fe
         basis = current[:, None] ** 2 / u**2
         per_pole = self.k * g[:, None] * basis
         b = basis.sum(axis=1)
         grad = np.stack([g * b, -2.0 * self.k * g * np.sum(basis / u, axis=1),
-                         -self.k * w**2 * self.tau * x**-1.5 * b], axis=-1)
+                         self.k * dg * b], axis=-1)
         var = np.einsum("np,pq,nq->n", grad, self.covariance, grad)
         return per_pole.sum(axis=1), per_pole, np.sqrt(np.maximum(var, 0.0))
 
@@ -416,8 +436,9 @@ class FrequencyLaw:
         rec = SteadyRecord(f0=f0, current=current, gaps=gaps, force=np.zeros(np.size(current)),
                            n_harmonics=0)
         spectrum = np.fft.rfft(rec.current)
-        lag = 1.0 + 1j * _TWO_PI * rec.f0 * self.tau * np.arange(spectrum.size)
-        im = np.fft.irfft(spectrum / lag, n=rec.n)
+        h, _ = FREQUENCY_MODELS[self.model].response(
+            _TWO_PI * rec.f0 * np.arange(spectrum.size), self.tau)
+        im = np.fft.irfft(spectrum * h, n=rec.n)
         return np.asarray(self.k * im**2 * np.sum((rec.gaps + self.s_fe) ** -2.0, axis=1))
 
     def to_json(self) -> dict[str, Any]:
@@ -429,8 +450,12 @@ class FrequencyLaw:
             What :meth:`from_json` reads back exactly.
         """
         names = FREQUENCY_PARAM_NAMES
+        selection = {} if not self.candidates else {
+            "selection": {"reason": self.reason, "candidates": [dict(c) for c in self.candidates]}}
         return {
-            "model": _MODEL, "param_names": list(names), "param_units": list(FREQUENCY_PARAM_UNITS),
+            "model": FREQUENCY_MODELS[self.model].formula, "frequency_model": self.model,
+            **selection,
+            "param_names": list(names), "param_units": list(FREQUENCY_PARAM_UNITS),
             "params": dict(zip(names, map(float, self.params), strict=True)),
             "stderr": dict(zip(names, map(float, self.stderr), strict=True)),
             "covariance": self.covariance.tolist(), "n_poles": self.n_poles,
@@ -460,14 +485,23 @@ class FrequencyLaw:
         InputError
             Naming ``source`` and the key at fault (``frequency_law.params.tau``), checked
             against the file's schema (:mod:`forcecal.schema.calibration_file`).
+
+        Notes
+        -----
+        A file without ``frequency_model`` (written before there was a choice) is first
+        order.
         """
         law = check_frequency_law(obj, source)
         p = law.params
         steps = tuple(FrequencyStep(*(getattr(s, k) for k in _STEP_KEYS)) for s in law.steps)
+        sel = law.selection
         return cls(
             k=p.K, s_fe=p.s_fe, tau=p.tau, covariance=np.array(law.covariance), steps=steps,
             n_poles=law.n_poles, chi2=law.chi2, dof=law.dof,
-            covariance_scale=law.covariance_scale,
+            covariance_scale=law.covariance_scale, model=law.frequency_model,
+            candidates=() if sel is None else tuple(
+                c.model_dump(exclude_unset=True) for c in sel.candidates),
+            reason="" if sel is None else sel.reason,
             frequency_range=(law.frequency_range[0], law.frequency_range[1]),
             current_range=(law.current_range[0], law.current_range[1]),
             gap_range=(law.gap_range[0], law.gap_range[1]))

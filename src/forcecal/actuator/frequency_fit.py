@@ -1,13 +1,15 @@
 """Fitting the actuator's law over frequency: :func:`fit_frequency_law` (METHOD.md section 5).
 
-The model is :mod:`forcecal.actuator.frequency`'s: ``tau di_m/dt + i_m = i`` and
+The model is :mod:`forcecal.actuator.frequency`'s: ``I_m = H(s; tau) I`` with the core's
+response ``H`` (:mod:`.frequency_models`: first or half order) and
 ``f = K i_m^2 sum_p 1 / (s_p + s_fe)^2``. The instants of a run are a Fourier series of a few
 phasors, not independent observations, so K, s_fe and tau are fitted over all runs at once to
 the force's harmonic phasors, each weighted by its standard uncertainty; their covariance
-counts harmonic values, not instants, and adds the errors runs share. A second fit frees the
-gain and the lag of the magnetising current's fundamental per frequency step: the
-non-parametric K(f) and lag(f). The fit, its uncertainty and the steps are told in
-:func:`fit_frequency_law`'s notes.
+counts harmonic values, not instants, and adds the errors runs share. Every model is fitted
+and scored on frequency steps left out of its fit, and one is chosen
+(:mod:`.frequency_selection`). A second fit frees the gain and the lag of the magnetising
+current's fundamental per frequency step: the non-parametric K(f) and lag(f). The fit, its
+uncertainty, the choice and the steps are told in :func:`fit_frequency_law`'s notes.
 
 Shapes: ``n`` instants per run, ``n_poles`` poles, ``H+1`` harmonics 0..H, ``R`` runs. SI
 units throughout.
@@ -27,6 +29,8 @@ from scipy.optimize import least_squares
 from ..errors import DimensionError, FitError, InputError
 from .data import GAP_TOLERANCE
 from .frequency import FrequencyLaw, FrequencyStep, SteadyRecord
+from .frequency_models import FREQUENCY_MODELS, FrequencyModel, frequency_model
+from .frequency_selection import ModelScore, candidate_rows, choose_model
 
 __all__ = ["STEP_TOLERANCE", "fit_frequency_law"]
 
@@ -88,10 +92,10 @@ def _model(st: _Stack, k: float, s_fe: float, filt: np.ndarray,
     return _phasors(k * im**2 * q, h), _phasors(np.stack(cols, axis=1), h)
 
 
-def _lag_filter(st: _Stack, tau: float) -> tuple[np.ndarray, np.ndarray]:
-    """The first-order filter of every bin and its derivative with respect to tau."""
-    d = 1.0 + 1j * st.bins * tau
-    return 1.0 / d, -1j * st.bins / d**2
+def _lag_filter(st: _Stack, model: FrequencyModel, tau: float
+                ) -> tuple[np.ndarray, np.ndarray]:
+    """The core's response at every bin and its derivative with respect to tau."""
+    return model.response(st.bins, tau)
 
 
 def _stacks(records: Sequence[SteadyRecord], weighted: bool) -> list[_Stack]:
@@ -207,7 +211,8 @@ def _check_campaign(recs: list[SteadyRecord], steps: np.ndarray) -> None:
                            "its lag cannot be measured")
 
 
-def _start(stacks: list[_Stack], recs: list[SteadyRecord]) -> np.ndarray:
+def _start(stacks: list[_Stack], recs: list[SteadyRecord], model: FrequencyModel
+           ) -> np.ndarray:
     """(K, s_fe, tau) to start from: a grid over s_fe (tau = 0), then over tau, K solved
     linearly each time."""
     g_min = min(float(r.gaps.min()) for r in recs)
@@ -215,32 +220,33 @@ def _start(stacks: list[_Stack], recs: list[SteadyRecord]) -> np.ndarray:
     y = np.concatenate([st.real(st.force) for st in stacks])
 
     def best(s_fe: float, tau: float) -> tuple[float, float]:
-        b = np.concatenate([st.real(_model(st, 1.0, s_fe, _lag_filter(st, tau)[0], [])[0])
-                            for st in stacks])
+        b = np.concatenate([st.real(_model(st, 1.0, s_fe, _lag_filter(st, model, tau)[0],
+                                           [])[0]) for st in stacks])
         k = float(b @ y / (b @ b))
         return float(np.sum((y - k * b) ** 2)), k
 
     median = float(np.median([r.static_gap for r in recs]))
     sfe = min(np.linspace(-0.5 * g_min, median, 31), key=lambda v: best(float(v), 0.0)[0])
-    taus = np.r_[0.0, np.geomspace(1e-3, 3.0, 30) / (_TWO_PI * f_max)]
+    taus = np.r_[0.0, np.geomspace(1e-3, 3.0, 30) / (_TWO_PI * f_max)] / model.equivalent
     tau = min(taus, key=lambda v: best(float(sfe), float(v))[0])
     return np.array([best(float(sfe), float(tau))[1], sfe, tau])
 
 
 def _fit_steps(stacks: list[_Stack], recs: list[SteadyRecord], steps: np.ndarray,
-               glob: _Fit, weighted: bool, n_obs: int) -> tuple[FrequencyStep, ...]:
-    """The joint fit of K, s_fe and every step's (g, phi) at the fundamental (tau held for the
-    harmonics n >= 2), and each step's K(f) and lag(f) with their uncertainties."""
+               glob: _Fit, weighted: bool, n_obs: int, model: FrequencyModel
+               ) -> tuple[FrequencyStep, ...]:
+    """The joint fit of K, s_fe and every step's (g, phi) at the fundamental (the model's
+    response with its tau held for the harmonics n >= 2), and each step's K(f) and lag(f)
+    with their uncertainties."""
     k0, sfe0, tau = glob.x
     n_steps = int(steps.max()) + 1
     freq = np.array([np.mean([r.f0 for r, s in zip(recs, steps, strict=True) if s == j])
                      for j in range(n_steps)])
-    w = _TWO_PI * freq
-    x0 = np.r_[k0, sfe0, np.column_stack([(1 + (w * tau) ** 2) ** -0.5,
-                                          np.arctan(w * tau)]).ravel()]
+    h = model.response(_TWO_PI * freq, tau)[0]
+    x0 = np.r_[k0, sfe0, np.column_stack([np.abs(h), -np.angle(h)]).ravel()]
 
     def make(stacks: list[_Stack]) -> Any:
-        return lambda x: _steps_residuals(stacks, steps, n_steps, tau, x)
+        return lambda x: _steps_residuals(stacks, steps, n_steps, model, tau, x)
 
     fun = make(stacks)
     g_min = min(float(r.gaps.min()) for r in recs)
@@ -264,13 +270,14 @@ def _fit_steps(stacks: list[_Stack], recs: list[SteadyRecord], steps: np.ndarray
     return tuple(out)
 
 
-def _steps_residuals(stacks: list[_Stack], steps: np.ndarray, n_steps: int, tau: float,
-                     x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _steps_residuals(stacks: list[_Stack], steps: np.ndarray, n_steps: int,
+                     model: FrequencyModel, tau: float, x: np.ndarray
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """The step fit's weighted residuals and Jacobian: K, s_fe, then (g, phi) per step."""
     res, jac = [], []
     for st in stacks:
         step = steps[st.index]
-        filt = _lag_filter(st, tau)[0]
+        filt = _lag_filter(st, model, tau)[0]
         h1 = x[2 + 2 * step] * np.exp(-1j * x[3 + 2 * step])
         filt[:, 1] = h1
         dfilt = []
@@ -286,11 +293,12 @@ def _steps_residuals(stacks: list[_Stack], steps: np.ndarray, n_steps: int, tau:
     return np.concatenate(res), np.concatenate(jac)
 
 
-def _global_residuals(stacks: list[_Stack], x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _global_residuals(stacks: list[_Stack], model: FrequencyModel, x: np.ndarray
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """The global fit's weighted residuals and Jacobian: K, s_fe, tau."""
     res, jac = [], []
     for st in stacks:
-        filt, dfilt = _lag_filter(st, x[2])
+        filt, dfilt = _lag_filter(st, model, x[2])
         m, dm = _model(st, x[0], x[1], filt, [dfilt])
         res.append(st.real(m - st.force))
         jac.append(st.real(dm))
@@ -321,9 +329,87 @@ def _with_shared(fit: _Fit, recs: list[SteadyRecord], weighted: bool, make: Any)
     return dataclasses.replace(fit, cov=fit.cov + cov)
 
 
-def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLERANCE
-                      ) -> FrequencyLaw:
-    """Fit K, s_fe and tau to a stepped-sine campaign, and the response of every step.
+def _bounds(recs: list[SteadyRecord], x0: np.ndarray, model: FrequencyModel
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """The global fit's parameter scales and lower bounds (s_fe above -0.9 of the least gap)."""
+    g_min = min(float(r.gaps.min()) for r in recs)
+    f_max = max(r.f0 for r in recs)
+    scale = np.array([abs(x0[0]), float(np.median([r.static_gap for r in recs])),
+                      1.0 / (_TWO_PI * f_max * model.equivalent)])
+    return scale, np.array([-np.inf, -0.9 * g_min, -np.inf])
+
+
+def _fit_model(stacks: list[_Stack], recs: list[SteadyRecord], model: FrequencyModel,
+               weighted: bool, n_obs: int) -> _Fit:
+    """K, s_fe and tau of one model over all runs, the errors they share in its covariance."""
+
+    def make(sts: list[_Stack]) -> Any:
+        return lambda x: _global_residuals(sts, model, x)
+
+    x0 = _start(stacks, recs, model)
+    scale, lo = _bounds(recs, x0, model)
+    return _with_shared(_solve(make(stacks), x0, scale, lo, weighted, n_obs,
+                               f"frequency law ({model.name})"), recs, weighted, make)
+
+
+def _held_out(recs: list[SteadyRecord], steps: np.ndarray, model: FrequencyModel,
+              weighted: bool, x: np.ndarray) -> np.ndarray:
+    """Per frequency step, the relative error of its runs' force phasors predicted by the
+    model fitted to the other steps (from the whole campaign's fit ``x``):
+    ``sqrt(sum |F_model - F|^2 / sum |F|^2)`` over the step's runs and harmonics."""
+    out = np.empty(int(steps.max()) + 1)
+    for j in range(out.size):
+        train = [r for r, k in zip(recs, steps, strict=True) if k != j]
+        test = [r for r, k in zip(recs, steps, strict=True) if k == j]
+        sts = _stacks(train, weighted)
+        scale, lo = _bounds(train, x, model)
+        fit = _solve(lambda p, sts=sts: _global_residuals(sts, model, p), x, scale, lo,
+                     weighted, sum(2 * r.harmonics + 1 for r in train),
+                     f"frequency law ({model.name}) without the step at {test[0].f0:.4g} Hz")
+        err = total = 0.0
+        for st in _stacks(test, weighted):
+            pred = _model(st, fit.x[0], fit.x[1], _lag_filter(st, model, fit.x[2])[0], [])[0]
+            seen = st.weight > 0
+            err += float(np.sum(np.abs(pred - st.force)[seen] ** 2))
+            total += float(np.sum(np.abs(st.force)[seen] ** 2))
+        out[j] = math.sqrt(err / total)
+    return out
+
+
+def _candidates(stacks: list[_Stack], recs: list[SteadyRecord], steps: np.ndarray,
+                names: Sequence[str], weighted: bool, n_obs: int
+                ) -> tuple[dict[str, _Fit], list[ModelScore], list[tuple[str, str]]]:
+    """Every model fitted (and, when there is a choice and three steps or more, scored on
+    the steps left out): the fits by name, their scores and the ``(name, reason)`` of those
+    that could not be fitted."""
+    fits: dict[str, _Fit] = {}
+    scores: list[ModelScore] = []
+    skipped: list[tuple[str, str]] = []
+    choice = len(names) > 1
+    for name in names:
+        model = frequency_model(name)
+        try:
+            fit = _fit_model(stacks, recs, model, weighted, n_obs)
+            held = (_held_out(recs, steps, model, weighted, fit.x)
+                    if choice and steps.max() >= 2 else None)
+        except FitError as exc:
+            if not choice:
+                raise
+            skipped.append((name, str(exc)))
+            continue
+        fits[name] = fit
+        scores.append(ModelScore(model=model, params=fit.x, cov=fit.cov, chi2=fit.chi2,
+                                 dof=fit.dof, n_obs=n_obs, held_out_steps=held))
+    if not scores:
+        raise FitError("no frequency model can be fitted: " + "; ".join(
+            f"{name}: {why}" for name, why in skipped))
+    return fits, scores, skipped
+
+
+def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLERANCE,
+                      models: Sequence[str] | None = None) -> FrequencyLaw:
+    """Fit K, s_fe and tau to a stepped-sine campaign, choosing the core's response, and the
+    response of every step.
 
     Parameters
     ----------
@@ -331,31 +417,36 @@ def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLER
         One per run, at two or more fundamentals and two or more static gaps.
     step_tolerance : float
         Runs whose fundamentals differ by less than this fraction form one step.
+    models : sequence of str or None
+        The models of the core's response to choose from (names of
+        :data:`.frequency_models.FREQUENCY_MODELS`: ``"first-order"``, ``"half-order"``);
+        None: all of them. One name fits that model alone.
 
     Returns
     -------
     FrequencyLaw
-        The global fit with its covariance and the per-step table (Notes).
+        The chosen model's global fit with its covariance, the per-step table, and every
+        model's scores (Notes).
 
     Raises
     ------
     InputError
-        When the records are inconsistent (see :class:`SteadyRecord`).
+        When the records are inconsistent (see :class:`SteadyRecord`), or a model is unknown.
     FitError
-        When the runs cannot separate the parameters or the fit does not converge.
+        When the runs cannot separate the parameters or no model's fit converges.
 
     Notes
     -----
     *Fit.* The ``n`` instants of a run are not independent observations: they are a Fourier
     series of ``2 H + 1`` real values (H harmonics), and the reconstruction's errors are errors
     of those phasors. The fit is therefore made on the force's phasors: for every run the DFT
-    of the current (its instants cover exactly one period) gives I_n, the lag gives I_m,n, the
-    law is evaluated at the instants, and the DFT of the modelled force is compared with the
-    measured force's phasors F_0..F_H: Re and Im of every harmonic n >= 1 and the DC, each
-    divided by its standard uncertainty (``force_std``: Re and Im each, the DC real, as
-    :class:`forcecal.forces.estimate.ForceEstimate`'s ``total_std``). K, s_fe and tau are
-    fitted over all runs at once by nonlinear least squares (start: a grid over s_fe, then
-    over tau, K solved linearly).
+    of the current (its instants cover exactly one period) gives I_n, the core's response
+    gives I_m,n, the law is evaluated at the instants, and the DFT of the modelled force is
+    compared with the measured force's phasors F_0..F_H: Re and Im of every harmonic n >= 1
+    and the DC, each divided by its standard uncertainty (``force_std``: Re and Im each, the
+    DC real, as :class:`forcecal.forces.estimate.ForceEstimate`'s ``total_std``). K, s_fe and
+    tau are fitted over all runs at once by nonlinear least squares (start: a grid over s_fe,
+    then over tau, K solved linearly).
 
     *Uncertainty.* Runs are independent; the harmonics of one run are taken as independent of
     one another (Re and Im of each alike). The covariance is ``c (J^T J)^-1`` with ``J`` the
@@ -370,34 +461,34 @@ def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLER
     response ``-J^+ (r' - r)`` at the fit, and the outer products of those moves are added to
     the covariance (in both fits).
 
+    *Choice of the model.* With more than one model, each is fitted to the whole campaign and,
+    with three steps or more, to the campaign without each step in turn, predicting the left-out
+    step's force phasors: its held-out error is the RMS over the steps of their relative error.
+    The simplest model whose held-out error is within the margin of the best is chosen (first
+    order before half order; :func:`.frequency_selection.choose_model`); every model's
+    parameters, AIC, BIC and held-out errors are kept as ``FrequencyLaw.candidates``.
+
     *Per frequency step.* Runs whose fundamentals agree within ``step_tolerance`` form a step.
     A second fit, with no model of the frequency dependence at the fundamental, frees per step
     the gain ``g`` and the lag ``phi`` of the fundamental of ``i_m``
     (``I_m,1 = g exp(-j phi) I_1``) together with K and s_fe (the DC of every run pins K);
-    harmonics n >= 2 of the current keep the first-order lag with the fitted tau.
+    harmonics n >= 2 of the current keep the chosen model's response with the fitted tau.
     ``K(f) = K g`` (its uncertainty with K's, correlated) and ``lag(f) = phi`` come with their
     standard uncertainties from that fit's covariance, as above.
     """
+    names = tuple(FREQUENCY_MODELS) if models is None else tuple(models)
+    if not names:
+        raise InputError("no frequency model to fit")
     recs = _records(records)
     steps = _steps(np.array([r.f0 for r in recs]), step_tolerance)
     _check_campaign(recs, steps)
     weighted = recs[0].force_std is not None
     stacks = _stacks(recs, weighted)
     n_obs = sum(2 * r.harmonics + 1 for r in recs)
-
-    def make(sts: list[_Stack]) -> Any:
-        return lambda x: _global_residuals(sts, x)
-
-    fun = make(stacks)
-    x0 = _start(stacks, recs)
-    g_min = min(float(r.gaps.min()) for r in recs)
-    f_max = max(r.f0 for r in recs)
-    scale = np.array([abs(x0[0]), float(np.median([r.static_gap for r in recs])),
-                      1.0 / (_TWO_PI * f_max)])
-    lo = np.array([-np.inf, -0.9 * g_min, -np.inf])
-    glob = _with_shared(_solve(fun, x0, scale, lo, weighted, n_obs, "frequency law"), recs,
-                        weighted, make)
-    table = _fit_steps(stacks, recs, steps, glob, weighted, n_obs)
+    fits, scores, skipped = _candidates(stacks, recs, steps, names, weighted, n_obs)
+    chosen, reason = choose_model(scores) if len(names) > 1 else (names[0], "")
+    glob = fits[chosen]
+    table = _fit_steps(stacks, recs, steps, glob, weighted, n_obs, frequency_model(chosen))
     currents = np.concatenate([r.current for r in recs])
     gaps = np.concatenate([r.gaps.ravel() for r in recs])
     f0 = [r.f0 for r in recs]
@@ -406,4 +497,5 @@ def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLER
         n_poles=int(recs[0].gaps.shape[1]), frequency_range=(min(f0), max(f0)),
         current_range=(float(currents.min()), float(currents.max())),
         gap_range=(float(gaps.min()), float(gaps.max())), steps=table, chi2=glob.chi2,
-        dof=glob.dof, covariance_scale=glob.scale)
+        dof=glob.dof, covariance_scale=glob.scale, model=chosen, reason=reason,
+        candidates=candidate_rows(scores, skipped) if len(names) > 1 else ())

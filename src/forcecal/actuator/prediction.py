@@ -47,8 +47,9 @@ EXTRAPOLATION = 10.0
 :func:`predict` (and ``forcecal predict``); within it, a prediction extrapolates with a
 warning."""
 FREQUENCY_EXTRAPOLATION = 10.0
-"""A frequency above this many times the highest calibrated one is refused: the first-order lag
-is a low-frequency model of the eddy currents, not to be carried that far."""
+"""A frequency above this many times the highest calibrated one is refused: the law's frequency
+model (a first-order lag, a solid core's half order) is fitted to the calibrated band of the
+eddy currents, not to be carried that far."""
 
 
 class ExtrapolationWarning(UserWarning):
@@ -350,35 +351,73 @@ class Calibration:
         return cls.from_json(obj, source=str(path))
 
 
+_Values = Any
+"""An (n,) array of the n predictions, or a float (``numpy.float64``) where the inputs were
+scalars."""
+
+
 @dataclass(frozen=True)
 class Prediction:
     """Predicted actuator force.
 
+    As NumPy does: scalar inputs (a current and a gap, or a gap per pole) give floats, arrays
+    give arrays (a current of shape (1,) gives arrays of one value).
+
     Attributes
     ----------
-    total : (n,) array [N]
+    total : (n,) array or float [N]
         Total force, summed over the poles.
-    per_pole : (n, n_poles) array [N]
+    per_pole : (n, n_poles) array, or (n_poles,) for scalar inputs [N]
         Force of each pole.
-    std : (n,) array [N]
+    std : (n,) array or float [N]
         Standard uncertainty of ``total`` from the parameter covariance (delta method).
-    frequency : (n,) array [Hz] or None
+    frequency : (n,) array or float [Hz], or None
         The drive's frequency, when the prediction was asked at one (then ``total`` is the
         force with K replaced by K(f), and ``std`` from the frequency law's covariance).
-    k_frequency, k_frequency_std : (n,) arrays [N m^2/A^2] or None
+    k_frequency, k_frequency_std : (n,) arrays or floats [N m^2/A^2], or None
         K(f) and its standard uncertainty.
-    lag_deg, lag_deg_std : (n,) arrays [deg] or None
+    lag_deg, lag_deg_std : (n,) arrays or floats [deg], or None
         The force's lag behind i^2 at that frequency, and its standard uncertainty.
     """
 
-    total: np.ndarray
+    total: _Values
     per_pole: np.ndarray
-    std: np.ndarray
-    frequency: np.ndarray | None = None
-    k_frequency: np.ndarray | None = None
-    k_frequency_std: np.ndarray | None = None
-    lag_deg: np.ndarray | None = None
-    lag_deg_std: np.ndarray | None = None
+    std: _Values
+    frequency: _Values | None = None
+    k_frequency: _Values | None = None
+    k_frequency_std: _Values | None = None
+    lag_deg: _Values | None = None
+    lag_deg_std: _Values | None = None
+
+    def __repr__(self) -> str:
+        """One line: how many predictions, the total (its range over many) and its std."""
+        total, std = np.ravel(self.total), np.ravel(self.std)
+        if total.size == 1:
+            what = f"total {total[0]:.6g} N ± {std[0]:.2g}"
+        else:
+            what = (f"{total.size} predictions, total {total.min():.6g} to {total.max():.6g} N, "
+                    f"std up to {std.max():.2g}")
+        at = "" if self.frequency is None else \
+            f" at {np.min(self.frequency):g}-{np.max(self.frequency):g} Hz"
+        return f"Prediction({what}{at}, {np.shape(self.per_pole)[-1]} pole(s))"
+
+
+def _scalar(pred: Prediction) -> Prediction:
+    """The prediction of one (current, gaps) or flux as floats (``per_pole`` (n_poles,))."""
+    def one(values: np.ndarray | None) -> Any:
+        return None if values is None else np.float64(np.ravel(values)[0])
+
+    return replace(pred, total=one(pred.total), per_pole=pred.per_pole[0], std=one(pred.std),
+                   frequency=one(pred.frequency), k_frequency=one(pred.k_frequency),
+                   k_frequency_std=one(pred.k_frequency_std), lag_deg=one(pred.lag_deg),
+                   lag_deg_std=one(pred.lag_deg_std))
+
+
+def _is_scalar(current: Any, gaps: Any, frequency: Any = None) -> bool:
+    """Whether the inputs are one prediction's scalars: a 0-d current, a gap that is a scalar
+    or one per pole, no frequency or a 0-d one."""
+    return (np.ndim(current) == 0 and np.ndim(gaps) <= 1
+            and (frequency is None or np.ndim(frequency) == 0))
 
 
 def _warn_outside(
@@ -509,8 +548,10 @@ def predict(calibration: Calibration, current: Any, gaps: Any,
     Returns
     -------
     Prediction
-        Arrays over the n predictions; ``std`` propagates the parameter covariance through the
-        gradient of the total (delta method); with a frequency also K(f) and the lag.
+        Arrays over the n predictions, floats for scalar inputs (a scalar current, a scalar
+        gap or one per pole, and a scalar frequency or none); ``std`` propagates the parameter
+        covariance through the gradient of the total (delta method); with a frequency also
+        K(f) and the lag.
 
     Raises
     ------
@@ -547,14 +588,14 @@ def predict(calibration: Calibration, current: Any, gaps: Any,
         pred = Prediction(total=total, per_pole=per_pole, std=std, frequency=f, k_frequency=k,
                           k_frequency_std=k_std, lag_deg=lag, lag_deg_std=lag_std)
         _check_finite_prediction(pred)
-        return pred
-    law.check_gap_offset(calibration.params, s)
-    _warn_outside(i, calibration.current_range, "current", "A", 1.0)
-    _warn_outside(s, calibration.gap_range, "gap", "mm", 1e3)
-    with np.errstate(all="ignore"):
-        pred = _propagate(law, calibration, i, s, None)
-    _check_finite_prediction(pred)
-    return pred
+    else:
+        law.check_gap_offset(calibration.params, s)
+        _warn_outside(i, calibration.current_range, "current", "A", 1.0)
+        _warn_outside(s, calibration.gap_range, "gap", "mm", 1e3)
+        with np.errstate(all="ignore"):
+            pred = _propagate(law, calibration, i, s, None)
+        _check_finite_prediction(pred)
+    return _scalar(pred) if _is_scalar(current, gaps, frequency) else pred
 
 
 def _frequency(calibration: Calibration, frequency: Any, n: int
@@ -578,7 +619,7 @@ def _frequency(calibration: Calibration, frequency: Any, n: int
     if np.any(f > top):
         raise InputError(f"frequency {float(f.max()):.4g} Hz is more than "
                          f"{FREQUENCY_EXTRAPOLATION:g} times the highest calibrated frequency "
-                         f"{fl.frequency_range[1]:.4g} Hz; the first-order law is not "
+                         f"{fl.frequency_range[1]:.4g} Hz; the {fl.model} law is not "
                          "extrapolated that far")
     return fl, f
 
@@ -603,7 +644,7 @@ def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
     Returns
     -------
     Prediction
-        ``total = n_poles * per-pole``; ``std`` by the delta method.
+        ``total = n_poles * per-pole``; ``std`` by the delta method; floats for a scalar flux.
 
     Raises
     ------
@@ -629,4 +670,4 @@ def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
     with np.errstate(all="ignore"):
         pred = _propagate(law, calibration, np.zeros(phi.size), s, phi)
     _check_finite_prediction(pred)
-    return pred
+    return _scalar(pred) if np.ndim(flux) == 0 else pred

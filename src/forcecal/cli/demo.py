@@ -21,7 +21,8 @@ def run_demo(out: Path, progress: Callable[[str], None] = lambda _m: None) -> Pa
         The output folder: the simulated files, the paper run's report and the campaign's
         calibration and report.
     progress : callable
-        Called with a short message before each stage.
+        Called with a one-line message before each stage and each of its steps (every run
+        simulated, every run of the campaign reconstructed).
 
     Returns
     -------
@@ -40,7 +41,8 @@ def run_demo(out: Path, progress: Callable[[str], None] = lambda _m: None) -> Pa
     progress("simulating the 'paper' rig (scan and one run)")
     paper = write_simulation(out / "paper", "paper", seed=0)
     progress("simulating the 'campaign' (21 runs)")
-    campaign = write_simulation(out / "campaign", "campaign", seed=1)
+    campaign = write_simulation(out / "campaign", "campaign", seed=1,
+                                progress=lambda m: progress(f"  simulating {m}"))
 
     progress("paper: spatial model, forces, report")
     rig = load_rig(paper / "rig.toml")
@@ -48,11 +50,13 @@ def run_demo(out: Path, progress: Callable[[str], None] = lambda _m: None) -> Pa
     report = run_report(rig, scan, [read_run(paper / "runs" / "paper.csv")], out / "report",
                         truth_dir=paper / "truth")
 
-    progress("campaign: spatial model, forces of every run, calibration")
+    progress("campaign: spatial model")
     crig = load_rig(campaign / "rig.toml")
     cmodel = build_spatial_model(crig, read_scan(campaign / "scan.uff"))
+    progress("campaign: forces of every run, then the candidate laws")
     result = calibrate_campaign(crig, cmodel, campaign / "manifest.csv",
                                 progress=lambda d, t, n: progress(f"  [{d}/{t}] {n}"))
     write_calibration(result, out / "calibration")
+    progress(f"campaign: law {result.law} chosen; its certificate")
     calibration_report(crig, cmodel, result, out / "calibration")
     return report

@@ -2,7 +2,10 @@
 
 ``main(argv=None) -> int``: 0 on success, 2 for bad input or arguments (one line on stderr that
 names the file, key or channel), 130 when interrupted. Output files are written atomically.
-Warnings are said once a command is through: a refused input's line stands alone.
+Warnings are said once a command is through: a refused input's line stands alone. stdout holds
+what a command wrote (its paths first) and its summary; stderr errors, warnings and progress
+(on a terminal, with ``-v``, and always for ``demo``); ``-q`` leaves both empty on success but
+for the data a command is asked to print (``predict``'s force, ``schema`` to stdout).
 """
 
 from __future__ import annotations
@@ -32,8 +35,8 @@ def _say(msg: str) -> None:
 
 
 _VERBOSITY = [1]
-"""0 with -q (errors and warnings only), 1 by default (progress on a terminal), 2 with -v
-(progress everywhere and details)."""
+"""0 with -q (errors and warnings only, no result lines), 1 by default (progress on a
+terminal), 2 with -v (progress everywhere and details)."""
 
 
 def _info(msg: str, level: int = 1) -> None:
@@ -48,6 +51,13 @@ def _info(msg: str, level: int = 1) -> None:
     _say(msg)
 
 
+def _step(msg: str) -> None:
+    """A step of ``demo`` on stderr, one line each, on a terminal or not (a person watches a
+    demo, through a pipe or ``make`` too); none with ``-q``."""
+    if _VERBOSITY[0] >= 1:
+        _say(msg)
+
+
 def _interactive() -> bool:
     """Whether stderr is a terminal."""
     isatty = getattr(sys.stderr, "isatty", None)
@@ -58,8 +68,15 @@ def _interactive() -> bool:
 
 
 def _print(msg: object) -> None:
-    """A line on stdout; characters it cannot encode (a file name's undecodable bytes) are
-    replaced, never an error after the outputs are written."""
+    """A result line on stdout (a path written, its summary, a note), none with ``-q``."""
+    if _VERBOSITY[0] >= 1:
+        _write(msg)
+
+
+def _write(msg: object) -> None:
+    """A line on stdout, whatever the verbosity: the data a command was asked to print.
+    Characters it cannot encode (a file name's undecodable bytes) are replaced, never an
+    error after the outputs are written."""
     text = str(msg)
     encoding = getattr(sys.stdout, "encoding", None) or "utf-8"
     text = text.encode(encoding, "replace").decode(encoding, "replace")
@@ -278,7 +295,7 @@ def _workers(args, n_jobs: int) -> int:
 
 
 def _cmd_calibrate(args) -> int:
-    from ..campaign import calibrate_campaign, write_calibration
+    from ..campaign import calibrate_campaign, report_text, write_calibration
     from ..cluster.jobs import calibrate_job, calibrate_jobs, campaign_folders
     from ..io.staging import staged_folder
 
@@ -297,6 +314,7 @@ def _cmd_calibrate(args) -> int:
                            workers=_workers(args, len(manifests)),
                            scheduler=args.scheduler, progress=_progress)
     origin = _provenance(args)
+    summary: list[str] = []           # said after every path, composed before they are moved
     with staged_folder(args.output) as stage:
         for result, folder in zip(results, folders, strict=True):
             where = stage / folder.relative_to(args.output)
@@ -306,9 +324,39 @@ def _cmd_calibrate(args) -> int:
                 from ..report.pipeline import calibration_report
 
                 shown = model.harmonic(rig, result.runs[0].estimate.f0)
-                calibration_report(rig, shown, result, where, provenance=origin)
+                calibration_report(rig, shown, result, where, provenance=origin,
+                                   figure_format=args.figure_format)
             _print(folder / path.name)
+            summary += _calibration_summary(result, folder, not args.no_report)
+            if _VERBOSITY[0] >= 2:
+                summary += report_text(result).rstrip("\n").splitlines()
+    for line in summary:
+        _print(line)
     return 0
+
+
+def _calibration_summary(result, folder: Path, certificate: bool) -> list[str]:
+    """What ``calibrate`` says of a campaign after the paths it wrote: the law chosen, its gain
+    constant (its first parameter, K) with the standard and the expanded uncertainty (the value
+    to the digits the uncertainty warrants, as the certificate), the held-out error and where
+    the certificate is."""
+    from ..campaign.statistics import COVERAGE_FACTOR
+    from ..report.cells import unc, value
+
+    cal = result.calibration
+    law = cal.law_object
+    name, unit = law.param_names[0], law.param_units[0]
+    gain, u = float(cal.params[0]), float(cal.stderr[0])
+    k = COVERAGE_FACTOR if result.uncertainty is None else result.uncertainty.coverage_factor
+    n = len(result.selection.candidates)
+    return [f"{folder}: law {cal.law}, {law.formula} (chosen of {n} candidate law"
+            f"{'s' if n > 1 else ''})",
+            f"  {name} = {value(gain, k * u)} ± {unc(k * u)} {unit} (expanded "
+            f"uncertainty U, k = {k:g}; standard u = {unc(u)})",
+            f"  held-out error {100 * result.selection.best.held_out.rms:.3g} % (RMS relative "
+            "error of the force predicted for runs left out of the fit)",
+            f"  certificate: {folder / 'report.html'}" if certificate else
+            "  no certificate (--no-report)"]
 
 
 def _cmd_predict(args) -> int:
@@ -325,10 +373,10 @@ def _cmd_predict(args) -> int:
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            pred = predict(cal, [args.current], args.gap, frequency=args.frequency)
+            pred = predict(cal, args.current, args.gap, frequency=args.frequency)  # floats
         except ForcecalError as exc:
             raise InputError(f"calibration '{args.calibration}': {exc}") from None
-    values = [float(pred.total[0]), float(pred.std[0]), *map(float, pred.per_pole[0])]
+    values = [float(pred.total), float(pred.std), *map(float, pred.per_pole)]
     if not all(np.isfinite(values)):
         raise InputError(f"calibration '{args.calibration}': its law gives no finite force at "
                          f"{args.current:g} A and {args.gap:g} m")
@@ -337,13 +385,13 @@ def _cmd_predict(args) -> int:
     if args.json:
         extra = {} if args.frequency is None else {
             "frequency_hz": args.frequency,
-            **{key: float(np.ravel(getattr(pred, key))[0]) for key in (
+            **{key: float(getattr(pred, key)) for key in (
                 "k_frequency", "k_frequency_std", "lag_deg", "lag_deg_std")}}
-        _print(json.dumps({"total_n": values[0], "std_n": values[1],
+        _write(json.dumps({"total_n": values[0], "std_n": values[1],
                            "per_pole_n": values[2:], "law": cal.law, **extra},
                           allow_nan=False))
     else:
-        _print(f"{pred.total[0]:.6g}")
+        _write(f"{pred.total:.6g}")
     return 0
 
 
@@ -424,7 +472,8 @@ def _cmd_report(args) -> int:
     with staged_folder(args.output) as stage:
         path = run_report(rig, scan, runs, stage, truth_dir=args.truth,
                           n_harmonics=args.harmonics, criterion=args.criterion, basis=args.basis,
-                          provenance=_provenance(args), progress=_info)
+                          provenance=_provenance(args), progress=_info,
+                          figure_format=args.figure_format)
     _print(Path(args.output) / Path(path).relative_to(stage))
     return 0
 
@@ -433,13 +482,13 @@ def _cmd_demo(args) -> int:
     from .demo import run_demo
 
     start = time.perf_counter()
-    report = run_demo(Path(args.out), progress=_info)
-    _info(f"  done in {time.perf_counter() - start:.1f} s")
-    print(f"report: {report}")
+    report = run_demo(Path(args.out), progress=_step)
+    _step(f"  done in {time.perf_counter() - start:.1f} s")
+    _print(f"report: {report}")
     calibration = Path(args.out) / "calibration" / "report.html"
     if calibration.is_file():
-        print(f"calibration report (the actuator law, its uncertainty, the campaign): "
-              f"{calibration}")
+        _print(f"calibration report (the actuator law, its uncertainty, the campaign): "
+               f"{calibration}")
     return 0
 
 

@@ -226,7 +226,9 @@ def build_parser() -> argparse.ArgumentParser:
     for command in sub.choices.values():                         # after the command too
         verbosity = command.add_mutually_exclusive_group()
         verbosity.add_argument("-q", "--quiet", action="store_true",
-                               help="errors and warnings only, no progress")
+                               help="silent on success: errors and warnings only (no progress, no "
+                                    "result lines; what was asked for, as predict's number, "
+                                    "is still printed)")
         verbosity.add_argument("-v", "--verbose", action="store_true",
                                help="details (the uncertainty budget of every force), and "
                                     "progress even when stderr is not a terminal")
@@ -244,6 +246,11 @@ def build_parser() -> argparse.ArgumentParser:
         jobs.add_argument(
             "--scheduler", metavar="ADDRESS",
             help="an existing Dask scheduler (tcp://host:8786) whose workers run the jobs")
+    for name in ("calibrate", "report"):                           # the commands that draw
+        sub.choices[name].add_argument(
+            "--figure-format", choices=("png", "svg", "pdf"), default="png",
+            help="file format of the figures (default png; png and svg are embedded in the "
+                 "HTML page, pdf is linked from it beside a PNG preview)")
     for name in ("reconstruct", "calibrate", "stream", "report"):  # the commands that read runs
         sub.choices[name].add_argument(
             "--group", metavar="NAME",

@@ -151,16 +151,24 @@ def with_monte_carlo(rig: Rig, model: SpatialModel, run: Run, est: ForceEstimate
 
 def _budget_lines(est: ForceEstimate) -> list[str]:
     """Every force's and the total's standard uncertainty at the DC and the fundamental,
-    source by source."""
+    source by source: a table, a row per source, two aligned columns per force."""
     names = [*est.force_names, "total"]
-    lines = ["  uncertainty budget [N] " + "  ".join(f"{n} DC, n=1" for n in names)]
     rows = [*est.budget.items(), ("combined", est.combination_std),
             ("expanded k = 2", est.expanded())]
-    for src, std in rows:
+    cells = []
+    for _src, std in rows:
         assert std is not None
-        cells = "  ".join(f"{std[est.combination_names.index(n), 0]:.3g}, "
-                          f"{std[est.combination_names.index(n), 1]:.3g}" for n in names)
-        lines.append(f"    {src:<22} {cells}")
+        cells.append([f"{std[est.combination_names.index(n), h]:.3g}" for n in names
+                      for h in (0, 1)])
+    width = max(9, *(len(c) for row in cells for c in row), *((len(n) - 1) // 2 for n in names))
+    label = max(len(src) for src, _ in rows)
+    lines = ["  uncertainty budget [N]: standard uncertainty of every force at DC and at the "
+             "fundamental",
+             f"    {'':<{label}}" + "".join(f"  {n:>{2 * width + 2}}" for n in names),
+             f"    {'source':<{label}}" + "  ".join(["", *(f"{h:>{width}}" for _ in names
+                                                         for h in ("DC", "n = 1"))])]
+    lines += [f"    {src:<{label}}" + "  ".join(["", *(f"{c:>{width}}" for c in row)])
+              for (src, _), row in zip(rows, cells, strict=True)]
     return lines
 
 

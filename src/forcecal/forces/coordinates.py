@@ -23,7 +23,6 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.special import gammaincinv
 
 from ..errors import ConditioningError
 from ..model.spatial import SpatialModel
@@ -239,6 +238,8 @@ class MemberFit:
         """Covariance of Re and of Im of q: (phi^H W phi)^-1, inflated by the Birge ratio when
         the probes contradict the shapes beyond their noise and the shapes' uncertainty (1 %
         significance)."""
+        from scipy.special import gammaincinv  # on use: a steady stream starts without it
+
         cov: np.ndarray = np.linalg.inv(self.info)
         # the chi-square quantile, 2 P^-1(dof / 2, level) (scipy.special: lighter than .stats)
         if self.dof > 0 and self.reduced > 2 * gammaincinv(self.dof / 2, MISFIT_LEVEL) / self.dof:

@@ -23,8 +23,6 @@ from dataclasses import dataclass
 from functools import partial
 
 import numpy as np
-from scipy.optimize import minimize_scalar
-from scipy.special import gammaincinv
 
 from ..model.relaxation import force_matrix
 from ..records import Run
@@ -83,19 +81,24 @@ class EstimateTerms:
 def pole_fluxes(rig: Rig, run: Run) -> dict[int, np.ndarray]:
     """[Wb] each force's pole flux over the record, by the force's index: its own channel
     (``forces[].flux``) or the actuator's (``actuator.flux``), scaled; forces without one, or
-    whose channel the run lacks, are left out."""
+    whose channel the run lacks, are left out. Forces on one channel share one array."""
     out = {}
+    scaled: dict[str, np.ndarray] = {}
     for k, f in enumerate(rig.forces):
         name = f.flux or rig.actuator.flux
         if name is not None and name in run.channels:
-            out[k] = rig.actuator.flux_scale * run.channel(name)
+            if name not in scaled:
+                scaled[name] = rig.actuator.flux_scale * run.channel(name)
+            out[k] = scaled[name]
     return out
 
 
 def _maxwell(flux: np.ndarray, area: float, fs: float, f0: float, h: int,
              t0: float) -> tuple[np.ndarray, np.ndarray]:
     """Phasors of Phi^2 / (2 mu0 A) and their standard uncertainties."""
-    fit = fit_harmonics(flux**2 / (2 * MU0 * area), fs, f0, h, t0=t0)
+    stress = np.square(flux)                       # Phi^2 / (2 mu0 A), made in place
+    stress /= 2 * MU0 * area
+    fit = fit_harmonics(stress, fs, f0, h, t0=t0)
     return fit.phasors, fit.phasor_std
 
 
@@ -239,6 +242,8 @@ def _size(cause: _Cause, problem: _Problem, pick: Callable[[np.ndarray], np.ndar
         return c2, (100 * b / (1 - b) if b != 1 else math.inf)
     if cause.form == "swap":
         return problem.fit(pick(cause.forces(0.0)))[0], math.nan
+    from scipy.optimize import minimize_scalar  # on use: a steady stream starts without it
+
     bound = period_ms / 2 if cause.form == "delay" else SHIFT_MM
     best = minimize_scalar(lambda x: problem.fit(pick(cause.forces(x)))[0],
                            bounds=(-bound, bound), method="bounded",
@@ -253,6 +258,8 @@ def _cause_text(name: str, unit: str, size: float) -> str:
 
 def _limit(dof: int, rate: float = FALSE_ALARM) -> float:
     """The chi-square of ``dof`` degrees of freedom that chance exceeds at ``rate``."""
+    from scipy.special import gammaincinv  # on use: a steady stream starts without it
+
     return float(2 * gammaincinv(dof / 2, 1 - rate))
 
 

@@ -21,7 +21,6 @@ command line, kept in the JSON) that says what was found, what it likely means a
 from __future__ import annotations
 
 import numpy as np
-from scipy.special import gammaincinv
 
 from ..model.spatial import SpatialModel
 from ..signals.harmonics import fit_harmonics
@@ -42,8 +41,34 @@ DRIFT_TOLERANCE = 1e-3
 """Relative change of the drive frequency across a record that draws a note."""
 
 
+def misfit_limits(coords: Coordinates, n_sensors: int) -> tuple[float, np.ndarray, np.ndarray]:
+    """The reduced chi-square of each harmonic's sensor fit above which the probes are noted.
+
+    The quantile of the reduced chi-square with 2 (n_sensors - n_shapes) degrees of freedom at
+    :data:`FALSE_ALARM` shared among the harmonics; NaN without a degree of freedom.
+
+    Returns
+    -------
+    rate : float
+        The false-alarm rate per harmonic.
+    dof : (n_harmonics,) int ndarray
+    limits : (n_harmonics,) ndarray [1]
+    """
+    from scipy.special import gammaincinv  # on use: a steady stream starts without it
+
+    rate = FALSE_ALARM / max(len(coords.harmonics), 1)
+    dof = np.array([2 * (n_sensors - len(coords.span(k)[0]))
+                    for k in range(len(coords.harmonics))], dtype=int)
+    limits = np.full(dof.shape, np.nan)
+    ok = dof > 0
+    # the chi-square quantile, 2 P^-1(dof / 2, q) (scipy.special: lighter than .stats)
+    limits[ok] = 2 * gammaincinv(dof[ok] / 2, 1 - rate) / dof[ok]
+    return rate, dof, limits
+
+
 def probe_misfit_notes(coords: Coordinates, sensor_names: list[str], what: str) -> list[str]:
-    """A note per harmonic whose probes contradict the model's shape.
+    """A note per harmonic whose probes contradict the model's shape (beyond
+    :func:`misfit_limits`).
 
     Parameters
     ----------
@@ -58,15 +83,11 @@ def probe_misfit_notes(coords: Coordinates, sensor_names: list[str], what: str) 
     -------
     list of str
     """
-    n_s = len(sensor_names)
     notes = []
-    rate = FALSE_ALARM / max(len(coords.harmonics), 1)
-    for k, (n, chi2) in enumerate(zip(coords.harmonics, coords.chi2, strict=True)):
-        dof = 2 * (n_s - len(coords.span(k)[0]))
+    rate, dofs, limits = misfit_limits(coords, len(sensor_names))
+    for n, chi2, dof, limit in zip(coords.harmonics, coords.chi2, dofs, limits, strict=True):
         if dof <= 0:
             continue
-        # the chi-square quantile, 2 P^-1(dof / 2, q) (scipy.special: lighter than .stats)
-        limit = float(2 * gammaincinv(dof / 2, 1 - rate) / dof)
         if np.isfinite(chi2) and chi2 > limit:
             notes.append(
                 f"{what}: harmonic {int(n)}: the probes {', '.join(sensor_names)} disagree with "
@@ -135,7 +156,8 @@ def pull_only_notes(force_names: list[str], series: np.ndarray, dc: np.ndarray,
     notes = []
     for k, name in enumerate(force_names):
         low = float(np.min(series[k]))
-        sigma = max(float(series_std[k]), 1e-9 * float(np.max(np.abs(series[k]))))
+        top = max(float(np.max(series[k])), -low)           # max |x| without a copy of |x|
+        sigma = max(float(series_std[k]), 1e-9 * top)
         if low < -PUSH_SIGMAS * sigma:
             notes.append(
                 f"{what}: force '{name}' pushes (down to {low:.3g} N, DC {dc[k]:.3g} N) though "

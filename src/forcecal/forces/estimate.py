@@ -285,30 +285,33 @@ class ForceEstimate:
         return pandas
 
     def to_dataframe(self) -> Any:
-        """The force series as a pandas DataFrame: index ``time`` [s], one column per force,
-        ``total``, and the reactions-only ones with suffix ``_static`` [N] (the columns of
-        ``NAME.forces.csv``). Example: ``est.to_dataframe()[["total", "total_static"]]``."""
+        """The force series as a pandas DataFrame: index ``time`` [s], the columns of
+        :meth:`columns`, those of ``NAME.forces.csv``: every force and ``total``, the same with
+        suffix ``_static`` (reactions only) and with suffix ``_std`` (standard uncertainty at
+        each instant) [N]. Example: ``est.to_dataframe()[["total", "total_std"]]``."""
         pd = self._pandas()
-        names = (*self.force_names, "total")
-        values = np.vstack([self.series, self.total_series, self.static_series,
-                            self.static_series.sum(axis=0)])
-        columns = [*names, *(f"{n}_static" for n in names)]
-        return pd.DataFrame(values.T, columns=columns, index=pd.Index(self.time, name="time"))
+        return pd.DataFrame(self.columns(), index=pd.Index(self.time, name="time"))
 
     def harmonics_frame(self) -> Any:
         """Every force's harmonics as a pandas DataFrame, index (``force``, ``harmonic``):
         ``amplitude`` |F_n| [N], ``phase`` [rad], ``std`` [N] (of Re and of Im),
-        ``static_amplitude`` (reactions only) [N], ``with_inertia``, ``kept`` (bool).
-        Example: ``est.harmonics_frame().loc["F1", "amplitude"]``."""
+        ``static_amplitude`` (reactions only) [N], ``with_inertia``, ``kept`` (bool). A
+        harmonic the data do not support (``kept`` false) has no estimate: NaN in its
+        amplitudes, phase and std. Example: ``est.harmonics_frame().loc["F1", "amplitude"]``."""
         pd = self._pandas()
         n_f = len(self.force_names)
         index = pd.MultiIndex.from_product(
             [list(self.force_names), [int(n) for n in self.harmonics]], names=["force", "harmonic"])
+        dropped = ~np.tile(self.kept.astype(bool), n_f)
+
+        def known(values: np.ndarray) -> np.ndarray:
+            return np.where(dropped, np.nan, values.ravel())
+
         return pd.DataFrame({
-            "amplitude": np.abs(self.force).ravel(), "phase": np.angle(self.force).ravel(),
-            "std": self.force_std.ravel(), "static_amplitude": np.abs(self.static).ravel(),
+            "amplitude": known(np.abs(self.force)), "phase": known(np.angle(self.force)),
+            "std": known(self.force_std), "static_amplitude": known(np.abs(self.static)),
             "with_inertia": np.tile(self.with_inertia.astype(bool), n_f),
-            "kept": np.tile(self.kept.astype(bool), n_f)}, index=index)
+            "kept": ~dropped}, index=index)
 
 
 _HarmonicRows = list[dict[str, int | float | bool | dict[str, float]]]
@@ -448,8 +451,10 @@ def _resultant_rows(est: ForceEstimate) -> tuple[dict[str, _HarmonicRows],
     return resultant, components
 
 
-def waveform_std_series(est: ForceEstimate) -> np.ndarray:
-    """Standard uncertainty of every force and of the total at each time stamp.
+def waveform_std_series(est: ForceEstimate, start: int = 0, stop: int | None = None
+                        ) -> np.ndarray:
+    """Standard uncertainty of every force and of the total at each time stamp (those of
+    samples ``start`` to ``stop`` - 1, default all: the same values as the whole's).
 
     The phasors' uncertainties propagate as in :attr:`ForceEstimate.waveform_std`: harmonic n
     enters x(t) as Re(X_n) cos(n w0 t) - Im(X_n) sin(n w0 t), whose variance is
@@ -469,43 +474,52 @@ def waveform_std_series(est: ForceEstimate) -> np.ndarray:
     ----------
     est : ForceEstimate
         The run's estimate.
+    start, stop : int, optional
+        The samples, ``stop`` None for the last (a writer's block of rows).
 
     Returns
     -------
-    (n_forces + 1, n_samples) ndarray [N]
+    (n_forces + 1, stop - start) ndarray [N]
         One row per force in ``est.force_names`` order, then the total (its phasors'
         uncertainties ``est.total_std`` account for the correlation between the forces).
     """
     phasors = np.vstack([est.force, est.total[None, :]])
     std = np.vstack([est.force_std, est.total_std[None, :]])
     t = np.asarray(est.time, dtype=float)
-    out = np.empty((phasors.shape[0], t.size))
+    stop = t.size if stop is None else min(stop, t.size)
+    out = np.empty((phasors.shape[0], max(stop - start, 0)))
     out[:] = np.sum(std**2, axis=1)[:, None]
     if est.dropped_rms is not None:
         out += (est.dropped_rms**2)[:, None]
     if est.f0_std != 0.0 and t.size > 1:
         # dx_AC/dt has the phasors j n w0 X_n; a block of time stamps at a time, so that
-        # memory holds the result and no more
+        # memory holds the result and no more; the blocks are the whole record's, each
+        # evaluated whole, so that any part has the whole's values
         rate = phasors * (1j * 2.0 * np.pi * est.f0 * np.arange(phasors.shape[1]))
         t_mid = 0.5 * (t[0] + t[-1])
-        for s in range(0, t.size, _BLOCK):
+        for s in range(start - start % _BLOCK, stop, _BLOCK):
             part = t[s:s + _BLOCK]
-            out[:, s:s + _BLOCK] += (est.f0_std / est.f0 * (part - t_mid)
-                                     * series_at(rate, est.f0, part)) ** 2
+            drift = (est.f0_std / est.f0 * (part - t_mid) * series_at(rate, est.f0, part)) ** 2
+            a, b = max(s, start), min(s + _BLOCK, stop)
+            out[:, a - start:b - start] += drift[:, a - s:b - s]
     return np.sqrt(out, out=out)
 
 
-def series_columns(est: ForceEstimate) -> dict[str, np.ndarray]:
-    """The columns of the force series after ``time``, in file order.
+def series_columns(est: ForceEstimate, start: int = 0, stop: int | None = None
+                   ) -> dict[str, np.ndarray]:
+    """The columns of the force series after ``time``, in file order (their rows ``start``
+    to ``stop`` - 1, default all: a writer's block of rows has the whole's values).
 
     Parameters
     ----------
     est : ForceEstimate
         The run's estimate.
+    start, stop : int, optional
+        The rows, ``stop`` None for the last.
 
     Returns
     -------
-    dict name -> (n_samples,) ndarray [N]
+    dict name -> (stop - start,) ndarray [N]
         Every force and ``total``; the same with suffix ``_static`` (reactions only); the same
         with suffix ``_std`` (:func:`waveform_std_series`).
 
@@ -515,8 +529,10 @@ def series_columns(est: ForceEstimate) -> dict[str, np.ndarray]:
         Two columns of one name (a force named like another's ``_static`` or ``_std``).
     """
     names = (*est.force_names, "total")
-    static = [*est.static_series, est.static_series.sum(axis=0)]       # rows are views
-    values = [*est.series, est.total_series, *static, *waveform_std_series(est)]
+    rows = slice(start, stop)
+    series, static_series = est.series[:, rows], est.static_series[:, rows]   # views
+    static = [*static_series, static_series.sum(axis=0)]
+    values = [*series, series.sum(axis=0), *static, *waveform_std_series(est, start, stop)]
     keys = [*names, *(f"{n}_static" for n in names), *(f"{n}_std" for n in names)]
     columns = dict(zip(keys, values, strict=True))
     if len(columns) != len(keys):

@@ -17,6 +17,7 @@ import dataclasses
 import warnings
 from collections.abc import Iterable
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -170,6 +171,10 @@ def _series(phasors: np.ndarray, f0: float, run: Run) -> np.ndarray:
     return grid_series(phasors, f0, run.fs, run.t0, run.n_samples)
 
 
+_SERIES_BLOCK = 1 << 16
+"""Samples per block of the reactions-only series [samples]."""
+
+
 @dataclass(frozen=True)
 class _Records:
     """A run's channels in SI, grouped as the method uses them."""
@@ -180,31 +185,51 @@ class _Records:
 
 
 def _records(rig: Rig, run: Run) -> _Records:
-    """Step 0: the channels in SI, checked for clipping, at least one of them driven."""
-    sig = channels_si(rig, run)
-    for name, values in sig.items():
+    """Step 0: the channels in SI (as :func:`channels_si`), checked for clipping in its order,
+    at least one of them driven. The rows are filled in place and a channel at scale 1 is
+    not copied: a long run's channels are held twice over no more than need be."""
+    act = rig.actuator
+    rec = _Records(current=_in_si(run.channel(act.current), act.current_scale),
+                   sensors=_rows(run, [(s.name, s.scale) for s in rig.sensors]),
+                   gauges=_rows(run, [(g.name, g.scale) for g in rig.gauges]))
+    checked = {**dict(zip(rig.gauge_names, rec.gauges, strict=True)),
+               **dict(zip(rig.sensor_names, rec.sensors, strict=True)),
+               act.current: rec.current}
+    if act.flux and act.flux in run.channels:
+        checked[act.flux] = _in_si(run.channel(act.flux), act.flux_scale)
+    for name, values in checked.items():
         check_clipping(values, name, run.source, run.fs)
-    rec = _Records(current=sig[rig.actuator.current],
-                   sensors=_rows(sig, list(rig.sensor_names)),
-                   gauges=_rows(sig, list(rig.gauge_names)))
+    del checked
     if not _driven(rec):
         raise DataError(f"run '{run.source}': every channel is constant; nothing is driven")
     return rec
 
 
-def _rows(sig: dict[str, np.ndarray], names: list[str]) -> np.ndarray:
-    """The channels ``names`` of ``sig`` stacked; each is dropped from ``sig`` once copied, so
-    that a long run's channels are not held twice."""
-    out = np.empty((len(names), len(sig[names[0]])))
-    for k, name in enumerate(names):
-        out[k] = sig[name] if name in names[k + 1:] else sig.pop(name)
+def _in_si(raw: np.ndarray, scale: float) -> np.ndarray:
+    """``scale * raw``; at scale 1 the raw record itself, read-only (1.0 x is x: no copy)."""
+    raw = np.asarray(raw, dtype=float)
+    if scale != 1.0:
+        return scale * raw
+    view = raw.view()
+    view.flags.writeable = False
+    return view
+
+
+def _rows(run: Run, scaled: list[tuple[str, float]], start: int = 0,
+          stop: int | None = None) -> np.ndarray:
+    """(n, stop - start) samples start..stop-1 (default: all) of the channels ``scaled``
+    (name, scale) of ``run`` in SI, stacked: each row ``scale * raw`` made in place."""
+    stop = run.n_samples if stop is None else stop
+    out = np.empty((len(scaled), stop - start))
+    for k, (name, scale) in enumerate(scaled):
+        np.multiply(run.channel(name)[start:stop], scale, out=out[k])
     return out
 
 
 def _driven(rec: _Records) -> list[np.ndarray]:
     """The records that are not constant (constant ones say nothing of the fundamental)."""
     return [r for r in (rec.current, *rec.sensors, *rec.gauges)
-            if np.std(r) > 1e-9 * (np.max(np.abs(r)) + 1e-300)]
+            if np.std(r) > 1e-9 * (max(float(r.max()), -float(r.min())) + 1e-300)]
 
 
 def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
@@ -244,7 +269,7 @@ def _fundamental(rig: Rig, model: SpatialModel, run: Run, rec: _Records,
     if abs(off) > FREQUENCY_MISMATCH:
         msg = (f"run '{run.source}': drive at {f0:.4g} Hz but the scan model was measured at "
                f"{model.f0:.4g} Hz; its shapes may not apply")
-        warnings.warn(msg, stacklevel=3)
+        warnings.warn(msg, stacklevel=4)        # reconstruct's caller
         notes.append(msg)
     elif abs(f0 - model.f0) > max(SIGMAS * f0_std, DRIFT_TOLERANCE * model.f0):
         notes.append(f"run '{run.source}': its fundamental {f0:.6g} Hz differs from the scan "
@@ -383,6 +408,34 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     _check_arguments(rig, model, run, tare)
     check_model_rig(model, rig)
     h = n_harmonics or len(model.snr)
+    est, seen = _from_records(rig, model, run, h, tare, ac_coupled)
+    # the records in SI are gone with their fits: the series over the record come now, so
+    # that memory holds the run, its series and no more
+    flux = flux_notes(rig, run, seen.terms, f"run '{run.source}'")
+    static_series = _static_series(rig, run, seen.pinv, seen.tare_dc, ac_coupled)
+    series = _series(est.force, est.f0, run)
+    checks = _self_checks(rig, run, est, seen, series, ac_coupled)
+    return dataclasses.replace(est, time=_times(run), series=series,
+                               static_series=static_series,
+                               notes=(*est.notes, *checks, *flux, *seen.dropped))
+
+
+class _Seen(NamedTuple):
+    """What :func:`reconstruct` takes on from :func:`_from_records` besides the estimate."""
+
+    pinv: np.ndarray          # (n_f, n_g) Psi^+
+    tare_dc: np.ndarray       # (n_g,) [N] the gauges' zero
+    terms: EstimateTerms      # for the flux check
+    drift: list[str]          # the current's drift notes
+    current: np.ndarray | None  # (H+1,) the current's phasors (None: AC-coupled gauges)
+    dropped: list[str]        # the note on harmonics left out
+
+
+def _from_records(rig: Rig, model: SpatialModel, run: Run, h: int, tare: Run | None,
+                  ac_coupled: bool) -> tuple[ForceEstimate, _Seen]:
+    """Steps 0 to 7 on the run's records in SI, freed on return: the estimate without its
+    series over the record (empty) and its notes up to the self-checks, and what the rest
+    of :func:`reconstruct` needs."""
     rec = _records(rig, run)
     f0, f0_std, notes = _fundamental(rig, model, run, rec, h)
     tare_sig = None if tare is None else channels_si(rig, tare)
@@ -416,15 +469,13 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     if not rig.type_b.declared:
         notes.append(f"run '{run.source}': {rig.type_b.describe()}")
     notes += _split_note(rig, cond)
-    static_series = reactions_only(pinv, rec.gauges - tare_dc[:, None])
-    if ac_coupled:
-        static_series = static_series - static_series.mean(axis=1, keepdims=True)
     n_f = len(rig.forces)
-    series = _series(force, f0, run)
     notes += span_notes(model, coords, len(rig.sensors), f"run '{run.source}'")
-    notes += _self_checks(rig, run, rec, coords, force, std[:n_f], series, f0, ac_coupled)
-    notes += flux_notes(rig, run, terms, f"run '{run.source}'")
-    notes += (dropped := _dropped(rig, model, run, rec, f0, h, pinv, force))[0]
+    dropped = _dropped(rig, model, run, rec, f0, h, pinv, force)
+    current = None if ac_coupled else fit_harmonics(rec.current, run.fs, f0, h, t0=run.t0)
+    seen = _Seen(pinv, tare_dc, terms,
+                 drift_notes(rec.current, run.fs, f0, f"run '{run.source}'", t0=run.t0),
+                 None if current is None else current.phasors, dropped[0])
     return ForceEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
         gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
@@ -432,12 +483,29 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
         combination_names=combo_names, combination=combo @ force, combination_std=std,
         combination_std_re_im=std_re_im,
         static=static, inertia=inertia, reactions=reactions, with_inertia=with_inertia,
-        kept=kept, coordinates=coords, time=_times(run), series=series,
-        static_series=static_series, psi_condition=cond,
+        kept=kept, coordinates=coords, time=np.empty(0), series=np.empty((n_f, 0)),
+        static_series=np.empty((n_f, 0)), psi_condition=cond,
         consistency=np.linalg.norm(psi @ force - (inertia - reactions), axis=0),
         dc_observed=not ac_coupled, notes=tuple(notes), f0_std=f0_std, budget=budget,
         type_b=rig.type_b, dropped_rms=dropped[1],
-    )
+    ), seen
+
+
+def _static_series(rig: Rig, run: Run, pinv: np.ndarray, tare_dc: np.ndarray,
+                   ac_coupled: bool) -> np.ndarray:
+    """(n_f, n_samples) [N] the reactions-only forces over the record, -Psi^+ (R(t) - R_tare)
+    (less their mean when the gauges are AC-coupled), from the gauges' raw records a block
+    at a time: no temporary of the record's length."""
+    n = run.n_samples
+    out = np.empty((pinv.shape[0], n))
+    for a in range(0, n, _SERIES_BLOCK):
+        b = min(n, a + _SERIES_BLOCK)
+        reactions = _rows(run, [(g.name, g.scale) for g in rig.gauges], a, b)
+        reactions -= tare_dc[:, None]
+        out[:, a:b] = reactions_only(pinv, reactions)
+    if ac_coupled:
+        out -= out.mean(axis=1, keepdims=True)
+    return out
 
 
 def _coordinates(rig: Rig, model: SpatialModel, run: Run, rec: _Records, s_fit: HarmonicFit,
@@ -575,18 +643,18 @@ def _check_arguments(rig: object, model: object, run: object, tare: object) -> N
                              f"{type(value).__name__}")
 
 
-def _self_checks(rig: Rig, run: Run, rec: _Records, coords: Coordinates, force: np.ndarray,
-                 force_std: np.ndarray, series: np.ndarray, f0: float,
+def _self_checks(rig: Rig, run: Run, est: ForceEstimate, seen: _Seen, series: np.ndarray,
                  ac_coupled: bool) -> list[str]:
-    """Step 7: the estimate's self-checks (:mod:`forcecal.forces.diagnostics`)."""
+    """Step 7: the estimate's self-checks (:mod:`forcecal.forces.diagnostics`), those of the
+    current's record made by :func:`_from_records` (``seen``)."""
     what = f"run '{run.source}'"
-    notes = probe_misfit_notes(coords, rig.sensor_names, what)
-    notes += drift_notes(rec.current, run.fs, f0, what, t0=run.t0)
+    notes = probe_misfit_notes(est.coordinates, rig.sensor_names, what)
+    notes += seen.drift
     if not ac_coupled:
-        instant = np.sqrt(np.sum(force_std**2, axis=1))
-        notes += pull_only_notes(rig.force_names, series, force[:, 0].real, instant, what)
-        current = fit_harmonics(rec.current, run.fs, f0, force.shape[1] - 1, t0=run.t0)
-        notes += dc_vs_ac_notes(rig.force_names, force, force_std, current.phasors, what)
+        assert seen.current is not None
+        instant = np.sqrt(np.sum(est.force_std**2, axis=1))
+        notes += pull_only_notes(rig.force_names, series, est.force[:, 0].real, instant, what)
+        notes += dc_vs_ac_notes(rig.force_names, est.force, est.force_std, seen.current, what)
     return notes
 
 

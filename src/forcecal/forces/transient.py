@@ -27,7 +27,6 @@ from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
 import numpy as np
-import scipy.signal
 
 from ..errors import DataError
 from ..model.broadband import BroadbandModel
@@ -91,6 +90,8 @@ def _prior(x: np.ndarray, fs: float, band: tuple[float, float], noise_var: float
     ``quiet`` [Hz] where no line does, by default the band's top; the lines of the ``mains``'
     harmonics [Hz] are hum, not signal), and its mean one-sided density below that line
     [unit^2 / Hz]."""
+    import scipy.signal  # on use: a steady stream starts without it
+
     nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 2)))))
     f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg)
     sel = (f <= band[1]) & (f > 0) & ~near_mains(f, mains, 2.0 * f[1])

@@ -25,8 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.ndimage
-import scipy.signal
 
 from ..model.broadband import BroadbandModel
 from ..signals.mains import near_mains
@@ -101,6 +99,9 @@ def probe_misfit(model: BroadbandModel, probes: np.ndarray, fs: float, probe_sha
     UnseenMotion or None
         None with a single probe (nothing to check against) or no live line.
     """
+    import scipy.ndimage  # on use: a steady stream starts without it
+    import scipy.signal
+
     n_p, n = probes.shape
     if n_p < 2:
         return None

@@ -22,21 +22,26 @@ fundamental:
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import itertools
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from ..forces.estimate import SERIES_FORMATS, Estimate, ForceEstimate
+from ..forces.estimate import SERIES_FORMATS, Estimate, ForceEstimate, series_columns
 from ._uff_write import _write_sets
 from .run_files import write_table_csv
+from .table_writer import table_writer
 
 __all__: list[str] = []
 
 SERIES_SUFFIXES = dict(zip(SERIES_FORMATS, (".forces.csv", ".forces.h5", ".forces.mat",
                                            ".forces.uff"), strict=True))
 """The file ``NAME + suffix`` each format of ``reconstruct --format`` writes."""
+SERIES_ROWS = 1 << 16
+"""Rows of the force series made and written at once (:func:`series_blocks`): the memory of
+a block, whatever the record's length."""
 
 HDF5_FORMAT = "forcecal forces 1"
 """The root attribute ``format`` of an HDF5 force file."""
@@ -85,15 +90,50 @@ def write_series(est: Estimate, path: str | Path, fmt: str,
     InputError
         An unknown format, or a force name the format cannot hold.
     """
-    cols = dict(columns) if columns is not None else est.columns()
     if fmt == "csv":
-        return write_table_csv(path, est.time, cols)
+        if columns is None:                  # made and written a block of rows at a time
+            return _write_csv_blocks(est, path)
+        return write_table_csv(path, est.time, dict(columns))
     assert isinstance(est, ForceEstimate)  # the other formats hold the phasors too
     writers = {"hdf5": write_forces_hdf5, "mat": write_forces_mat, "uff": write_forces_uff}
     if fmt not in writers:
         raise InputError(f"run '{est.run_name}': output format {fmt!r} is not one of "
                          f"{', '.join(SERIES_FORMATS)}")
-    return writers[fmt](est, path, cols)
+    if fmt == "hdf5":
+        return write_forces_hdf5(est, path, columns)
+    return writers[fmt](est, path, dict(columns) if columns is not None else est.columns())
+
+
+def series_blocks(est: Estimate, rows: int = SERIES_ROWS
+                  ) -> Iterator[tuple[int, int, dict[str, np.ndarray]]]:
+    """The columns of the force series (:meth:`~forcecal.forces.estimate.Estimate.columns`)
+    a block of rows at a time: ``(start, stop, the columns' rows start..stop-1)``, at least
+    one block (an empty one for an empty series). A harmonic estimate's columns are made a
+    block at a time (:func:`~forcecal.forces.estimate.series_columns`: the whole's values, in
+    the memory of a block); another estimate's are cut from the whole."""
+    n = len(est.time)
+    whole = None if isinstance(est, ForceEstimate) else est.columns()
+    for start in range(0, max(n, 1), rows):
+        stop = min(n, start + rows)
+        if whole is None:
+            assert isinstance(est, ForceEstimate)
+            yield start, stop, series_columns(est, start, stop)
+        else:
+            yield start, stop, {name: np.asarray(v)[start:stop] for name, v in whole.items()}
+
+
+def _write_csv_blocks(est: Estimate, path: str | Path) -> Path:
+    """The series as :func:`~forcecal.io.run_files.write_table_csv` writes it (every value
+    exactly), its columns made and written a block of rows at a time (:func:`series_blocks`)."""
+    time = np.asarray(est.time, dtype=float).ravel()
+    blocks = series_blocks(est)
+    first = next(blocks)
+    names = list(first[2])
+    with table_writer(path, names, 1.0, 0.0, digits=0, rows=time.size) as writer:
+        for start, stop, cols in itertools.chain([first], blocks):
+            writer.write(time[start:stop], np.array(list(cols.values()), dtype=float)
+                         .reshape(len(names), -1))
+    return Path(path)
 
 
 def _per_force(est: ForceEstimate) -> tuple[list[str], np.ndarray, np.ndarray]:
@@ -142,7 +182,11 @@ def write_forces_hdf5(est: ForceEstimate, path: str | Path,
     """
     import h5py
 
-    cols = dict(columns) if columns is not None else est.columns()
+    # without ``columns``, they are made and written a block of rows at a time
+    blocks = series_blocks(est) if columns is None else iter([(0, len(est.time),
+                                                               dict(columns))])
+    first = next(blocks)
+    cols = first[2]
     for name in cols:
         if not name or "/" in name or name == ".":
             raise InputError(f"run '{est.run_name}': force name {name!r} cannot name an HDF5 "
@@ -159,10 +203,13 @@ def write_forces_hdf5(est: ForceEstimate, path: str | Path,
         h5.attrs.create("notes", data=list(est.notes), shape=(len(est.notes),), dtype=text)
         h5.create_dataset("time", data=np.asarray(est.time, dtype=float))
         h5["time"].attrs["units"] = "s"
-        for name, values in cols.items():
-            ds = h5.create_dataset(name, data=np.asarray(values, dtype=float))
+        for name in cols:
+            ds = h5.create_dataset(name, shape=(len(est.time),), dtype=float)
             ds.attrs["units"] = "N"
             ds.attrs["quantity"] = _QUANTITY[_kind(name, names)[1]]
+        for start, stop, part in itertools.chain([first], blocks):
+            for name, values in part.items():
+                h5[name][start:stop] = np.asarray(values, dtype=float)
         for name in names:
             h5[name].attrs["std"] = f"{name}_std"
             h5[name].attrs["static"] = f"{name}_static"

@@ -10,7 +10,13 @@ import numpy as np
 from .._atomic import atomic_path
 from ..errors import DataError, InputError
 from ..forces.estimate import Estimate
-from .result_formats import SERIES_FORMATS, SERIES_SUFFIXES, series_json, write_series
+from .result_formats import (
+    SERIES_FORMATS,
+    SERIES_SUFFIXES,
+    series_blocks,
+    series_json,
+    write_series,
+)
 
 __all__ = ["write_estimate"]
 
@@ -73,11 +79,10 @@ def write_estimate(est: Estimate, out_dir: str | Path, source: str | None = None
         raise InputError(f"{where}: a force series sample by sample (any drive) is written as "
                          f"{' or '.join(est.formats)}, not {fmt}")
     out_dir = Path(out_dir)
-    cols = est.columns()
-    _check_values(est.time, cols, where)
+    names = _checked_columns(est, where)
     try:
         doc = est.summary()
-        doc["series"] = series_json(est, fmt, cols)
+        doc["series"] = series_json(est, fmt, dict.fromkeys(names))
         origin = provenance if provenance is not None else est.provenance
         if origin is not None:
             doc["provenance"] = origin
@@ -88,18 +93,39 @@ def write_estimate(est: Estimate, out_dir: str | Path, source: str | None = None
     series = out_dir / f"{est.run_name}{SERIES_SUFFIXES[fmt]}"
     js = out_dir / f"{est.run_name}.json"
     with atomic_path(js) as tmp_js, atomic_path(series) as tmp_series:  # series moved first
-        write_series(est, tmp_series, fmt, cols)
+        write_series(est, tmp_series, fmt)       # made a block of rows at a time
         tmp_js.write_text(text, encoding="utf-8")
     return series, js
 
 
-def _check_values(time: np.ndarray, cols: dict[str, np.ndarray], where: str) -> None:
-    """Refuse a time or force that is not finite, or a force beyond :data:`MAX_FORCE_N`."""
-    for name, values in {"time": time, **cols}.items():
-        v = np.asarray(values, dtype=float)
-        bad = ~np.isfinite(v) | ((np.abs(v) > MAX_FORCE_N) if name != "time" else False)
-        if np.any(bad):
-            k = int(np.argmax(bad))
-            raise DataError(f"{where}: the estimate's {name!r} is {v[k]:.4g} at sample {k}, not "
-                            f"a finite force within {MAX_FORCE_N:g} N; nothing written (are the "
-                            "inputs what they claim?)")
+def _checked_columns(est: Estimate, where: str) -> list[str]:
+    """The names of the series' columns, once every time and force is known finite and every
+    force within :data:`MAX_FORCE_N`; else DataError naming the first column at fault (time
+    first, then the columns in order) and its first such sample. The columns are made a block
+    of rows at a time (:func:`~forcecal.io.result_formats.series_blocks`): the memory of a
+    block, whatever the record's length."""
+    first: dict[str, tuple[int, float]] = {}
+    _first_bad("time", np.asarray(est.time, dtype=float), 0, first)
+    names: list[str] = []
+    for start, _, cols in series_blocks(est):
+        names = names or list(cols)
+        for name, values in cols.items():
+            if name not in first:
+                _first_bad(name, np.asarray(values, dtype=float), start, first)
+    for name in ["time", *names]:
+        if name in first:
+            k, value = first[name]
+            raise DataError(f"{where}: the estimate's {name!r} is {value:.4g} at sample {k}, "
+                            f"not a finite force within {MAX_FORCE_N:g} N; nothing written (are "
+                            "the inputs what they claim?)")
+    return names
+
+
+def _first_bad(name: str, v: np.ndarray, start: int, first: dict[str, tuple[int, float]]
+               ) -> None:
+    """Note in ``first`` the first sample of ``v`` (samples ``start`` on of column ``name``)
+    that is not finite or, but for the time, beyond :data:`MAX_FORCE_N`."""
+    bad = ~np.isfinite(v) | ((np.abs(v) > MAX_FORCE_N) if name != "time" else False)
+    if np.any(bad):
+        k = int(np.argmax(bad))
+        first[name] = (start + k, float(v[k]))

@@ -350,7 +350,7 @@ def _hdf5_values(value: np.ndarray, name: str, path: Path) -> np.ndarray:
             f"run '{path}': dataset {name!r} is not a numeric 1-D channel "
             f"(shape {data.shape}, {data.dtype})"
         )
-    return data.astype(float)
+    return data.astype(float, copy=False)     # float64 as read: no second copy of the channel
 
 
 # --------------------------------------------------------------------------------------------

@@ -37,7 +37,7 @@ CSV_DIGITS = 9
 """Significant digits of the columns of a streamed CSV table (``'%.9g'``)."""
 _CHUNK = 1 << 16
 """HDF5 chunk length of the growing datasets [values]."""
-_LINES = 1 << 13
+_LINES = 1 << 11
 """CSV rows formatted at once (the text buffer stays small)."""
 
 

@@ -12,7 +12,8 @@ needs no modal parameters. :func:`build_broadband_model`:
    decomposition: the span keeps the shapes that stand clear of noise alone;
 3. the span's shapes fitted over the points with the structure's basis (one order for all),
    their mass couplings (eq. 6), and every line's operating shape in their coordinates;
-4. the operating shape's ratios a_k / a_1 over frequency, smoothed (:func:`smooth_ratios`).
+4. the operating shape's ratios a_k / a_1 over frequency: smoothed (:func:`smooth_ratios`) or
+   a modal model's (:mod:`.modal`), as the lines' residuals favour (:func:`choose_ratios`).
 
 The operating shapes over the band are then a family, phi(x, nu) = sum_k phi_k(x) a_k(nu): a
 steady run takes each harmonic's own (:func:`steady_model`), any other drive corrects the
@@ -28,7 +29,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import stats
 
 from .._atomic import write_text_atomic
 from ..errors import InputError
@@ -40,6 +40,7 @@ from .basis import ShapeFit, shape_similarity
 from .coverage import check_scan_coverage, check_scan_on_rig
 from .frf import scan_response
 from .inertia import mass_coupling
+from .modal import PLAUSIBLE, ModalFit, identify, ratio_dof
 from .screening import MAX_SET_ASIDE, record_weights
 from .spatial import (
     MIN_SNR,
@@ -72,6 +73,53 @@ SV_MARGIN = 1.5
 of a noise-only matrix of the same size."""
 STEADY_HARMONICS = 6
 """Harmonics a steady run is reconstructed with from a broadband model."""
+
+
+@dataclass(frozen=True)
+class RatioChoice:
+    """Where a broadband model's ratios a_k / a_1 come from, and the scores that chose it
+    (:func:`choose_ratios`).
+
+    Attributes
+    ----------
+    source : str
+        "spline" (:func:`smooth_ratios`) or "modal" (:mod:`forcecal.model.modal`). A model
+        written before the choice was made reads as "spline".
+    aic_spline, aic_modal : float
+        Each one's Akaike criterion on the lines' own ratios (NaN: not scored; the modal one
+        where the stabilisation diagram held no stable pole in the band).
+    modes : (n_modes, 4) array
+        The modal model's natural frequencies [Hz] and their standard uncertainties, damping
+        ratios [1] and theirs (none without a modal model).
+    level_noise : float [1]
+        The modal model's common level per line, relative (NaN without one).
+    """
+
+    source: str = "spline"
+    aic_spline: float = float("nan")
+    aic_modal: float = float("nan")
+    modes: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    level_noise: float = float("nan")
+
+    def to_json(self) -> dict[str, Any]:
+        """A JSON-able description (NaN written as null)."""
+        def num(x: float) -> float | None:
+            return None if np.isnan(x) else float(x)
+        return {"source": self.source, "aic_spline": num(self.aic_spline),
+                "aic_modal": num(self.aic_modal), "modes": self.modes.tolist(),
+                "level_noise": num(self.level_noise)}
+
+    @classmethod
+    def from_json(cls, doc: dict[str, Any]) -> RatioChoice:
+        """What :meth:`to_json` wrote."""
+        def num(x: float | None) -> float:
+            return float("nan") if x is None else float(x)
+        return cls(source=str(doc["source"]), aic_spline=num(doc["aic_spline"]),
+                   aic_modal=num(doc["aic_modal"]),
+                   modes=np.asarray(doc["modes"], float).reshape(-1, 4),
+                   level_noise=num(doc["level_noise"]))
+
+
 @dataclass(frozen=True)
 class BroadbandModel:
     """The span of a broadband scan's operating shapes and its mass couplings.
@@ -107,6 +155,8 @@ class BroadbandModel:
         (a model written before they were kept) takes each line's own ratio.
     ratio_std : (n_shapes, n_lines) array or None
         Their standard uncertainty, of Re and of Im each (:func:`smooth_ratios`).
+    ratio_choice : RatioChoice
+        Whether the ratios are the splines' or the modal model's, and why.
     file : str
         The MODEL.json the model was read from (:func:`load_any_model`); empty for a model
         built here. Refusals name the model by it (:attr:`origin`).
@@ -128,11 +178,18 @@ class BroadbandModel:
     ratios: np.ndarray | None = None
     ratio_std: np.ndarray | None = None
     file: str = ""
+    ratio_choice: RatioChoice = field(default_factory=RatioChoice)
 
     @property
     def origin(self) -> str:
         """What a refusal names the model by: the MODEL.json it was read from, else its scan."""
         return self.file or self.source
+
+    def __repr__(self) -> str:
+        """One line: the scan, the band, the shapes, the points and lines, the notes."""
+        return (f"BroadbandModel(scan '{self.source}', band {self.band[0]:g}-{self.band[1]:g} "
+                f"Hz, {self.n_shapes} shape(s) (order {self.shapes[0].order}), {self.n_points} "
+                f"points, {self.frequencies.size} lines, {len(self.notes)} note(s))")
 
     @property
     def n_shapes(self) -> int:
@@ -224,7 +281,8 @@ class BroadbandModel:
                 "source": self.source, "notes": list(self.notes), "rig": self.rig,
                 **({} if self.ratios is None else {"ratios": {
                     "re": self.ratios.real.tolist(), "im": self.ratios.imag.tolist()}}),
-                **({} if self.ratio_std is None else {"ratio_std": self.ratio_std.tolist()})}
+                **({} if self.ratio_std is None else {"ratio_std": self.ratio_std.tolist()}),
+                "ratio_model": self.ratio_choice.to_json()}
 
     @classmethod
     def from_json(cls, doc: dict[str, Any], source: str = "<model>") -> BroadbandModel:
@@ -240,6 +298,8 @@ class BroadbandModel:
         check_broadband_document(doc, source)
         ratios = _complex(doc["ratios"]) if "ratios" in doc else None
         ratio_std = np.asarray(doc["ratio_std"], float) if "ratio_std" in doc else None
+        choice = (RatioChoice.from_json(doc["ratio_model"]) if "ratio_model" in doc
+                  else RatioChoice())
         return cls(band=(float(doc["band"][0]), float(doc["band"][1])),
                    shapes=tuple(_real_shape(shape_from_json(s)) for s in doc["shapes"]),
                    couplings=np.asarray(doc["couplings"], float),
@@ -250,7 +310,8 @@ class BroadbandModel:
                    line_snr=np.asarray(doc["line_snr"], float),
                    gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
                    source=str(doc["source"]), notes=tuple(doc["notes"]),
-                   rig=dict(doc["rig"]), ratios=ratios, ratio_std=ratio_std)
+                   rig=dict(doc["rig"]), ratios=ratios, ratio_std=ratio_std,
+                   ratio_choice=choice)
 
     def save(self, path: str | Path) -> Path:
         """Write the model as JSON (atomically)."""
@@ -314,7 +375,7 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     basis = np.column_stack([s.evaluate(points) for s in shapes])
     coords, cov = _line_coordinates(basis, weights, resp.values, resp.std, good, h, std,
                                     len(points), len(resp.frequencies))
-    ratios, ratio_std = smooth_ratios(resp.frequencies, coords, cov)
+    ratios, ratio_std, choice = choose_ratios(resp.frequencies, coords, cov)
     line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
                 / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
     return BroadbandModel(band=band, shapes=shapes, couplings=couplings,
@@ -322,7 +383,7 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
                           singular_values=sv[:min(len(sv), 12)], chi2=chi2, line_snr=line_snr,
                           gauge_names=tuple(rig.gauge_names), n_points=len(points),
                           source=scan.source, notes=tuple(notes), rig=rig_keys(rig),
-                          ratios=ratios, ratio_std=ratio_std)
+                          ratios=ratios, ratio_std=ratio_std, ratio_choice=choice)
 
 
 def _broadband_band(rig: Rig, scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float]:
@@ -453,25 +514,106 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     10 and 30 Hz was 3-5 times their stated uncertainty, a bias the same in every draw of the
     scan's noise, and what that noise moved the total force by 2.1 times its statement.
     """
+    out, std, _, _ = _spline_ratios(frequencies, coords, cov)
+    return out, std
+
+
+def _line_ratios(coords: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Every line's own ratios a_k / a_1 (n_shapes, n_lines), the first row 1, and the
+    variance of Re and of Im of each to first order, (var(a_k) + |r|^2 var(a_1) - 2 Re(r)
+    cov(a_k, a_1)) / |a_1|^2, held within :data:`WEIGHT_RANGE` of its median where five or more
+    lines are smoothed (the first row 1)."""
     tiny = np.finfo(float).tiny
     first = np.where(np.abs(coords[0]) > tiny, coords[0], tiny)
     ratios = coords / first
-    out, std = np.ones_like(ratios), np.zeros(ratios.shape)
+    var = np.ones(ratios.shape)
     for k in range(1, coords.shape[0]):
         r = ratios[k]
-        var = np.maximum((cov[:, k, k] + np.abs(r) ** 2 * cov[:, 0, 0]
-                          - 2.0 * r.real * cov[:, k, 0]) / np.abs(first) ** 2, tiny)
+        v = np.maximum((cov[:, k, k] + np.abs(r) ** 2 * cov[:, 0, 0]
+                        - 2.0 * r.real * cov[:, k, 0]) / np.abs(first) ** 2, tiny)
+        typical = float(np.median(v))        # a line "without noise", or without signal,
+        var[k] = (np.clip(v, typical / WEIGHT_RANGE, WEIGHT_RANGE * typical)  # no outlier
+                  if r.size >= 5 else v)
+    return ratios, var
+
+
+def _spline_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """:func:`smooth_ratios`, with the lines' own ratios' variances (:func:`_line_ratios`)
+    and the splines' degrees of freedom, sum_k 2 tr S_k (Re and Im)."""
+    ratios, var = _line_ratios(coords, cov)
+    out, std = np.ones_like(ratios), np.zeros(ratios.shape)
+    dof = 0.0
+    for k in range(1, coords.shape[0]):
+        r = ratios[k]
         if r.size < 5:                        # too few lines to smooth
-            out[k], std[k] = r, np.sqrt(var)
+            out[k], std[k] = r, np.sqrt(var[k])
+            dof += 2.0 * r.size
             continue
-        typical = float(np.median(var))        # a line "without noise", or without signal,
-        var = np.clip(var, typical / WEIGHT_RANGE, WEIGHT_RANGE * typical)   # no outlier
-        family = SplineFamily.over(frequencies, 1.0 / var)
+        family = SplineFamily.over(frequencies, 1.0 / var[k])
         smoother = family.matrix(family.least_risk(r))
         out[k] = smoother @ r
         bias = smoother @ out[k] - out[k]     # the smoother's bias on its own estimate
-        std[k] = np.sqrt(smoother**2 @ var + np.abs(bias) ** 2 / 2.0)
-    return out, std
+        std[k] = np.sqrt(smoother**2 @ var[k] + np.abs(bias) ** 2 / 2.0)
+        dof += 2.0 * float(np.trace(smoother))
+    return out, std, var, dof
+
+
+def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, RatioChoice]:
+    """The ratios a_k / a_1 at the lines and their standard uncertainty (of Re and of Im
+    each), from the splines (:func:`smooth_ratios`) or from the modal model of the
+    coordinates (:func:`forcecal.model.modal.identify`) where its Akaike criterion on the lines'
+    own ratios leaves the splines' implausible (their weight exp(-dAIC / 2) below
+    :data:`forcecal.model.modal.PLAUSIBLE` of its own), and the record of the choice.
+
+    Both are estimators of the lines' own ratios r_kl (:func:`_line_ratios`), of known variance
+    v_kl: AIC = sum_kl |r_kl - fitted_kl|^2 / v_kl + 2 dof (with the variances known, Mallows'
+    C_p, the risk the splines' penalty is chosen by), dof the trace of each one's map from the
+    lines' ratios to its own (the splines' 2 tr S; the modal model's linearized,
+    :func:`forcecal.model.modal.ratio_dof`). The level of each line is no evidence: the
+    coordinates share the drive's own distortion on the reference's lines (the modal model
+    takes it as a common level, its ratios do not see it). Without a stable pole in the band,
+    or with one shape, the splines' are kept.
+
+    Parameters
+    ----------
+    frequencies : (n_lines,) array [Hz]
+    coords : (n_shapes, n_lines) complex array
+    cov : (n_lines, n_shapes, n_shapes) array
+        The coordinates' covariance, of Re and of Im each.
+    """
+    spline, spline_std, var, spline_dof = _spline_ratios(frequencies, coords, cov)
+    if coords.shape[0] < 2:
+        return spline, spline_std, RatioChoice()
+    own = coords / np.where(coords[0] != 0, coords[0], np.finfo(float).tiny)
+
+    def aic(fitted: np.ndarray, dof: float) -> float:
+        return float(np.sum(np.abs(own[1:] - fitted[1:]) ** 2 / var[1:]) + 2.0 * dof)
+
+    aic_spline = aic(spline, spline_dof)
+    fit = identify(frequencies, coords, cov)
+    if fit is None:
+        return spline, spline_std, RatioChoice(aic_spline=aic_spline)
+    modal, modal_std = fit.ratios(frequencies)
+    aic_modal = aic(modal, ratio_dof(fit, frequencies, coords, cov))
+    # the splines stay unless the modal model makes them implausible (their Akaike weight
+    # below PLAUSIBLE of its own): on the FE beam's chirp scan the two scored within 3, and
+    # the modal ratios' statement was the more cautious
+    better = aic_spline - aic_modal > 2.0 * np.log(1.0 / PLAUSIBLE)
+    chosen = RatioChoice(source="modal" if better else "spline",
+                         aic_spline=aic_spline, aic_modal=aic_modal, modes=_modes(fit),
+                         level_noise=fit.level_noise)
+    if chosen.source == "modal":
+        return modal, modal_std, chosen
+    return spline, spline_std, chosen
+
+
+def _modes(fit: ModalFit) -> np.ndarray:
+    """(n_modes, 4): the fit's natural frequencies [Hz], their standard uncertainties, its
+    damping ratios and theirs."""
+    f_std, z_std = fit.mode_std()
+    return np.column_stack([fit.frequencies, f_std, fit.damping, z_std])
 
 
 ROUGH_RISK = 1e-3
@@ -497,6 +639,8 @@ def _smooth_patterns(structure: Any, points: np.ndarray, patterns: np.ndarray,
     windows erred up to 29 %); but they must not choose the shapes' order: no order fits them,
     so they drag the order down, which left the strong shape's own bias in the inertia.
     """
+    from scipy import stats  # on use: a steady stream starts without it
+
     n = len(points)
     keep = [0]
     for k in range(1, patterns.shape[1]):

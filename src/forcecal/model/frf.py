@@ -25,8 +25,6 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 
 import numpy as np
-import scipy.ndimage
-import scipy.signal
 
 from ..errors import InputError
 from ..records import Scan, ScanFRF, ScanSpectra
@@ -264,6 +262,8 @@ def _periodic(f: np.ndarray, lines: np.ndarray, x: np.ndarray, r: np.ndarray,
                          f"band {band[0]:g}-{band[1]:g} Hz"
                          + ("" if len(between) else ", and no line between them to read "
                             "the noise on"))
+    import scipy.ndimage  # on use: a steady stream starts without it
+
     p_between = np.abs(x[:, between]) ** 2
     # each drive line's noise: the mean over the nearest NOISE_LINES lines between
     width = min(NOISE_LINES, len(between))
@@ -281,6 +281,8 @@ def _periodic(f: np.ndarray, lines: np.ndarray, x: np.ndarray, r: np.ndarray,
 def _welch(scan: Scan, band: tuple[float, float]
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """H1 and its coherence from Welch averages."""
+    import scipy.signal  # on use: a steady stream starts without it
+
     n = scan.response.shape[1]
     nperseg = int(2 * n // (SEGMENTS + 1))
     if nperseg < 16 or scan.fs / nperseg > (band[1] - band[0]) / 4:

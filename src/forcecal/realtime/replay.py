@@ -54,10 +54,10 @@ def bounded_forces(source: str, limit: float) -> Check:
     return check
 
 
-STREAM_READ = 1 << 14
-"""Samples a stream reads at a time (whole calls of its block): a quarter of a batch read
-(:data:`forcecal.io.blocks.READ_BLOCK`), which keeps a 10-minute stream under 200 MB at the
-same speed."""
+STREAM_READ = 1 << 13
+"""Samples a stream reads at a time (whole calls of its block): an eighth of a batch read
+(:data:`forcecal.io.blocks.READ_BLOCK`); the blocks and the table's rows in flight stay small
+beside what the compiled code holds, at the same speed."""
 
 
 def _block_size(block: int) -> int:

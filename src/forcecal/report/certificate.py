@@ -13,11 +13,11 @@ lays them out. The certificate states
   campaign's runs, and the conditions (drive frequency, ambient temperature, gauges' coupling);
 - the uncertainty budget, with the type-B inputs and whether the rig declares each;
 - the candidate laws and why one was chosen, the reactions-only comparison, the repeatability
-  and the runs;
-- fig. 9, the provenance (version, date, command line, SHA-256 of every input) and a sign-off.
+  and the runs; fig. 9, the provenance (version, date, command line, SHA-256 of every input,
+  paths relative to one stated root) and a sign-off.
 
-Numbers are written as GUM 7.2.6 suggests (:mod:`forcecal.report.cells`); ranges with six
-significant digits.
+Numbers are written as GUM 7.2.6 suggests (:mod:`forcecal.report.cells`), in the units a
+laboratory writes (gaps in mm, a length parameter in µm); ranges with six significant digits.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from ..actuator import Candidate, Law, Selection
 from ..campaign.statistics import COVERAGE_FACTOR, METHOD, TYPE_B_SOURCES
 from ..rig import Rig, TypeB
 from ._templates import render
-from .cells import NONE, Grid, math_text, num, pct, rel, unc, value
+from .cells import NONE, Grid, lab_unit, math_text, num, pct, rel, relative_paths, unc, value
 
 if TYPE_CHECKING:
     from ..campaign import CampaignResult
@@ -44,6 +44,16 @@ __all__: list[str] = []
 
 TEMPLATE = "calibration.html.j2"
 """The certificate's template under ``templates/``."""
+
+FIGURE_CAPTION = (
+    "Fig. 1 (after the paper's fig. 9): top, every calibration sample's measured total force "
+    "against the law evaluated at that sample's own current and instantaneous gaps, and their "
+    "relative difference beside the law's ±2σ band (its parameters' uncertainty), the "
+    "reactions-only force (inertia ignored) as crosses; below, each run's mean force and the "
+    "amplitude of its fundamental against the DC current, one colour per static gap and one "
+    "marker per AC amplitude, with the law at each run's own current and gaps (small filled "
+    "markers, joined).")
+"""The caption of fig. 9 drawn with a (current, gap) law from a campaign's samples."""
 
 _PARAMETER_MEANING = {
     "K": "force constant",
@@ -124,17 +134,24 @@ def coverage_factor(result: CampaignResult) -> float:
     return result.uncertainty.coverage_factor if result.uncertainty else COVERAGE_FACTOR
 
 
+def _units(result: CampaignResult) -> list[tuple[float, str]]:
+    """(factor, unit) each parameter is written in (:func:`forcecal.report.cells.lab_unit`)."""
+    law = result.calibration.law_object
+    return [lab_unit(float(x), unit)
+            for x, unit in zip(result.calibration.params, law.param_units, strict=True)]
+
+
 def _parameters(result: CampaignResult) -> Grid:
     """The parameters with u (and its parts), U = k u and U relative; K_total after them."""
     law = result.calibration.law_object
     k = coverage_factor(result)
     u, stat, tb = _std_parts(result)
     rows: list[tuple[str | tuple[str, ...], ...]] = []
-    for j, (name, unit) in enumerate(zip(law.param_names, law.param_units, strict=True)):
+    for j, (name, (f, unit)) in enumerate(zip(law.param_names, _units(result), strict=True)):
         x = float(result.calibration.params[j])
-        rows.append((name, value(x, u[j]), math_text(unit), unc(u[j]),
-                     NONE if stat is None else unc(stat[j]),
-                     NONE if tb is None else unc(tb[j]), unc(k * u[j]),
+        rows.append((name, value(f * x, f * u[j]), math_text(unit), unc(f * u[j]),
+                     NONE if stat is None else unc(f * stat[j]),
+                     NONE if tb is None else unc(f * tb[j]), unc(f * k * u[j]),
                      rel(k * u[j] / abs(x)) if x else NONE))
     marks = [""] * len(rows)
     if result.k_total is not None and result.k_total_std is not None:
@@ -148,8 +165,8 @@ def _parameters(result: CampaignResult) -> Grid:
         marks.append("subtotal")
     return Grid(
         caption="Calibrated parameters",
-        header=("parameter", "value", "unit", "standard uncertainty u", "of which statistical",
-                "of which type B", f"expanded uncertainty U (k = {k:g})", "U relative"),
+        header=("parameter", "value", "unit", "std. uncertainty u", "u statistical",
+                "u type B", f"expanded U (k = {k:g})", "U relative"),
         rows=tuple(rows), marks=tuple(marks))
 
 
@@ -208,23 +225,30 @@ def calibrated_range(result: CampaignResult) -> dict[str, tuple[float, float]]:
 
 
 _RANGE_ROWS = (
-    ("current", "coil current i", "A", 6),
-    ("static_gap", "static air gap (every pole)", "m", 6),
-    ("gap", "instantaneous air gap s", "m", 6),
-    ("frequency", "drive frequency (refined, every run)", "Hz", 8),
-    ("flux", "flux through one pole", "Wb", 6),
-    ("force", "total actuator force", "N", 6),
+    ("current", "coil current i", "A", 1.0, 6),
+    ("static_gap", "static air gap (every pole)", "mm", 1e3, 6),
+    ("gap", "instantaneous air gap s", "mm", 1e3, 6),
+    ("frequency", "drive frequency (refined, every run)", "Hz", 1.0, 8),
+    ("flux", "flux through one pole", "Wb", 1.0, 6),
+    ("force", "total actuator force", "N", 1.0, 6),
 )
-"""(key of :func:`calibrated_range`, quantity, unit, significant digits shown)."""
+"""(key of :func:`calibrated_range`, quantity, unit shown, its factor from SI, significant
+digits shown); the flux in the prefix that suits its largest value."""
 
 
 def _range(result: CampaignResult) -> Grid:
-    """:func:`calibrated_range` as a table."""
+    """:func:`calibrated_range` as a table, in the units a laboratory writes."""
     ranges = calibrated_range(result)
-    rows = tuple((label, num(ranges[key][0], digits), num(ranges[key][1], digits), unit)
-                 for key, label, unit, digits in _RANGE_ROWS if key in ranges)
+    rows = []
+    for key, label, unit, factor, digits in _RANGE_ROWS:
+        if key not in ranges:
+            continue
+        lo, hi = ranges[key]
+        if key == "flux":
+            factor, unit = lab_unit(max(abs(lo), abs(hi)), unit)
+        rows.append((label, num(factor * lo, digits), num(factor * hi, digits), unit))
     return Grid(caption="Calibrated range (minimum and maximum over the campaign's runs)",
-                header=("quantity", "minimum", "maximum", "unit"), rows=rows)
+                header=("quantity", "minimum", "maximum", "unit"), rows=tuple(rows))
 
 
 def _conditions(rig: Rig, result: CampaignResult, model: SpatialModel | None
@@ -303,6 +327,11 @@ def _budget(rig: Rig, result: CampaignResult) -> tuple[Grid | None, str]:
         return None, ("No uncertainty budget: the standard uncertainties are those of the fit's "
                       "residuals.")
     law = result.calibration.law_object
+    units = _units(result)
+
+    def u_cells(std: np.ndarray) -> tuple[str, ...]:
+        return tuple(unc(f * v) for (f, _), v in zip(units, std, strict=True))
+
     used = pu.type_b_used
     declared = declared_type_b(rig, used)
     zero = ("0",) * len(law.param_names)
@@ -310,13 +339,13 @@ def _budget(rig: Rig, result: CampaignResult) -> tuple[Grid | None, str]:
     for source, std in pu.budget.items():
         if pu.kinds.get(source) == "statistical":
             rows.append((source, "statistical (type A)", "this campaign's records", NONE,
-                         *(unc(v) for v in std)))
+                         *u_cells(std)))
     for source in TYPE_B_SOURCES:
         key, kind = _TYPE_B_INPUT.get(source, ("", ""))
         given = _type_b_input(key, kind, used) if key else NONE
         origin = (NONE if not key else "declared by the rig" if key in declared
                   else "documented default")
-        cells = (tuple(unc(v) for v in pu.budget[source]) if source in pu.budget
+        cells = (u_cells(pu.budget[source]) if source in pu.budget
                  else zero if key and getattr(used, key) == 0 else (NONE,) * len(zero))
         rows.append((source, "type B", given, origin, *cells))
     u, stat, tb = _std_parts(result)
@@ -327,11 +356,11 @@ def _budget(rig: Rig, result: CampaignResult) -> tuple[Grid | None, str]:
               (f"expanded uncertainty U = k u (k = {k:g})", k * u, "total"))
     marks = [""] * len(rows)
     for label, values, mark in totals:
-        rows.append((label, "", "", "", *(unc(v) for v in values)))
+        rows.append((label, "", "", "", *u_cells(values)))
         marks.append(mark)
     header = ("source", "evaluation", "input standard uncertainty", "origin",
-              *(f"u({n}) [{math_text(unit)}]" for n, unit in zip(law.param_names, law.param_units,
-                                                             strict=True)))
+              *(f"u({n}) [{math_text(unit)}]" for n, (_, unit) in zip(law.param_names, units,
+                                                                   strict=True)))
     grid = Grid(caption="Uncertainty budget: each source's standard uncertainty of each "
                         "parameter", header=header, rows=tuple(rows), marks=tuple(marks))
     return grid, _origin_sentence(used, declared)
@@ -360,11 +389,13 @@ def _cross_check(result: CampaignResult) -> Grid | None:
     res = np.sqrt(np.maximum(np.diag(pu.residual), 0.0))
     scatter = (None if pu.run_scatter is None
                else np.sqrt(np.maximum(np.diag(pu.run_scatter), 0.0)))
-    rows = tuple((n, unc(pu.stderr[j]), unc(res[j]),
-                  NONE if scatter is None else unc(scatter[j])) for j, n in enumerate(names))
+    rows = tuple((n, math_text(unit), unc(f * pu.stderr[j]), unc(f * res[j]),
+                  NONE if scatter is None else unc(f * scatter[j]))
+                 for j, (n, (f, unit)) in enumerate(zip(names, _units(result), strict=True)))
     return Grid(caption="Cross-check of the standard uncertainties",
-                header=("parameter", "u (this budget)", "fit residuals (samples independent)",
-                        "scatter between runs"), rows=rows)
+                header=("parameter", "unit", "u (this budget)",
+                        "fit residuals (samples independent)", "scatter between runs"),
+                rows=rows)
 
 
 # --------------------------------------------------------------------------------------------
@@ -372,10 +403,13 @@ def _cross_check(result: CampaignResult) -> Grid | None:
 
 
 def _param_lines(law: Law, params: np.ndarray, std: np.ndarray) -> tuple[str, ...]:
-    return tuple(f"{n} = {value(float(v), float(e))} ± {unc(float(e))}"
-                 + ("" if unit == "-" else f" {math_text(unit)}")
-                 for n, v, e, unit in zip(law.param_names, params, std, law.param_units,
-                                          strict=True))
+    """Each parameter as ``name = value ± u unit``, in the unit a laboratory writes."""
+    lines = []
+    for n, v, e, unit in zip(law.param_names, params, std, law.param_units, strict=True):
+        f, shown = lab_unit(float(v), unit)
+        lines.append(f"{n} = {value(f * float(v), f * float(e))} ± {unc(f * float(e))}"
+                     + ("" if shown == "-" else f" {math_text(shown)}"))
+    return tuple(lines)
 
 
 def _candidates(selection: Selection, caption: str) -> tuple[Grid, list[tuple[str, str]]]:
@@ -406,12 +440,12 @@ def _reactions(result: CampaignResult) -> dict[str, Any]:
         ("law chosen", result.law, ro.selection.chosen, ""),
     ]
     if result.k_total is not None:
-        rows.append(("K_total [N m²/A²]", num(result.k_total), num(ro.k_total),
+        ukt = result.k_total_std or float("nan")     # the reactions-only value to its digits
+        rows.append(("K_total [N m²/A²]", value(result.k_total, ukt),
+                     NONE if ro.k_total is None else value(ro.k_total, ukt),
                      pct(ro.k_total_error, 2, sign=True)))
     if result.s_fe is not None:
-        diff = None if ro.s_fe is None else ro.s_fe - result.s_fe
-        rows.append(("s_fe [m]", num(result.s_fe), num(ro.s_fe),
-                     NONE if diff is None else f"{diff:+.3g} m"))
+        rows.append(_s_fe_row(result))
     rows.append(("force predicted with the chosen law: RMS relative difference", "", "",
                  pct(ro.force_error, 2)))
     summary = Grid(caption="Reactions only (inertia ignored) against this calibration",
@@ -422,10 +456,22 @@ def _reactions(result: CampaignResult) -> dict[str, Any]:
     return {"error": None, "summary": summary, "candidates": candidates, "skipped": skipped}
 
 
+def _s_fe_row(result: CampaignResult) -> tuple[str, ...]:
+    """s_fe of this calibration and of the reactions only, and their difference, in µm or mm
+    to the digits of this calibration's uncertainty."""
+    ro, s_fe = result.reactions_only, float(result.s_fe or 0.0)
+    names = result.calibration.law_object.param_names
+    u = float(_std_parts(result)[0][names.index("s_fe")]) if "s_fe" in names else float("nan")
+    f, unit = lab_unit(s_fe, "m")
+    return (f"s_fe [{unit}]", value(f * s_fe, f * u),
+            NONE if ro.s_fe is None else value(f * ro.s_fe, f * u),
+            NONE if ro.s_fe is None else f"{value(f * (ro.s_fe - s_fe), f * u)} {unit}")
+
+
 def _setpoint(group: Mapping[str, Any]) -> str:
-    """A repeated setpoint in words: its gap(s) and labels."""
-    parts = [] if group.get("gap") is None else [f"gap {group['gap']:g} m"]
-    parts += [f"gap {name} {v:g} m" for name, v in group.get("gaps", {}).items()]
+    """A repeated setpoint in words: its gap(s) in mm and labels."""
+    parts = [] if group.get("gap") is None else [f"gap {1e3 * group['gap']:.3f} mm"]
+    parts += [f"gap {name} {1e3 * v:.3f} mm" for name, v in group.get("gaps", {}).items()]
     parts += [f"{k} = {v}" for k, v in group.get("labels", {}).items()]
     return ", ".join(parts) or "(no labels)"
 
@@ -450,42 +496,52 @@ def _repeatability(result: CampaignResult) -> tuple[Grid | None, Grid | None]:
 
 
 def _runs(result: CampaignResult) -> Grid:
-    """One row per run: its gaps, current, frequency, force and residual against the law."""
+    """One row per run: its gaps [mm], current, frequency and forces to the digits of their
+    uncertainty, and its residual against the law."""
     rows = []
     for k, r in enumerate(result.runs):
         smp, est = r.samples, r.estimate
         static = np.unique(np.round(smp.motion.static_gap, 12))
-        rows.append((r.name, " / ".join(num(float(g)) for g in static),
-                     f"{num(float(smp.current.min()), 4)} to {num(float(smp.current.max()), 4)}",
-                     num(est.f0), num(float(est.total[0].real), 5),
-                     num(float(abs(est.total[1])), 5) if est.total.size > 1 else NONE,
+        u = est.total_std
+        rows.append((r.name, " / ".join(f"{1e3 * g:.3f}" for g in static),
+                     f"{smp.current.min():.3f}\u00a0to\u00a0{smp.current.max():.3f}",
+                     value(est.f0, est.f0_std), value(float(est.total[0].real), float(u[0])),
+                     value(float(abs(est.total[1])), float(u[1])) if est.total.size > 1
+                     else NONE,
                      pct(float(result.run_residual[k]), 3),
                      ", ".join(f"{a} = {b}" for a, b in r.entry.labels.items()) or NONE))
     return Grid(caption="The campaign's runs",
-                header=("run", "static gap [m]", "coil current [A]", "refined f0 [Hz]",
-                        "mean force [N]", "fundamental [N]", "RMS residual to the law",
-                        "manifest labels"), rows=tuple(rows))
+                header=("run", "static gap [mm]", "current [A]", "f0 [Hz]", "mean force [N]",
+                        "fundamental [N]", "residual (RMS)", "manifest labels"),
+                rows=tuple(rows))
 
 
 # --------------------------------------------------------------------------------------------
 # the page
 
 
-def _provenance(prov: Mapping[str, Any]) -> dict[str, Any]:
-    rows = tuple((str(f["path"]), str(f.get("bytes", NONE)), str(f.get("sha256", "not a file")))
-                 for f in prov.get("inputs", ()))
+def _provenance(prov: Mapping[str, Any], rig: Rig, manifest: str) -> dict[str, Any]:
+    """The provenance's lines, and every input's path, the rig's and the manifest's relative to
+    one root (:func:`forcecal.report.cells.relative_paths`)."""
+    inputs = list(prov.get("inputs", ()))
+    root, paths = relative_paths([str(f["path"]) for f in inputs] + [rig.source, manifest])
+    rows = tuple((path, str(f.get("bytes", NONE)), str(f.get("sha256", "not a file")))
+                 for path, f in zip(paths, inputs, strict=False))
     return {
         "version": str(prov.get("forcecal_version", NONE)),
         "created": str(prov.get("created_utc", NONE)),
         "command": str(prov.get("command", NONE)),
         "python": str(prov.get("python", NONE)),
+        "root": root,
+        "rig": paths[-2],
+        "manifest": paths[-1],
         "inputs": Grid(caption="Input files", header=("input", "bytes", "SHA-256"), rows=rows),
     }
 
 
 def calibration_certificate(rig: Rig, result: CampaignResult, provenance: Mapping[str, Any],
                             model: SpatialModel | None = None,
-                            figure: str | None = None,
+                            figure: str | Mapping[str, str] | None = None,
                             calibration_file: tuple[str, str] | None = None) -> str:
     """The calibration certificate of a campaign, one self-contained HTML page.
 
@@ -500,8 +556,11 @@ def calibration_certificate(rig: Rig, result: CampaignResult, provenance: Mappin
         :func:`forcecal.provenance.provenance` of the inputs.
     model : SpatialModel, optional
         The spatial model the forces were reconstructed with, for the conditions.
-    figure : str, optional
-        Fig. 9 as a ``data:image/png;base64,...`` URI (:func:`forcecal.report.html.data_uri`).
+    figure : str or mapping, optional
+        Fig. 9: its ``src``, a ``data:`` URI (:func:`forcecal.report.html.data_uri`), and
+        optionally its ``width`` [CSS px], ``link`` (a PDF it links to), ``file`` (the file's
+        path beside the page) and ``caption`` (default :data:`FIGURE_CAPTION`); a str is the
+        ``src`` alone.
     calibration_file : (str, str), optional
         The name and SHA-256 of the ``calibration.json`` the certificate states.
 
@@ -539,7 +598,9 @@ def calibration_certificate(rig: Rig, result: CampaignResult, provenance: Mappin
         "pooled": pooled,
         "groups": groups,
         "runs": _runs(result),
-        "figure": figure,
-        "provenance": _provenance(provenance),
+        "figure": None if figure is None else {
+            **dict.fromkeys(("width", "link", "file"), ""), "caption": FIGURE_CAPTION,
+            **({"src": figure} if isinstance(figure, str) else figure)},
+        "provenance": _provenance(provenance, rig, result.manifest),
     }
     return render(TEMPLATE, context)

@@ -1,8 +1,10 @@
 """One self-contained HTML page of results: headings, paragraphs, tables and figures.
 
-Figures are embedded as base64 PNG data URIs, the style sheet is inline: the page needs no
-other file and no network. Every text is escaped with :func:`html.escape`, so a run or channel
-name can never inject markup. The page around the sections is the package's template
+Figures are embedded as base64 PNG or SVG data URIs (a PDF figure is linked, with a PNG preview
+embedded), the style sheet is inline: the page needs no other file and no network. A figure is
+shown at its drawn size (96 CSS pixels per inch), so its text reads at the size it was set in.
+Every text is escaped with :func:`html.escape`, so a run or channel name can never inject
+markup. The page around the sections is the package's template
 ``templates/page.html.j2`` with its style sheet ``templates/style.css``, which the calibration
 certificate (:mod:`forcecal.report.certificate`) shares.
 
@@ -11,7 +13,7 @@ blocks:
 
 - ``str``: a paragraph (blank lines separate paragraphs);
 - :class:`Table`, or a bare list of rows (the first row is the header);
-- a :class:`matplotlib.figure.Figure`, PNG ``bytes``, or an :class:`Image` with a caption;
+- a :class:`matplotlib.figure.Figure`, PNG or SVG ``bytes``, or an :class:`Image`;
 - :class:`Preformatted` text (e.g. :func:`forcecal.actuator.report_text`);
 - a nested :class:`Section` (one heading level down).
 
@@ -22,7 +24,6 @@ from __future__ import annotations
 
 import base64
 import html
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +37,8 @@ from .._atomic import write_text_atomic
 from ..errors import InputError
 from ..forces.steady import ForceEstimate
 from ._templates import render
-from .figures import png_bytes
+from .cells import unc, value
+from .figures import figure_bytes
 
 __all__ = [
     "Image",
@@ -49,6 +51,9 @@ __all__ = [
 ]
 
 _PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+CSS_PX_PER_INCH = 96
+"""CSS pixels per inch: a figure drawn W inches wide is shown W * 96 pixels wide."""
 
 
 
@@ -73,24 +78,31 @@ class Table:
 
 @dataclass(frozen=True)
 class Image:
-    """A figure with a caption: a matplotlib Figure (rendered at ``dpi``) or PNG bytes.
+    """A figure with a caption: a matplotlib Figure (rendered as PNG at ``dpi``), or the bytes
+    of a PNG or SVG file.
 
     Attributes
     ----------
     figure : matplotlib.figure.Figure or bytes
-        The figure, or its PNG file's content.
+        The figure, or its PNG or SVG file's content.
     caption : str
         The caption below the figure.
     alt : str
         The alternative text; the caption (or "figure") when empty.
     dpi : float
         Resolution [dots per inch] a Figure is rendered at.
+    width : float or None
+        Width shown [CSS px]; None: a Figure's width at 96 px per inch, the bytes' own size.
+    link : str
+        A file the figure links to (its PDF, say), relative to the page; empty for none.
     """
 
     figure: Figure | bytes
     caption: str = ""
     alt: str = ""
     dpi: float = 100
+    width: float | None = None
+    link: str = ""
 
 
 @dataclass(frozen=True)
@@ -135,7 +147,7 @@ def _is_number(text: str) -> bool:
 
 
 def _table(table: Table) -> str:
-    parts = ["<table>"]
+    parts = ['<div class="wide"><table>']
     if table.caption:
         parts.append(f"<caption>{_e(table.caption)}</caption>")
     if table.header is not None:
@@ -149,17 +161,17 @@ def _table(table: Table) -> str:
             cls = ' class="num"' if _is_number(text) else ""
             cells.append(f"<td{cls}>{_e(text)}</td>")
         parts.append("<tr>" + "".join(cells) + "</tr>")
-    parts.append("</tbody></table>")
+    parts.append("</tbody></table></div>")
     return "\n".join(parts)
 
 
-def data_uri(png: bytes) -> str:
-    """A ``data:image/png;base64,...`` URI of PNG bytes.
+def data_uri(data: bytes) -> str:
+    """A ``data:image/png;base64,...`` (or ``image/svg+xml``) URI of a PNG's (an SVG's) bytes.
 
     Parameters
     ----------
-    png : bytes
-        A PNG file's content.
+    data : bytes
+        A PNG or an SVG file's content.
 
     Returns
     -------
@@ -169,18 +181,30 @@ def data_uri(png: bytes) -> str:
     Raises
     ------
     InputError
-        When the bytes do not start with the PNG signature.
+        When the bytes are neither (no PNG signature, no ``<svg`` element).
     """
-    if not png.startswith(_PNG_SIGNATURE):
-        raise InputError("an embedded image must be PNG data (the PNG signature is missing)")
-    return "data:image/png;base64," + base64.b64encode(png).decode("ascii")
+    if data.startswith(_PNG_SIGNATURE):
+        mime = "image/png"
+    elif b"<svg" in data[:4096]:
+        mime = "image/svg+xml"      # shown by <img>: no script in it can run
+    else:
+        raise InputError("an embedded image must be PNG or SVG data (the PNG signature and "
+                         "the <svg> element are missing)")
+    return f"data:{mime};base64," + base64.b64encode(data).decode("ascii")
 
 
 def _image(image: Image) -> str:
-    png = image.figure if isinstance(image.figure, bytes) else png_bytes(image.figure,
-                                                                         dpi=image.dpi)
+    if isinstance(image.figure, bytes):
+        data, width = image.figure, image.width
+    else:
+        data = figure_bytes(image.figure, "png", dpi=image.dpi)
+        width = image.width or image.figure.get_figwidth() * CSS_PX_PER_INCH
     alt = image.alt or image.caption or "figure"
-    out = f'<figure><img src="{data_uri(png)}" alt="{_e(alt)}">'
+    size = "" if width is None else f' width="{round(width)}"'
+    out = f'<img src="{data_uri(data)}"{size} alt="{_e(alt)}">'
+    if image.link:
+        out = f'<a href="{_e(image.link)}">{out}</a>'
+    out = "<figure>" + out
     if image.caption:
         out += f"<figcaption>{_e(image.caption)}</figcaption>"
     return out + "</figure>"
@@ -266,13 +290,6 @@ ESTIMATE_HEADER = ("force", "harmonic", "frequency [Hz]", "amplitude [N]", "phas
                    "std. uncertainty [N]", "reactions only [N]")
 
 
-def _sig(value: float, digits: int) -> str:
-    if not math.isfinite(value):
-        return "n/a"
-    text = f"{value:#.{digits}g}"               # keeps trailing zeros: 4.2880, 0.00050
-    return text[:-1] if text.endswith(".") else text
-
-
 def estimate_table(estimate: ForceEstimate) -> list[list[str]]:
     """The forces of a run as text rows, header first.
 
@@ -280,8 +297,10 @@ def estimate_table(estimate: ForceEstimate) -> list[list[str]]:
     the amplitude |F_n|, the phase arg F_n (convention of :mod:`forcecal.signals.harmonics`), the
     standard uncertainty of Re and of Im of F_n, and the reactions-only amplitude. For n = 0 the
     amplitude column holds the signed mean force and the phase is empty; without DC-capable
-    gauges (``dc_observed`` false) the DC row says "not observed". Amplitudes carry 5
-    significant digits, uncertainties 2.
+    gauges (``dc_observed`` false) the DC row says "not observed". Every number has the digits
+    its uncertainty warrants (:func:`forcecal.report.cells.value`): the uncertainty two
+    significant ones, the amplitudes (the reactions-only one too) to the uncertainty's second,
+    the phase to that of std / |F_n| [rad], the frequency to that of n times the fundamental's.
 
     Parameters
     ----------
@@ -303,15 +322,17 @@ def estimate_table(estimate: ForceEstimate) -> list[list[str]]:
             n = int(n)
             if not estimate.kept[n]:
                 continue
-            freq = f"{n * estimate.f0:.4f}"
+            freq = value(n * estimate.f0, n * estimate.f0_std) if n else "0"
+            u = float(std[k, n])
             if n == 0:
-                if not estimate.dc_observed:
-                    rows.append([name, "0", freq, "not observed", "", "", ""])
-                    continue
-                rows.append([name, "0", freq, _sig(force[k, 0].real, 5), "",
-                             _sig(std[k, 0], 2), _sig(static[k, 0].real, 5)])
+                rows.append([name, "0", freq, "not observed", "", "", ""]
+                            if not estimate.dc_observed else
+                            [name, "0", freq, value(force[k, 0].real, u), "", unc(u),
+                             value(static[k, 0].real, u)])
                 continue
-            rows.append([name, str(n), freq, _sig(abs(force[k, n]), 5),
-                         f"{np.angle(force[k, n]):.4f}", _sig(std[k, n], 2),
-                         _sig(abs(static[k, n]), 5)])
+            amp = float(abs(force[k, n]))
+            phase = float(np.angle(force[k, n]))
+            rows.append([name, str(n), freq, value(amp, u),
+                         value(phase, u / amp) if amp > 0 else "n/a", unc(u),
+                         value(float(abs(static[k, n])), u)])
     return rows

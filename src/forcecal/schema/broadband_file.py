@@ -19,7 +19,7 @@ from typing import Annotated, Any, Literal
 from pydantic import AfterValidator, Field
 
 from ..errors import InputError
-from .json_files import Faults, Matrix, NonNegative, Provenance, Table, opened
+from .json_files import Faults, Finite, Matrix, NonNegative, Provenance, Table, opened
 from .keys import Number, validate
 from .model_file import MAX_FREQUENCY_HZ, Coupling, Shape, _check_field_shape, _rig_value
 
@@ -42,6 +42,23 @@ class ComplexArray(Table):
     """Real parts, one row per shape of the span."""
     im: Matrix
     """Imaginary parts, as ``re``."""
+
+
+class RatioModel(Table):
+    """Where the ratios come from (:class:`forcecal.model.broadband.RatioChoice`)."""
+
+    noun = "ratio model"
+    source: Literal["spline", "modal"]
+    """The splines' ratios or the modal model's."""
+    aic_spline: Finite | None
+    """The splines' Akaike criterion on the lines' own ratios (null: not scored)."""
+    aic_modal: Finite | None
+    """The modal model's (null: no stable pole in the band)."""
+    modes: list[Annotated[list[Finite], Field(min_length=4, max_length=4)]]
+    """Per mode of the modal model: natural frequency [Hz], its standard uncertainty, damping
+    ratio, its standard uncertainty."""
+    level_noise: NonNegative | None
+    """The modal model's common level per line, relative (null without one)."""
 
 
 class BroadbandFile(Table):
@@ -82,12 +99,15 @@ class BroadbandFile(Table):
     written before they were kept)."""
     ratio_std: list[list[NonNegative]] | None = None
     """Their standard uncertainty, of Re and of Im each (rows: shapes; columns: lines)."""
+    ratio_model: RatioModel | None = None
+    """Whether the ratios are the splines' or the modal model's, and the scores that chose
+    (absent from a model written before the choice: the splines')."""
     provenance: Provenance | None = None
     """Where the model comes from."""
 
 
-BROADBAND_KEYS = frozenset(("band", "coordinates", "frequencies", "line_snr", "ratios",
-                            "singular_values"))
+BROADBAND_KEYS = frozenset(("band", "coordinates", "frequencies", "line_snr", "ratio_model",
+                            "ratios", "singular_values"))
 """Top-level keys only a broadband model file has: a document without ``kind`` that holds one
 is read as a broadband model whose ``kind`` was lost (misspelt, moved), not as a spatial one."""
 

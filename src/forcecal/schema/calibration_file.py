@@ -80,12 +80,59 @@ class FrequencyStep(Table):
     """Its standard uncertainty [deg]."""
 
 
+FrequencyModelName = Literal["first-order", "half-order"]
+"""The core's response over frequency (``forcecal.actuator.frequency_models``)."""
+
+
+class FrequencyCandidate(Table):
+    """One model of the core's response a calibration tried, with its scores (a skipped one:
+    its name and reason)."""
+
+    noun = "frequency-model candidate"
+    model: FrequencyModelName
+    """The model."""
+    formula: str = ""
+    """The law, as a formula."""
+    params: FrequencyParams | None = None
+    """Its fitted parameters."""
+    stderr: FrequencyParams | None = None
+    """Their standard uncertainties."""
+    chi2: Score = None
+    """The fit's chi-square."""
+    dof: int = Field(0, ge=0, le=10**9)
+    """Its degrees of freedom."""
+    aic: Score = None
+    """Akaike's information criterion."""
+    bic: Score = None
+    """The Bayesian information criterion."""
+    held_out: Score = None
+    """RMS relative error of the force's phasors of each frequency step left out in turn."""
+    held_out_steps: list[Score] = Field(default_factory=list)
+    """That error per step left out, by frequency."""
+    skipped: str | None = None
+    """Why the model could not be fitted."""
+
+
+class FrequencySelection(Table):
+    """The models of the core's response tried, and why one was chosen."""
+
+    noun = "frequency-model selection"
+    reason: str = ""
+    """Why the chosen model was chosen."""
+    candidates: list[FrequencyCandidate] = Field(default_factory=list)
+    """Every model tried."""
+
+
 class FrequencyLawKeys(Table):
     """The actuator's law over frequency (``frequency_law``)."""
 
     noun = "frequency-law"
     model: str = ""
     """The law, as a formula."""
+    frequency_model: FrequencyModelName = "first-order"
+    """The core's response; absent (a file written before the choice): first order."""
+    selection: FrequencySelection | None = None
+    """The models tried and why this one (absent when one was fitted)."""
     param_names: list[str] = Field(default_factory=list)
     """K, s_fe, tau."""
     param_units: list[str] = Field(default_factory=list)

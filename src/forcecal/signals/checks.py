@@ -18,7 +18,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-import scipy.signal
 
 from ..errors import DataError, DimensionError, InputError
 from ..records import Run, Scan
@@ -198,7 +197,9 @@ def check_plausible(values: np.ndarray, name: str, source: str | Path, t0: float
     span = hi - lo
     if span <= 0:
         return
-    far = np.flatnonzero(np.abs(v - mid) > factor * span)
+    off = np.subtract(v, mid)                  # |v - mid| in one temporary of the record's length
+    far = np.flatnonzero(np.abs(off, out=off) > factor * span)
+    del off
     if far.size:
         k = int(far[0])
         raise DataError(f"{what} '{source}': channel {name!r} holds {v[k]:.6g} at "
@@ -241,9 +242,9 @@ def check_run_for_rig(rig: Rig, run: Run, f0: float | None = None) -> None:
         raw = run.channel(name)
         check_finite(raw, name, run.source, run.t0, run.fs)
         check_plausible(raw, name, run.source, run.t0, run.fs, factor=RIG_SPIKE_FACTOR)
-        si = raw * scale
+        si = raw if scale == 1.0 else raw * scale     # 1.0 x raw is raw: no copy
         limit, unit = PHYSICAL_LIMITS[kind]
-        peak = float(np.max(np.abs(si))) if si.size else 0.0
+        peak = max(float(si.max()), -float(si.min())) if si.size else 0.0   # max |si|
         if not peak <= limit:
             k = int(np.argmax(np.abs(si)))
             raise DataError(
@@ -297,7 +298,10 @@ def check_clipping(values: np.ndarray, name: str, source: str | Path, fs: float)
         when the first one starts.
     """
     v = np.asarray(values, dtype=float).ravel()
-    v = v[np.isfinite(v)]
+    finite = np.isfinite(v)
+    if not finite.all():                       # a copy only when some samples are dropped
+        v = v[finite]
+    del finite
     if v.size < MIN_SAMPLES or v.max() == v.min():
         return
     for side, level in (("maximum", v.max()), ("minimum", v.min())):
@@ -530,6 +534,8 @@ def channel_noise(x: np.ndarray, fs: float, band: tuple[float, float]) -> np.nda
     InputError
         When the sampling leaves no room above the band.
     """
+    import scipy.signal  # on use: a steady stream starts without it
+
     nperseg = int(min(x.shape[-1], max(256, 2 ** int(np.log2(fs / 10)))))
     f, p = scipy.signal.welch(x, fs=fs, nperseg=nperseg, axis=-1)
     lo, hi = min(2 * band[1], 0.3 * fs), 0.45 * fs
@@ -699,6 +705,8 @@ class AboveBand(WorstHalfSecond):
         """The share of the AC power of i^2 above the band, both less the white noise's, or 0
         where either is within ``SIGNIFICANT`` times the noise's own scatter (a current of
         noise alone holds no drive to note)."""
+        import scipy.signal  # on use: a steady stream starts without it
+
         x = current**2
         nperseg = min(x.size, 1024)
         f, p = scipy.signal.welch(x, fs=self.fs, nperseg=nperseg)

@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 import scipy.linalg
-import scipy.signal
 
 __all__ = ["BandModel", "band_model", "smooth_states"]
 
@@ -94,6 +93,8 @@ def band_model(fs: float, cutoff: float, level: float, noise_var: float,
     -------
     BandModel
     """
+    import scipy.signal  # on use: a steady stream starts without it
+
     if order < 3:
         raise ValueError("the band model needs order >= 3 (acceleration is a state)")
     unit = max(float(noise_var), np.finfo(float).tiny)          # computed in units of noise

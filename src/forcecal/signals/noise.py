@@ -24,7 +24,6 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.special import gammaincinv
 
 from .fundamental import LONG_RECORD
 
@@ -224,6 +223,8 @@ def expected_median(q: int, segments: int = 1) -> float:
     q is even). Exact for one segment; for averages, the distribution's median (the sample
     median's expectation for many lines)."""
     if segments > 1:
+        from scipy.special import gammaincinv  # on use: a steady stream starts without it
+
         return float(gammaincinv(segments, 0.5)) / segments
 
     def order(r: int) -> float:  # E of the r-th smallest of q: sum_{i=q-r+1..q} 1/i

@@ -27,7 +27,6 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.linalg
-import scipy.signal
 
 __all__ = ["extend"]
 
@@ -94,6 +93,8 @@ def _coefficients(s: np.ndarray, order: int) -> np.ndarray:
 
 def _predict(past: np.ndarray, coef: np.ndarray, count: int) -> np.ndarray:
     """The ``count`` samples after ``past`` (at least len(coef) long) with no innovation."""
+    import scipy.signal  # on use: a steady stream starts without it
+
     den = np.r_[1.0, -coef]
     zi = scipy.signal.lfiltic([1.0], den, past[::-1][:coef.size])
     return scipy.signal.lfilter([1.0], den, np.zeros(count), zi=zi)[0]

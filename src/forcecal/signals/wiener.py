@@ -23,8 +23,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-import scipy.ndimage
-import scipy.signal
 
 from .kalman import BandModel, smooth_states
 
@@ -70,6 +68,8 @@ def tone_density(frame: int, fs: float, frequency: float, power: float) -> np.nd
     as :func:`wiener_smooth` takes a noise source: at every bin of a Hann frame, the amplitude
     whose power there is the tone's (A / 2)^2 |W(f_b - f)|^2 / sum(w^2), W the window's
     transform, so that over the bins it adds up to the tone's variance A^2 / 2."""
+    import scipy.signal  # on use: a steady stream starts without it
+
     win = scipy.signal.get_window("hann", frame)
     over = 16
     shape = np.abs(np.fft.rfft(win, over * frame))                # |W| every fs / (16 frame)
@@ -126,6 +126,9 @@ def wiener_smooth(x: np.ndarray, noise: np.ndarray, fs: float, frame: int,
     -------
     ShortTimeWiener
     """
+    import scipy.ndimage  # on use: a steady stream starts without it
+    import scipy.signal
+
     n, k = x.shape[-1], x.shape[0]
     rows = np.vstack([np.eye(k), np.ones(k)]) if outputs is None else np.asarray(outputs)
     kw = {"fs": fs, "window": "hann", "nperseg": frame, "noverlap": 3 * frame // 4}
@@ -172,6 +175,8 @@ def short_time_variance(x: np.ndarray, weight: np.ndarray, fs: float, frame: int
     frame's bins (a systematic error of a frequency response, as the scan's operating shapes
     give the inertia): its power summed over each frame's bins, as :func:`wiener_smooth` sums
     the noise it lets through."""
+    import scipy.signal  # on use: a steady stream starts without it
+
     n = x.shape[-1]
     kw = {"fs": fs, "window": "hann", "nperseg": frame, "noverlap": 3 * frame // 4}
     t, z = scipy.signal.stft(x, boundary="even", padded=True, **kw)[1:]   # (bins, frames)

@@ -152,7 +152,10 @@ def _simulator_facts(preset: Preset) -> dict:
 
 
 def _eddy_facts(preset: Preset) -> dict:
-    """The eddy time of every magnet and the law it gives, when a core lags (else nothing)."""
+    """The eddy time of every magnet and the law it gives, when a core lags (else nothing);
+    a solid or laminated core's diffusion and response instead (:func:`_diffusion_facts`)."""
+    if any(m.core != "lag" for m in preset.magnets):
+        return _diffusion_facts(preset)
     if not any(m.eddy_time > 0 for m in preset.magnets):
         return {}
     return {"eddy": {
@@ -161,6 +164,36 @@ def _eddy_facts(preset: Preset) -> dict:
         "law": "at a fixed gap the force's component at f over that of i^2: "
                "H(f) = 1 / (1 + j 2 pi f tau): K(f) = K / sqrt(1 + (2 pi f tau)^2), "
                "lag(f) = atan(2 pi f tau)"}}
+
+
+def _diffusion_facts(preset: Preset) -> dict:
+    """The cores of a rig whose flux diffuses into the iron: every magnet's core, diffusion
+    time and nodes, and the truth of every run's drive frequency, ``K(f) / K`` and the lag
+    [deg] of the simulated diffusion's own response (:func:`.core.diffusion_response`; a lag
+    core's ``1 / (1 + j 2 pi f tau)``)."""
+    mags = preset.magnets
+    freqs = sorted({float(d.frequency) for r in preset.runs if not r.tare for d in r.drives})
+    response = {}
+    for m in mags:
+        h = m.eddy_response(np.array(freqs))
+        response[m.current_channel] = [
+            {"frequency_Hz": f, "gain": float(abs(v)), "lag_deg": float(-np.degrees(np.angle(v)))}
+            for f, v in zip(freqs, h, strict=True)]
+    return {"eddy": {
+        "core": {m.current_channel: m.core for m in mags},
+        "eddy_time_s": {m.current_channel: m.eddy_time for m in mags},
+        "conductivity_S_m": {m.current_channel: m.conductivity for m in mags},
+        "core_thickness_m": {m.current_channel: m.core_thickness for m in mags},
+        "diffusion_time_s": {m.current_channel: m.diffusion_time for m in mags},
+        "core_nodes": {m.current_channel: m.core_nodes for m in mags},
+        "model": "du/dt = (1 / tau_d) d2u/dxi2 across the core's half-thickness (xi from 0 at "
+                 "the mid-plane to 1 at the face), u(1) = i, du/dxi(0) = 0, tau_d = sigma mu "
+                 "d^2; i_m = mean of u; flux and force from the magnetising current i_m; "
+                 "linear finite elements in depth, trapezoidal rule in time",
+        "law": "at a fixed gap the force's component at f over that of i^2: the discretised "
+               "diffusion's response H(f), close to tanh(sqrt(j 2 pi f tau_d)) / "
+               "sqrt(j 2 pi f tau_d): K(f) = K |H(f)|, lag(f) = -angle(H(f))",
+        "response": response}}
 
 
 def _rig_document(preset: Preset, averages: int | None = None) -> dict:
@@ -244,10 +277,11 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     runs that are not listed (``RunSpec.manifest`` false: the swept and random ones) are
     written with their truth but left out of ``manifest.csv``. A magnet whose core lags (eddy
     currents) has its ``eddy_time_s`` and the law it gives stated in ``simulator.json``'s
-    ``eddy``. Such a rig's scans may be written as SLDV software exports FRFs
-    (``scan_export="frfs"``, :mod:`.sldv_frf`): per point H1 and its coherence up to the
-    acquisition's bandwidth (fs / 2.56), the averages behind them stated as
-    ``acquisition.scan_averages``.
+    ``eddy``; a solid or laminated core its diffusion and, per run frequency, the response
+    its simulation has (``eddy.response``: ``K(f) / K`` and the lag). Such a rig's scans may
+    be written as SLDV software exports FRFs (``scan_export="frfs"``, :mod:`.sldv_frf`): per
+    point H1 and its coherence up to the acquisition's bandwidth (fs / 2.56), the averages
+    behind them stated as ``acquisition.scan_averages``.
     """
     preset = get_preset(preset_name, realism)
     check_scan_export(preset, scan_export)

@@ -12,8 +12,8 @@ rig starts at rest a lead time before the record (:func:`lead_time`).
 
 The trapezoidal rule steps a sine as if at a slightly higher frequency, so a coarse step makes
 the rig's inertia heavier than its mass says; under steady sines the step is cut until that
-error is negligible (:func:`steady_oversample`). A magnet with eddy currents in its core
-(``eddy_time``) carries its magnetising current as a state, stepped by the same rule.
+error is negligible (:func:`steady_oversample`). A core's eddy currents are states stepped by
+the same rule: a lag core's magnetising current, a solid or laminated one's field (:mod:`.core`).
 
 The time loop itself is compiled (:mod:`.newmark`); this module sets it up in modal
 coordinates, finds the steady state and samples the record of the virtual rig (METHOD.md
@@ -28,6 +28,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from .beam import BeamModel
+from .core import diffusion_step
 from .magnet import MU0, Drive, Magnet, Pole
 from .newmark import CLOSED_GAP, NO_CONVERGENCE, march
 from .plate import PlateModel
@@ -39,10 +40,12 @@ __all__: list[str] = []
 Model = BeamModel | PlateModel | SolidModel
 """A finite-element model of the structure: beam, plate or body."""
 
-State = tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float], list[float]]
-"""The stepper's state: modal q, qd, qdd (n_modes,), and per magnet the flux linkage [Wb],
-the coil current [A] and the magnetising current [A] (the coil current's lagged image with eddy
-currents in the core, :attr:`.magnet.Magnet.eddy_time`; unused without)."""
+State = tuple[np.ndarray, np.ndarray, np.ndarray, list[float], list[float], list[float],
+              np.ndarray]
+"""The stepper's state: modal q, qd, qdd (n_modes,), per magnet the flux linkage [Wb], the coil
+current [A] and the magnetising current [A] (the coil current's lagged image with eddy currents
+in the core, :attr:`.magnet.Magnet.eddy_time`; unused without), and (n_m, n_x) the field [A] at
+the diffusion nodes of every solid or laminated core (:mod:`.core`; unused for the others)."""
 
 LEAD_TIME_CONSTANTS = 10.0
 """A non-periodic drive's record starts after this many decay times ``1 / (zeta omega)`` of
@@ -130,9 +133,11 @@ class _Stepper:
                       np.array(self.turns2), np.array(self.res),
                       np.array(self.voltage_driven, dtype=bool))
         self.eddy_a = np.array(self.eddy)
+        self.cores = _core_steps(magnets, dt)
         for mg, d in zip(magnets, drives, strict=True):
-            if mg.eddy_time > 0 and d.voltage_driven:
-                raise ValueError(f"magnet {mg.current_channel!r}: eddy_time > 0 needs a current "
+            if mg.eddy_currents and d.voltage_driven:
+                what = "eddy_time > 0" if mg.core == "lag" else f"a {mg.core} core"
+                raise ValueError(f"magnet {mg.current_channel!r}: {what} needs a current "
                                  "drive (the lag of the magnetising current is modelled for an "
                                  "imposed coil current only)")
 
@@ -141,9 +146,10 @@ class _Stepper:
         return [float(d.value(t)) for d in self.drives]
 
     def run(self, t0: float, n_steps: int, q: np.ndarray, qd: np.ndarray, qdd: np.ndarray,
-            lam: list[float], cur: list[float], mag: list[float],
+            lam: list[float], cur: list[float], mag: list[float], nodes: np.ndarray,
             keep_every: int = 0) -> tuple[State, np.ndarray, Record | None]:
-        """Advance n_steps from time t0 (modal state q, qd, qdd; coil state lam, cur, mag).
+        """Advance n_steps from time t0 (modal state q, qd, qdd; coil state lam, cur, mag;
+        the cores' diffusion nodes).
 
         Returns the final state, the magnet forces of every step (n_m, n_steps) and, when
         ``keep_every`` > 0, every keep_every-th sample of the state (time on the last axis).
@@ -160,6 +166,7 @@ class _Stepper:
         q, qd, qdd = (np.array(x, dtype=float) for x in (q, qd, qdd))
         lam_a = np.array(lam, dtype=float)
         cur_a, mag_a = np.array(cur, dtype=float), np.array(mag, dtype=float)
+        nodes_a = np.array(nodes, dtype=float)
         n_keep = n_steps // keep_every if keep_every else 0
         out = _new_record(len(q), n_m, n_keep)
         rec = out if out is not None else _new_record(len(q), n_m, 1)
@@ -167,14 +174,15 @@ class _Stepper:
         forces = np.empty((n_m, n_steps))
         status, _ = march(q, qd, qdd, lam_a, lam_a.copy(), cur_a, mag_a, drive, self.dt,
                           self.c, self.keff, self.G, self.sp, self.gsum0, self.HS,
-                          *self.coils, self.eddy_a, keep_every if out is not None else 0,
+                          *self.coils, self.eddy_a, self.cores, nodes_a,
+                          keep_every if out is not None else 0,
                           forces, rec["q"], rec["qd"], rec["qdd"], rec["lam"], rec["i"],
                           rec["f"], rec["d"])
         if status == CLOSED_GAP:
             raise SimulationError("a pole closed its air gap (pull-in): lower the drive")
         if status == NO_CONVERGENCE:
             raise SimulationError("the magnetic circuit did not converge within a time step")
-        state: State = (q, qd, qdd, lam_a.tolist(), cur_a.tolist(), mag_a.tolist())
+        state: State = (q, qd, qdd, lam_a.tolist(), cur_a.tolist(), mag_a.tolist(), nodes_a)
         return state, forces, _finish_record(out)
 
     # ---------------------------------------------------------------- steady state
@@ -197,7 +205,9 @@ class _Stepper:
             q = q_new
             if done:
                 break
-        return q, np.zeros_like(q), np.zeros_like(q), lam.tolist(), cur.tolist(), cur.tolist()
+        nodes = np.repeat(cur[:, None], self.cores[1].shape[1], axis=1)   # no field gradient
+        return (q, np.zeros_like(q), np.zeros_like(q), lam.tolist(), cur.tolist(), cur.tolist(),
+                nodes)
 
     def periodic_structure(self, t: np.ndarray, forces: np.ndarray, t_end: float, f0: float,
                            n_harm: int = 40) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -224,6 +234,24 @@ class _Stepper:
         ph = np.exp(1j * np.arange(n_harm + 1) * w0 * t_end)[:, None]
         return ((qh * ph).real.sum(0), (s * qh * ph).real.sum(0),
                 (s**2 * qh * ph).real.sum(0))
+
+
+def _core_steps(magnets: Sequence[Magnet], dt: float) -> tuple[np.ndarray, ...]:
+    """The trapezoidal steps of every magnet's core diffusion (:func:`.core.diffusion_step`),
+    zero-padded to the most nodes: (diffuse (n_m,) bool, A (n_m, n_x, n_x), b_old, b_new,
+    c (n_m, n_x), c_new (n_m,)); a lag core's rows are zero and unused."""
+    n_m = len(magnets)
+    n_x = max([mg.core_nodes for mg in magnets if mg.core != "lag"], default=1)
+    diffuse = np.array([mg.core != "lag" for mg in magnets], dtype=bool)
+    a = np.zeros((n_m, n_x, n_x))
+    b_old, b_new, c = np.zeros((n_m, n_x)), np.zeros((n_m, n_x)), np.zeros((n_m, n_x))
+    c_new = np.zeros(n_m)
+    for m, mg in enumerate(magnets):
+        if diffuse[m]:
+            k = mg.core_nodes
+            a[m, :k, :k], b_old[m, :k], b_new[m, :k], c[m, :k], c_new[m] = diffusion_step(
+                k, mg.diffusion_time, dt)
+    return diffuse, a, b_old, b_new, c, c_new
 
 
 def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ...],
@@ -275,8 +303,8 @@ def integrate(model: Model, magnets: tuple[Magnet, ...], drives: tuple[Drive, ..
     SimulationError
         When a pole closes its gap or the magnetic circuit does not converge.
     ValueError
-        Not one drive per magnet, more than two magnets, or eddy currents in a voltage-driven
-        magnet.
+        Not one drive per magnet, more than two magnets, or eddy currents (a lag, a solid or a
+        laminated core) in a voltage-driven magnet.
     """
     if len(magnets) != len(drives):
         raise ValueError("one drive per magnet")

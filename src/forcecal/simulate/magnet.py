@@ -13,7 +13,11 @@ Eddy currents in the core (``Magnet.eddy_time`` tau, current drive only): the ma
 current ``i_m`` that produces the flux follows the coil current through a first-order lag,
 ``tau di_m/dt + i_m = i``, and the flux and the force take ``i_m`` in place of ``i``. At a fixed
 gap the force's component at frequency f then lags that of ``i^2`` by ``atan(2 pi f tau)``, its
-gain ``K(f) = K / sqrt(1 + (2 pi f tau)^2)`` (``H(f) = 1 / (1 + j 2 pi f tau)``).
+gain ``K(f) = K / sqrt(1 + (2 pi f tau)^2)`` (``H(f) = 1 / (1 + j 2 pi f tau)``): the ``lag``
+core, the default. A ``solid`` or ``laminated`` core (``Magnet.core``, current drive only)
+instead takes its magnetising current from the flux diffusing into its iron (``conductivity``,
+``core_thickness``; :mod:`.core`): eddy currents distributed in depth, a response of half order
+above the diffusion time's frequency, near first order for thin laminations.
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .core import CORE_NODES, CORES, diffusion_response
 from .waveforms import Waveform
 
 __all__: list[str] = []
@@ -193,8 +198,18 @@ class Magnet:
     voltage_channel : str
         Name of the recorded coil voltage channel.
     eddy_time : float [s]
-        tau of the eddy currents in the core: the magnetising current follows the coil
+        tau of the eddy currents in a ``lag`` core: the magnetising current follows the coil
         current through ``tau di_m/dt + i_m = i`` (current drive only); 0: no lag.
+    core : {"lag", "solid", "laminated"}
+        The core's eddy currents: a first-order lag (``eddy_time``), or the flux diffusing
+        into a solid core or into laminations of ``core_thickness`` (:mod:`.core`).
+    conductivity : float [S/m]
+        sigma of a solid or laminated core's iron.
+    core_thickness : float [m]
+        ``2 d``: a solid core's thickness, or one lamination's; the field enters from both
+        faces.
+    core_nodes : int
+        Finite elements across a solid or laminated core's half-thickness.
     """
 
     poles: tuple[Pole, ...]
@@ -207,14 +222,42 @@ class Magnet:
     flux_channel: str = "phi"
     voltage_channel: str = "v"
     eddy_time: float = 0.0
+    core: str = "lag"
+    conductivity: float = 0.0
+    core_thickness: float = 0.0
+    core_nodes: int = CORE_NODES
 
     def __post_init__(self) -> None:
         if not self.eddy_time >= 0.0:
             raise ValueError(f"a magnet's eddy_time must be >= 0 s, not {self.eddy_time!r}")
+        if self.core not in CORES:
+            raise ValueError(f"a magnet's core is one of {', '.join(CORES)}, not {self.core!r}")
+        if self.core != "lag" and not (self.conductivity > 0 and self.core_thickness > 0
+                                       and self.eddy_time == 0 and self.core_nodes >= 2):
+            raise ValueError(
+                f"a {self.core} core needs a conductivity > 0 S/m, a core_thickness > 0 m and "
+                f"core_nodes >= 2, and no eddy_time; found {self.conductivity!r} S/m, "
+                f"{self.core_thickness!r} m, {self.core_nodes!r} nodes, eddy_time "
+                f"{self.eddy_time!r} s")
+
+    @property
+    def diffusion_time(self) -> float:
+        """tau_d = sigma mu_r mu0 d^2 [s] of a solid or laminated core (``d`` its
+        half-thickness); 0 for a lag core."""
+        if self.core == "lag":
+            return 0.0
+        return self.conductivity * self.mu_r * MU0 * (self.core_thickness / 2.0) ** 2
+
+    @property
+    def eddy_currents(self) -> bool:
+        """Whether the core's magnetising current differs from the coil current."""
+        return self.eddy_time > 0 or self.core != "lag"
 
     def eddy_response(self, frequency: ArrayLike) -> np.ndarray:
-        """H(f) = 1 / (1 + j 2 pi f tau): the force's small-signal component at frequency f
-        [Hz] over that of ``i^2`` at a fixed gap (1 without eddy currents).
+        """H(f): the force's small-signal component at frequency f [Hz] over that of ``i^2``
+        at a fixed gap, ``1 / (1 + j 2 pi f tau)`` for a lag core (1 without eddy currents),
+        the discretised diffusion's own response for a solid or laminated core
+        (:func:`.core.diffusion_response`).
 
         Parameters
         ----------
@@ -225,6 +268,8 @@ class Magnet:
         complex array
             ``|H| = K(f) / K``, ``-angle(H)`` the force's lag [rad].
         """
+        if self.core != "lag":
+            return diffusion_response(frequency, self.diffusion_time, self.core_nodes)
         return 1.0 / (1.0 + 2j * math.pi * np.asarray(frequency, dtype=float) * self.eddy_time)
 
     @property

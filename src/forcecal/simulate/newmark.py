@@ -5,7 +5,9 @@ Every step solves the magnetic force and the structural motion together: the str
 Newmark (average acceleration) update is linear in the magnets' forces, so Newton runs on the
 flux linkages alone (one or two magnets), each coil's flux linkage stepped by the trapezoidal
 rule under an imposed voltage, or set by an imposed current. A core with eddy currents lags its
-magnetising current behind the coil current, ``tau di_m/dt + i_m = i``, by the same rule.
+magnetising current behind the coil current, ``tau di_m/dt + i_m = i``, by the same rule; a
+solid or laminated core steps the field at its diffusion nodes (:mod:`.core`) by the same rule,
+the magnetising current their mean.
 
 The loop and its per-step helpers are compiled (Numba, cached on disk).
 """
@@ -26,7 +28,7 @@ _NEWTON_STEPS = 40
 
 @numba.njit(cache=True)
 def march(q, qd, qdd, lam, lam_prev, cur, mag, drive, dt, c, keff, g, sp, gsum0, hs,
-          fscale, mu_a, iron, turns2, res, voltage, eddy, keep_every, forces,
+          fscale, mu_a, iron, turns2, res, voltage, eddy, cores, nodes, keep_every, forces,
           rec_q, rec_qd, rec_qdd, rec_lam, rec_i, rec_f, rec_d):  # pragma: no cover - compiled
     """Step the rig ``drive.shape[1] - 1`` times, in place.
 
@@ -59,6 +61,12 @@ def march(q, qd, qdd, lam, lam_prev, cur, mag, drive, dt, c, keff, g, sp, gsum0,
         Whether the magnet's voltage is imposed (else its current).
     eddy : (n_m,) float array
         [s] each core's eddy-current time (0: none).
+    cores : tuple (diffuse, A, b_old, b_new, c, c_new)
+        Per magnet: whether its core diffuses (bool (n_m,)), and its step
+        (:func:`.core.diffusion_step`, zero-padded to ``n_x`` nodes): (n_m, n_x, n_x),
+        (n_m, n_x) three times and (n_m,).
+    nodes : (n_m, n_x) float array
+        [A] the field at every diffusing core's nodes, advanced in place.
     keep_every : int
         Keep every keep_every-th step's state in the ``rec_*`` rows (0: none).
     forces : (n_m, n_steps) float array
@@ -85,10 +93,16 @@ def march(q, qd, qdd, lam, lam_prev, cur, mag, drive, dt, c, keff, g, sp, gsum0,
     r = np.empty(n_m)
     jac = np.empty((n_m, n_m))
     step = np.empty(n_m)
+    diffuse = cores[0]
+    work = np.empty(nodes.shape[1])
     for m in range(n_m):
-        eff_old[m] = mag[m] if eddy[m] > 0 else drive[m, 0]
+        eff_old[m] = mag[m] if eddy[m] > 0 or diffuse[m] else drive[m, 0]
     for n in range(n_steps):
         _magnetising_step(n_m, n, mag, eff_new, drive, dt, eddy)
+        for m in range(n_m):
+            if diffuse[m]:
+                mag[m] = _diffusion_step(m, nodes, cores, drive[m, n], drive[m, n + 1], work)
+                eff_new[m] = mag[m]
         _linear_prediction(n_modes, q, qd, qdd, c, keff, a0, a1, v4, q_lin)
         _newton_start(n_m, n_modes, lam, lam_prev, lam_old, guess, gsum_lin, gsum0, sp, q_lin)
         status = _newton_flux(n_m, lam, lam_old, cur, eff_old, eff_new, gsum_lin, hs, fscale,
@@ -119,6 +133,24 @@ def _magnetising_step(n_m, n, mag, eff_new, drive, dt, eddy):  # pragma: no cove
             eff_new[m] = mag[m]
         else:
             eff_new[m] = d_new
+
+
+@numba.njit(cache=True)
+def _diffusion_step(m, nodes, cores, d_old, d_new, work):  # pragma: no cover - compiled
+    """Magnet ``m``'s core field stepped by the trapezoidal rule (its nodes in place), and
+    its magnetising current after the step."""
+    _, a, b_old, b_new, c, c_new = cores
+    n_x = nodes.shape[1]
+    for j in range(n_x):
+        acc = b_old[m, j] * d_old + b_new[m, j] * d_new
+        for k in range(n_x):
+            acc += a[m, j, k] * nodes[m, k]
+        work[j] = acc
+    out = c_new[m] * d_new
+    for j in range(n_x):
+        nodes[m, j] = work[j]
+        out += c[m, j] * work[j]
+    return out
 
 
 @numba.njit(cache=True)

@@ -1,13 +1,14 @@
 """Helpers shared by the figures: readable units, Fourier series over a window, line styles,
-a calibrated law over a cycle and in its collapse coordinates (fig. 9).
+a calibrated law over a run or a cycle (fig. 9).
 
 Nothing here draws a whole figure. Axes show readable units: positions in mm, time in ms,
 forces in N, currents in A and displacements in the engineering prefix that suits their size
-(mm, µm, nm); every label names its unit.
+(mm, µm, nm, :func:`forcecal.report.cells.prefixed_unit`); every label names its unit.
 """
 
 from __future__ import annotations
 
+import re
 import warnings
 from typing import Any
 
@@ -26,61 +27,22 @@ __all__: list[str] = []
 DEFAULT_PERIODS = 3.0
 """Periods of the fundamental drawn by the time-history figures."""
 
-_PREFIXES = ((1.0, ""), (1e-3, "m"), (1e-6, "µ"), (1e-9, "n"))
-
-
-def prefixed_unit(peak: float, base: str) -> tuple[float, str]:
-    """Factor and unit that show values up to ``peak`` as numbers of 1 to 999.
+def math_unit(unit: str) -> str:
+    """A plain-text unit as matplotlib math text: ``N m^2/A^2`` -> ``N m$^{2}$/A$^{2}$``.
 
     Parameters
     ----------
-    peak : float
-        The largest magnitude to show [base unit].
-    base : str
-        The SI unit, e.g. ``"m"``.
-
-    Returns
-    -------
-    tuple of (float, str)
-        The factor from the base unit and the prefixed unit.
-
-    Examples
-    --------
-    >>> prefixed_unit(3e-5, "m")
-    (1000000.0, 'µm')
-    """
-    peak = float(abs(peak))
-    for size, prefix in _PREFIXES:
-        if peak >= size:
-            return 1.0 / size, prefix + base
-    if peak == 0.0 or not np.isfinite(peak):
-        return 1.0, base
-    return 1e9, "n" + base
-
-
-def quantity(value: float, base: str, digits: int = 3) -> str:
-    """``value`` with ``digits`` significant digits in the prefix that suits it: ``0.2 µm``.
-
-    Parameters
-    ----------
-    value : float
-        The value [base unit].
-    base : str
-        The SI unit, e.g. ``"m"``.
-    digits : int
-        Significant digits shown.
+    unit : str
+        The unit, with ``^`` for powers (a law's ``param_units``).
 
     Returns
     -------
     str
-        The number and its prefixed unit.
+        The unit for a label; ``""`` for a dimensionless ``-`` or ``1``.
     """
-    factor, unit = prefixed_unit(value, base)
-    v = value * factor
-    if v == 0 or not np.isfinite(v):
-        return f"{v:g} {unit}"
-    places = digits - 1 - int(np.floor(np.log10(abs(v))))
-    return f"{round(v, places):.{max(places, 0)}f} {unit}"
+    if unit in ("-", "1"):
+        return ""
+    return re.sub(r"\^\(?([-\w.]+)\)?", r"$^{\1}$", unit)
 
 
 def fourier_series(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
@@ -225,7 +187,7 @@ def check_run(run: Run, estimate: ForceEstimate) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# a calibrated law over a cycle, and in its collapse coordinates
+# a calibrated law over a run or a cycle
 
 
 def law_harmonics(calibration: Calibration, current: np.ndarray, gaps: np.ndarray, fs: float,
@@ -281,18 +243,6 @@ def law_cycle(cal: Calibration, dc: np.ndarray, ac: float, gap: float,
     mean = total.mean(axis=1)
     fundamental = 2 * np.abs(np.mean(total * np.exp(-1j * theta), axis=1))
     return mean, fundamental
-
-
-def law_argument(cal: Calibration, current: np.ndarray, gaps: np.ndarray) -> np.ndarray | None:
-    """x such that the law's total force is K x [per K's unit]: the law's argument summed over
-    the poles (``i^2 / (s + s_fe)^2`` for ``K i^2 / (s + s_fe)^2``); None for a law that is
-    not linear in its first parameter."""
-    law = cal.law_object
-    jac = law.jacobian(cal.params, current, gaps)[..., 0]
-    with np.errstate(all="ignore"):
-        linear = np.allclose(law.per_pole(cal.params, current, gaps), cal.params[0] * jac,
-                             rtol=1e-9, atol=0.0)
-    return jac.sum(axis=1) if linear else None
 
 
 def running_max(values: np.ndarray, width: int) -> np.ndarray:

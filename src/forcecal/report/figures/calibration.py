@@ -1,8 +1,10 @@
-"""The actuator calibration (the paper's fig. 9): force against current for every gap.
+"""The actuator calibration (the paper's fig. 9): the law against the campaign's forces.
 
 :class:`CalibrationPoints` holds one point per run of a campaign; :func:`law_harmonics` gives a
-law's mean and fundamental force over one run; :func:`fig_calibration` draws the points with
-the calibrated law and their residuals against it.
+law's mean and fundamental force over one run; :func:`fig_calibration` draws the measured
+forces against the law evaluated at their own current and gaps (the collapse), their relative
+difference with the law's uncertainty, and the runs' mean and fundamental force against the DC
+current.
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from ...actuator import Calibration, ExtrapolationWarning, Selection, predict
 from ...errors import DimensionError, InputError
@@ -23,7 +26,8 @@ from ...forces.steady import ForceEstimate, channels_si
 from ...records import Run
 from ...rig import Rig
 from ...signals.harmonics import fit_harmonics
-from ._common import MARKERS, law_argument, law_cycle, law_harmonics, panel_title, running_max
+from ..cells import lab_unit, plus_minus
+from ._common import MARKERS, law_cycle, law_harmonics, math_unit, panel_title, running_max
 
 if TYPE_CHECKING:
     from ...campaign import CampaignResult
@@ -332,65 +336,61 @@ def _groups(pts: CalibrationPoints, gap_id: np.ndarray, ac_id: np.ndarray) -> li
 
 def fig_calibration(points: CalibrationPoints | Mapping[str, Any],
                     law: Calibration | Selection | None = None) -> Figure:
-    """Force against DC current and AC amplitude for every gap, with the calibrated law (fig. 9).
+    """The calibrated law against the campaign's forces, each at its own conditions (fig. 9).
 
-    Top left: the mean total force F_0 against the DC current I_0; top right: the amplitude of
-    the force's fundamental |F_1| against I_0. One colour per static gap, one marker (and line
-    style) per AC amplitude, one open marker per run, so that repeated runs show as overlapping
-    markers (their count is written beside them).
+    With a (current, gap) law, the top row is the collapse: left, the measured total force of
+    every calibration sample against the law evaluated at that sample's own current and
+    instantaneous gaps (:func:`forcecal.actuator.predict`), on the line measured = law; right,
+    their relative difference against the law with the law's +-2 sigma band (its parameters'
+    uncertainty) on that scale. Without the campaign's samples, each run's mean force F_0
+    stands for its samples.
 
-    With a (current, gap) law, the bottom panels show each run's relative residual against the
-    law, and the law is drawn in one of two ways:
+    Below, as the paper draws it: the mean total force F_0 (left) and the amplitude of its
+    fundamental |F_1| (right) against the DC current I_0, one colour per static gap, one
+    marker per AC amplitude, one open marker per run with +-2 sigma bars (a count beside
+    repeated runs); the law as a small filled marker per run, joined per gap and AC amplitude:
 
-    - when ``points`` carries ``law_dc`` and ``law_ac`` (the law at each run's own
-      instantaneous current and gaps, :func:`law_harmonics`): as a small filled marker per run,
-      joined by thin lines per gap and AC amplitude; the residuals are taken against them;
-    - otherwise: as smooth curves of the law's total force (:func:`forcecal.actuator.predict`)
-      over one cycle of i = I_0 + I_1 cos(theta) at the static gap, its mean and fundamental
-      amplitude, over the calibrated current range. The structure's motion, which closes the
-      gap during a run, is neglected there, which the legend and the residual panel say.
+    - at each run's own instantaneous current and gaps when ``points`` carries ``law_dc`` and
+      ``law_ac`` (:func:`law_harmonics`), as it does from a campaign;
+    - otherwise as curves over one cycle of i = I_0 + I_1 cos(theta) at the static gap (the
+      structure's motion, which closes the gap during a run, neglected, as the legend says).
 
     Parameters
     ----------
     points : CalibrationPoints or Mapping of str to array_like
-        The runs' points (e.g. from :meth:`CalibrationPoints.from_estimates`), or a mapping
+        The runs' points (e.g. from :meth:`CalibrationPoints.from_campaign`), or a mapping
         with its field names (gap, dc, ac, force_dc, force_ac, ...).
     law : Calibration or Selection, optional
-        The calibration (or the selection whose chosen law is drawn); None draws the points
-        only. A flux law cannot be drawn against current: it is named in a note, without
-        curves.
+        The calibration (or the selection whose chosen law is drawn); None draws the F_0 and
+        |F_1| points only. A flux law cannot be drawn against current: it is named in a note.
 
     Returns
     -------
     matplotlib.figure.Figure
-        4 axes (F_0, |F_1|, and their residuals in %) when a (current, gap) law is given,
-        else 2. The runs' lines are labelled "gap G mm, AC A A" (x: A, y: N); the law's
-        "law gap G mm, AC A A"; the residuals' lines carry the runs' labels (y: %).
+        4 axes (collapse, relative difference [%], F_0, |F_1|) with a (current, gap) law, else 2
+        (F_0, |F_1|). The runs' error bars are labelled "gap G mm, AC A A" (x: A, y: N); the
+        law's lines "law at gap G mm, AC A A" (at each run's own conditions) or "law gap G mm,
+        AC A A" (at the static gap); in the collapse, the law "law (measured = law)", the
+        runs' samples "measured, run NAME" (x: the law [N], y: measured [N]); in the
+        difference panel the band "law ±2σ" and the runs' "run NAME" (y: %).
     """
     pts = points if isinstance(points, CalibrationPoints) else CalibrationPoints(**points)
     cal = law.calibration() if isinstance(law, Selection) else law
     drawn = _drawn_law(cal, pts)
     gap_id, ac_id = _setpoints(pts)
-    fig = Figure(figsize=(12.0, 5.5) if drawn is None else (17.0, 9.5), layout="constrained")
-    # the F_0 and |F_1| panels, below them their residuals against a drawn law, and beside
-    # them the collapse panel
-    grid = fig.add_gridspec(1 if drawn is None else 2, 2 if drawn is None else 3,
-                            height_ratios=None if drawn is None else (2.0, 1.0),
-                            width_ratios=None if drawn is None else (1.0, 1.0, 1.25))
-    axes = np.empty((grid.nrows, 2), dtype=object)
-    for r, c in np.ndindex(axes.shape):
-        axes[r, c] = fig.add_subplot(grid[r, c], sharex=None if r == 0 else axes[0, c])
+    fig = Figure(figsize=(12.0, 5.6) if drawn is None else (12.0, 10.5), layout="constrained")
+    grid = fig.add_gridspec(1 if drawn is None else 2, 2)
+    row = 0 if drawn is None else 1
+    ax0 = fig.add_subplot(grid[row, 0])
+    ax1 = fig.add_subplot(grid[row, 1], sharex=ax0)
     fig.suptitle(_calibration_title(pts, cal, int(gap_id.max()) + 1))
     for group in _groups(pts, gap_id, ac_id):
-        _draw_group(axes[0, 0], axes[0, 1], pts, group, drawn)
-        if drawn is not None:
-            _draw_group_residuals(axes[1, 0], axes[1, 1], pts, group, drawn)
-    _label_top(axes[0, 0], axes[0, 1], cal, drawn)
+        _draw_group(ax0, ax1, pts, group, drawn)
+    _label_runs(ax0, ax1, cal, drawn)
     if drawn is not None:
-        _label_residuals(axes[1, 0], axes[1, 1], drawn.at_runs)
-        for ax in axes[0]:
-            ax.tick_params(labelbottom=False)
-        _draw_collapse(fig.add_subplot(grid[:, 2]), pts, drawn.cal, gap_id, ac_id)
+        col = _collapse(pts, drawn)
+        _draw_collapse(fig.add_subplot(grid[0, 0]), col, gap_id, ac_id, pts)
+        _draw_difference(fig.add_subplot(grid[0, 1]), col, gap_id, ac_id, pts)
     for ax in fig.axes:
         ax.grid(alpha=0.3)
     handles = _legend_handles(pts, gap_id, ac_id, drawn)
@@ -406,7 +406,7 @@ def _draw_group(ax0: Axes, ax1: Axes, pts: CalibrationPoints, group: _Group,
     for ax, force, std in ((ax0, pts.force_dc, pts.force_dc_std),
                            (ax1, pts.force_ac, pts.force_ac_std)):
         ax.errorbar(pts.dc[sel], force[sel], yerr=_err(std, sel), fmt=group.marker,
-                    color=group.color, ms=7, mfc="none", mew=1.4, capsize=2, label=group.tag)
+                    color=group.color, ms=8, mfc="none", mew=1.4, capsize=2, label=group.tag)
     _mark_repeats(ax0, pts.dc[sel], pts.force_dc[sel])
     _mark_repeats(ax1, pts.dc[sel], pts.force_ac[sel])
     if law is not None:
@@ -415,13 +415,15 @@ def _draw_group(ax0: Axes, ax1: Axes, pts: CalibrationPoints, group: _Group,
 
 def _draw_group_law(ax0: Axes, ax1: Axes, pts: CalibrationPoints, group: _Group,
                     law: _Law) -> None:
-    """The law's smooth curve at the group's static gap and, when known, its value at each of
-    the group's runs (small filled markers)."""
+    """The law at each of the group's runs' own conditions (small filled markers, joined), or
+    else its curves at the group's static gap."""
     if law.at_runs:
         order = np.argsort(pts.dc[group.sel])
         for ax, values in ((ax0, law.dc), (ax1, law.ac)):
-            ax.plot(pts.dc[group.sel][order], values[group.sel][order], ls="none",
-                    color=group.color, marker=group.marker, ms=3.5, label=f"law at {group.tag}")
+            ax.plot(pts.dc[group.sel][order], values[group.sel][order], "-", lw=0.9,
+                    color=group.color, marker=group.marker, ms=3.5, zorder=3,
+                    label=f"law at {group.tag}")
+        return
     lo = max(law.cal.current_range[0] + group.amp, 0.0)
     hi = law.cal.current_range[1] - group.amp
     if hi > lo:
@@ -431,60 +433,47 @@ def _draw_group_law(ax0: Axes, ax1: Axes, pts: CalibrationPoints, group: _Group,
         ax1.plot(grid, fund, group.dash, color=group.color, lw=1.2, label=f"law {group.tag}")
 
 
-def _draw_group_residuals(rx0: Axes, rx1: Axes, pts: CalibrationPoints, group: _Group,
-                          law: _Law) -> None:
-    """A group's relative residuals [%] of F_0 (``rx0``) and |F_1| (``rx1``) against the law."""
-    sel = group.sel
-    for rx, measured, model in ((rx0, pts.force_dc, law.dc), (rx1, pts.force_ac, law.ac)):
-        floor = 0.01 * max(float(np.median(np.abs(measured))), 1e-12)
-        rel = (measured[sel] - model[sel]) / np.maximum(np.abs(model[sel]), floor)
-        rx.plot(pts.dc[sel], 100 * rel, group.marker, color=group.color, ms=7, mfc="none",
-                mew=1.4, label=group.tag)
-
-
-def _label_top(ax0: Axes, ax1: Axes, cal: Calibration | None, law: _Law | None) -> None:
+def _label_runs(ax0: Axes, ax1: Axes, cal: Calibration | None, law: _Law | None) -> None:
     """Labels and titles of the F_0 and |F_1| panels; a note for a law drawn from flux."""
     if cal is not None and law is None:
         ax0.text(0.02, 0.98, f"law '{cal.law}' predicts from flux:\nno curve against current",
                  transform=ax0.transAxes, va="top", fontsize="small")
+    where = ("" if law is None else " (law: at each run's own current and gaps)"
+             if law.at_runs else " (law: at the static gap, motion neglected)")
     ax0.set_ylabel("mean force $F_0$ [N]")
-    panel_title(ax0, "Mean total force vs DC current")
+    panel_title(ax0, "Mean total force vs DC current" + where)
     ax1.set_ylabel("fundamental amplitude $|F_1|$ [N]")
     panel_title(ax1, "Fundamental of the total force vs DC current")
-    if law is None:
-        ax0.set_xlabel("DC current $I_0$ [A]")
-        ax1.set_xlabel("DC current $I_0$ [A]")
-
-
-def _label_residuals(rx0: Axes, rx1: Axes, at_runs: bool) -> None:
-    """Zero lines, labels and the title of the residual panels."""
-    for rx, what in ((rx0, "$F_0$"), (rx1, "$|F_1|$")):
-        rx.axhline(0.0, color="0.5", lw=0.8)
-        rx.set_ylabel(f"{what}: (run − law) / law [%]")
-        rx.set_xlabel("DC current $I_0$ [A]")
-    where = ("at each run's current and gap" if at_runs
-             else "at the static gap (the structure's motion neglected)")
-    panel_title(rx0, f"Residuals against the law {where}")
+    for ax in (ax0, ax1):
+        ax.set_xlabel("DC current $I_0$ [A]")
 
 
 def _legend_handles(pts: CalibrationPoints, gap_id: np.ndarray, ac_id: np.ndarray,
-                    law: _Law | None) -> list[Line2D]:
-    """The figure legend: one colour per gap, one marker (and dash) per AC amplitude, the law."""
-    handles = []
+                    law: _Law | None) -> list[Line2D | Patch]:
+    """The figure legend: every colour, marker and line the panels draw."""
+    handles: list[Line2D | Patch] = []
     for g in range(gap_id.max() + 1):
         gap = float(np.mean(pts.gap[gap_id == g]))
-        handles.append(Line2D([], [], color=f"C{g % 10}", lw=2, label=f"gap {gap * 1e3:.2f} mm"))
+        handles.append(Line2D([], [], color=f"C{g % 10}", lw=6, alpha=0.6,
+                              label=f"static gap {gap * 1e3:.2f} mm"))
+    fallback = law is not None and not law.at_runs
     for a in range(ac_id.max() + 1):
         amp = float(np.mean(pts.ac[ac_id == a]))
-        dash = _DASHES[a % len(_DASHES)] if law is not None else "none"
         handles.append(Line2D([], [], color="0.3", marker=MARKERS[a % len(MARKERS)],
-                              mfc="none", ls=dash, label=f"AC {amp:.3g} A"))
-    if law is not None:
-        handles.append(Line2D([], [], color="0.3", ls="-", lw=1.2,
-                              label="law at the static gap (motion neglected)"))
-    if law is not None and law.at_runs:
-        handles.append(Line2D([], [], color="0.3", marker="o", ms=3.5, ls="none",
-                              label="law at each run's current and gap"))
+                              mfc="none", ls=_DASHES[a % len(_DASHES)] if fallback else "none",
+                              label=f"AC {amp:.3g} A" + (" (law's dash)" if fallback else "")))
+    handles.append(Line2D([], [], color="0.3", marker="o", mfc="none", ms=8, ls="none",
+                          label="run, measured (±2σ bars)"))
+    if law is None:
+        return handles
+    handles.append(Line2D([], [], color="0.3", marker="o" if law.at_runs else "none", ms=3.5,
+                          lw=0.9, label="law at each run's own current and gaps" if law.at_runs
+                          else "law at the static gap (the structure's motion neglected)"))
+    handles.append(Line2D([], [], color="k", lw=1.2, label="law (measured = law)"))
+    handles.append(Patch(color="0.5", alpha=0.3, label="law ±2σ (its parameters' uncertainty)"))
+    if pts.samples is not None:
+        handles.append(Line2D([], [], color="0.45", marker="x", ls="none", ms=4,
+                              label=pts.samples.static_label))
     return handles
 
 
@@ -496,21 +485,21 @@ def _calibration_title(pts: CalibrationPoints, cal: Calibration | None, n_gaps: 
     law = cal.law_object
     params = [f"{n} = {_param(v, e, u)}" for n, v, e, u in
               zip(law.param_names, cal.params, cal.stderr, law.param_units, strict=True)]
-    lines = [title, f"law '{cal.law}': {law.formula}"]
+    lines = [title, f"law '{cal.law}': {math_unit(law.formula)}"]
     for start in range(0, len(params), 3):
         lines.append("; ".join(params[start:start + 3]))
     return "\n".join(lines)
 
 
 def _param(value: float, std: float, unit: str) -> str:
-    """A parameter with its standard uncertainty and unit."""
-    unit = "" if unit in ("-", "1") else unit
-    return f"{value:.5g} ± {std:.2g} {unit}".strip()
+    """A parameter ± its standard uncertainty, in the unit a laboratory writes (math text)."""
+    factor, shown = lab_unit(value, unit)
+    return f"{plus_minus(value * factor, std * factor)} {math_unit(shown)}".strip()
 
 
 def _err(std: np.ndarray | None, sel: np.ndarray) -> np.ndarray | None:
-    """The selected error bars, or None without uncertainties."""
-    return None if std is None else std[sel]
+    """The selected +-2 sigma error bars, or None without uncertainties."""
+    return None if std is None else 2 * std[sel]
 
 
 def _mark_repeats(ax: Axes, x: np.ndarray, y: np.ndarray) -> None:
@@ -524,67 +513,107 @@ def _mark_repeats(ax: Axes, x: np.ndarray, y: np.ndarray) -> None:
 
 
 # --------------------------------------------------------------------------------------------
-# the collapse panel
+# the collapse: measured against the law at its own conditions
 
 
-def _collapse_samples(pts: CalibrationPoints) -> tuple[np.ndarray, np.ndarray, np.ndarray,
-                                                       np.ndarray | None, np.ndarray]:
-    """Current (n,), gaps (n, 1 or n_poles), measured and reactions-only force (n,) [N], and
-    the run of every sample: the campaign's samples, or else each run's cycle
-    i = I_0 + I_1 cos(theta) at its static gap (64 phases) with its F_0."""
-    if pts.samples is not None:
-        smp = pts.samples
-        return smp.current, smp.gaps, smp.force, smp.static_force, smp.run
-    theta = 2 * np.pi * np.arange(64) / 64
-    current = (pts.dc[:, None] + pts.ac[:, None] * np.cos(theta)).ravel()
-    run = np.repeat(np.arange(pts.n_runs), theta.size)
-    return current, pts.gap[run][:, None], pts.force_dc[run], None, run
+@dataclass(frozen=True)
+class _Collapse:
+    """The points of the collapse: the law at each point's own conditions and its standard
+    uncertainty, the measured force, the reactions-only force, all [N], the run of each.
+
+    ``samples``: the points are the campaign's samples; otherwise each run's mean force F_0,
+    with the law at the run's own conditions when ``own`` (else at its static gap).
+    """
+
+    law: np.ndarray
+    law_std: np.ndarray
+    force: np.ndarray
+    static: np.ndarray | None
+    run: np.ndarray
+    samples: bool
+    own: bool
 
 
-def _draw_collapse(ax: Axes, pts: CalibrationPoints, cal: Calibration, gap_id: np.ndarray,
-                   ac_id: np.ndarray) -> None:
-    """Measured force against the law's argument x: every run on the law's straight line.
-
-    With the campaign's samples, every sample (and its reactions-only force); otherwise each
-    run's F_0 against the mean of x over its cycle: at the run's own current and gaps when
-    ``law_dc`` is given (law_dc / K), else at the static gap."""
-    current, gaps, force, static, run = _collapse_samples(pts)
-    gaps = np.broadcast_to(gaps, (current.size, cal.n_poles))
-    x = law_argument(cal, current, gaps)
-    law = cal.law_object
-    if x is None:
-        ax.text(0.02, 0.98, f"law '{cal.law}' is not linear in {law.param_names[0]}:\nno "
-                "collapse", transform=ax.transAxes, va="top", fontsize="small")
-        return
-    si = law.param_units[0] == "N m^2/A^2"
-    scale, unit = (1e-6, "A²/mm²") if si else (1.0, f"N / ({law.param_units[0]})")
+def _collapse(pts: CalibrationPoints, law: _Law) -> _Collapse:
+    """The collapse's points: the campaign's samples, else each run's F_0."""
     with warnings.catch_warnings():
+        # the samples the law was fitted to may reach a little past the calibrated range
         warnings.simplefilter("ignore", ExtrapolationWarning)
-        pred = predict(cal, current, gaps)
-    order = np.argsort(x)
-    half = 2 * running_max(pred.std[order], max(len(x) // 40, 1))
-    ax.fill_between(x[order] * scale, pred.total[order] - half, pred.total[order] + half,
-                    color="0.5", alpha=0.3, lw=0, label="law ±2σ of the prediction")
-    ax.plot(x[order] * scale, pred.total[order], "-", color="k", lw=1.2,
-            label=f"law: total force = {law.param_names[0]} x")
-    if static is not None and pts.samples is not None:
-        ax.plot(x * scale, static, "x", color="0.45", ms=3.5, mew=0.8,
-                label=pts.samples.static_label)
+        if pts.samples is not None:
+            smp = pts.samples
+            pred = predict(law.cal, smp.current, smp.gaps)
+            return _Collapse(pred.total, pred.std, smp.force, smp.static_force, smp.run,
+                             samples=True, own=True)
+        theta = 2 * np.pi * np.arange(64) / 64
+        std = np.array([np.mean(predict(law.cal, pts.dc[k] + pts.ac[k] * np.cos(theta),
+                                        float(pts.gap[k])).std) for k in range(pts.n_runs)])
+    return _Collapse(law.dc, std, pts.force_dc, None, np.arange(pts.n_runs), samples=False,
+                     own=law.at_runs)
+
+
+def _run_style(k: int, gap_id: np.ndarray, ac_id: np.ndarray) -> dict[str, Any]:
+    """The marker and colour of run k's points."""
+    return {"marker": MARKERS[ac_id[k] % len(MARKERS)], "color": f"C{gap_id[k] % 10}",
+            "mfc": "none", "ls": "none"}
+
+
+def _draw_collapse(ax: Axes, col: _Collapse, gap_id: np.ndarray, ac_id: np.ndarray,
+                   pts: CalibrationPoints) -> None:
+    """Measured force against the law at each point's own conditions, on measured = law."""
+    top = float(max(col.law.max(), col.force.max()))
+    bottom = float(min(col.law.min(), col.force.min(), 0.0))
+    ax.plot([bottom, top], [bottom, top], "-", color="k", lw=1.2, zorder=4,
+            label="law (measured = law)")
+    if col.static is not None:
+        ax.plot(col.law, col.static, "x", color="0.45", ms=3.5, mew=0.8,
+                label="reactions only (inertia ignored)")
+    names = pts.names or tuple(str(k) for k in range(pts.n_runs))
     for k in range(pts.n_runs):
-        sel = run == k
-        xs, ys = (x[sel], force[sel]) if pts.samples is not None else \
-            (np.mean(x[sel], keepdims=True), pts.force_dc[k:k + 1])
-        if pts.samples is None and pts.law_dc is not None:     # x at the run's own gaps
-            xs = pts.law_dc[k:k + 1] / cal.params[0]
-        ax.plot(xs * scale, ys, MARKERS[ac_id[k] % len(MARKERS)], mfc="none",
-                color=f"C{gap_id[k] % 10}", ms=4 if pts.samples is not None else 7, mew=0.9,
-                alpha=0.8, label="measured (reactions and inertia)" if k == 0 else "_nolegend_")
-    arg = law.formula.split("=", 1)[1].strip().removeprefix(law.param_names[0]).strip()
-    arg = arg.replace("^2", "²").replace("s + s_fe", "s_p + s_fe").replace(" s²", " s_p²")
-    ax.set_xlabel(f"law argument x = Σ over the poles p of {arg} [{unit}]")
-    ax.set_ylabel("total force [N]")
-    what = "samples" if pts.samples is not None else "mean force $F_0$ of every run (x: mean)"
-    if pts.samples is None and pts.law_dc is None:
-        what += ",\nat the static gap (motion neglected)"
-    panel_title(ax, f"Collapse: the {what} against the law's argument")
-    ax.legend(loc="upper left", fontsize="small")
+        sel = col.run == k
+        ax.plot(col.law[sel], col.force[sel], ms=4 if col.samples else 7, mew=0.9, alpha=0.8,
+                label=f"measured, run {names[k]}", **_run_style(k, gap_id, ac_id))
+    ax.set_xlabel(_law_axis(col))
+    ax.set_ylabel("measured total force [N]" if col.samples else "measured $F_0$ [N]")
+    panel_title(ax, "Collapse: measured against the law at "
+                + ("its own conditions" if col.own else "the static gap"))
+
+
+def _law_axis(col: _Collapse) -> str:
+    """The label of the law's axis: where the law is evaluated."""
+    if col.samples:
+        return "law at each sample's own current and gaps [N]"
+    return ("law's $F_0$ at each run's " + ("own current and gaps" if col.own
+                                            else "static gap (motion neglected)") + " [N]")
+
+
+def _draw_difference(ax: Axes, col: _Collapse, gap_id: np.ndarray, ac_id: np.ndarray,
+                     pts: CalibrationPoints) -> None:
+    """(measured - law) / law [%] against the law, with the law's +-2 sigma band."""
+    floor = 0.01 * max(float(np.median(np.abs(col.law))), 1e-12)
+    scale = np.maximum(np.abs(col.law), floor)
+    rel = 100 * (col.force - col.law) / scale
+    order = np.argsort(col.law)
+    band = 100 * 2 * running_max((col.law_std / scale)[order], max(len(order) // 40, 1))
+    ax.fill_between(col.law[order], -band, band, color="0.5", alpha=0.3, lw=0,
+                    label="law ±2σ")
+    for edge in (-band, band):          # its edges drawn: visible however thin the band is
+        ax.plot(col.law[order], edge, "-", color="0.25", lw=0.8, label="_nolegend_")
+    ax.axhline(0.0, color="k", lw=1.0)
+    names = pts.names or tuple(str(k) for k in range(pts.n_runs))
+    for k in range(pts.n_runs):
+        sel = col.run == k
+        ax.plot(col.law[sel], rel[sel], ms=4 if col.samples else 7, mew=0.9, alpha=0.8,
+                label=f"run {names[k]}", **_run_style(k, gap_id, ac_id))
+    span = 1.15 * max(float(np.quantile(np.abs(rel), 0.99)), 2 * float(band.max()))
+    ax.set_ylim(-span, span)
+    beyond = int(np.sum(np.abs(rel) > span))
+    note = f"RMS {np.sqrt(np.mean(rel**2)):.2g} %" + (f"; {beyond} beyond this scale"
+                                                      if beyond else "")
+    if col.static is not None:
+        off = 100 * np.sqrt(np.mean(((col.static - col.law) / scale) ** 2))
+        note += f"; reactions only: RMS {off:.2g} % (off this scale)"
+    ax.text(0.01, 0.02, note, transform=ax.transAxes, fontsize="small", zorder=5,
+            bbox={"facecolor": "white", "alpha": 0.85, "lw": 0})
+    ax.set_xlabel(_law_axis(col))
+    ax.set_ylabel("(measured − law) / law [%]")
+    panel_title(ax, "Relative difference, beside the law's own uncertainty")

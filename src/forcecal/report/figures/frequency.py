@@ -2,7 +2,8 @@
 
 :func:`fig_frequency_law` draws a :class:`~forcecal.actuator.FrequencyLaw`: the
 non-parametric value of every frequency step with its 2-sigma error bar beside the fitted
-first-order curve and its 2-sigma band, and optionally the truth (a virtual rig's).
+curve of the chosen model (first or half order) and its 2-sigma band, and optionally a
+first-order truth (a virtual rig's).
 """
 
 from __future__ import annotations
@@ -27,7 +28,8 @@ def fig_frequency_law(law: FrequencyLaw, truth: tuple[float, float] | None = Non
 
     Top: the gain ``K(f) / K`` (``relative``) or ``K(f)`` [N m²/A²]; bottom: the lag [deg].
     Every frequency step of ``law.steps`` is an open marker with its ±2σ error bar (the
-    non-parametric fit); the first-order curve ``1 / (1 + j 2 pi f tau)`` is a line with its
+    non-parametric fit); the chosen model's curve (``law.model``: first order
+    ``1 / (1 + j 2 pi f tau)``, or half order) is a line with its
     ±2σ band (tau's uncertainty; for ``K(f)`` also K's), drawn a little beyond the calibrated
     range, whose ends are dotted.
 
@@ -36,8 +38,8 @@ def fig_frequency_law(law: FrequencyLaw, truth: tuple[float, float] | None = Non
     law : FrequencyLaw
         The fitted law.
     truth : (float, float) or None
-        ``(K [N m²/A²], tau [s])`` of a known truth, drawn dashed; K is used only when not
-        ``relative``.
+        ``(K [N m²/A²], tau [s])`` of a known first-order truth, drawn dashed; K is used only
+        when not ``relative``.
     relative : bool
         Draw ``K(f) / K`` rather than ``K(f)``.
     n_points : int
@@ -47,8 +49,8 @@ def fig_frequency_law(law: FrequencyLaw, truth: tuple[float, float] | None = Non
     -------
     matplotlib.figure.Figure
         Two axes sharing the frequency axis [Hz]: the gain (y: ``K(f)/K`` [-] or ``K(f)``
-        [N m²/A²]) and the lag (y: deg). Lines are labelled "first-order law",
-        "first-order law ±2σ", "steps ±2σ" and "truth".
+        [N m²/A²]) and the lag (y: deg). Lines are labelled "MODEL law" (``law.model``: "first-order
+        law", "half-order law"), "MODEL law ±2σ", "steps ±2σ" and "truth".
 
     Raises
     ------
@@ -75,8 +77,8 @@ def fig_frequency_law(law: FrequencyLaw, truth: tuple[float, float] | None = Non
             (ax_l, lag, lag_std, (np.array([s.lag_deg for s in steps]),
                                   np.array([s.lag_deg_std for s in steps])))):
         ax.fill_between(f, curve - COVERAGE * std, curve + COVERAGE * std, color="C0",
-                        alpha=0.35, lw=0, label="first-order law ±2σ")
-        ax.plot(f, curve, "-", color="C0", lw=1.5, label="first-order law")
+                        alpha=0.35, lw=0, label=f"{law.model} law ±2σ")
+        ax.plot(f, curve, "-", color="C0", lw=1.5, label=f"{law.model} law")
         if steps:
             ax.errorbar(freq, y, yerr=COVERAGE * y_std, fmt=MARKERS[0], color="C1", ms=7,
                         mfc="none", mew=1.4, capsize=3, label="steps ±2σ")

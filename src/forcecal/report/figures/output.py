@@ -1,18 +1,63 @@
-"""Figures as PNG: written atomically to a file, or rendered in memory."""
+"""Figures as files: PNG, SVG or PDF, written atomically or rendered in memory.
+
+The figures are drawn at the size they are meant to be read at (at most 12 inches wide, the
+reports' page width at 96 CSS pixels per inch), so their text keeps its size on the page.
+"""
 
 from __future__ import annotations
 
 import io
 from pathlib import Path
 
+from matplotlib import rc_context
 from matplotlib.figure import Figure
 
 from ..._atomic import atomic_path
+from ...errors import InputError
 
-__all__ = ["png_bytes", "save_png"]
+__all__ = ["figure_bytes", "save_png"]
+
+FORMATS = ("png", "svg", "pdf")
+"""The file formats of the figures, the default first."""
+
+PNG_DPI = 120
+"""Resolution of a PNG file [dots per inch]: 1.25 pixels per CSS pixel on the page."""
 
 
-def save_png(fig: Figure, path: str | Path, dpi: float = 120) -> Path:
+def figure_bytes(fig: Figure, fmt: str = "png", dpi: float = PNG_DPI) -> bytes:
+    """``fig`` rendered in memory as PNG, SVG or PDF.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure.
+    fmt : str
+        ``"png"``, ``"svg"`` or ``"pdf"``.
+    dpi : float
+        Resolution of a PNG [dots per inch] (SVG and PDF are vector graphics).
+
+    Returns
+    -------
+    bytes
+        The file's content.
+
+    Raises
+    ------
+    InputError
+        For another format.
+    """
+    if fmt not in FORMATS:
+        raise InputError(f"figure format '{fmt}': expected one of {', '.join(FORMATS)}")
+    buffer = io.BytesIO()
+    # without a date, and with the SVG's ids derived from their content alone (one id, one
+    # definition, however many SVGs a page inlines), the files of one input do not change
+    metadata = {"svg": {"Date": None}, "pdf": {"CreationDate": None}}.get(fmt)
+    with rc_context({"svg.hashsalt": "forcecal"}):
+        fig.savefig(buffer, format=fmt, dpi=dpi, metadata=metadata)
+    return buffer.getvalue()
+
+
+def save_png(fig: Figure, path: str | Path, dpi: float = PNG_DPI) -> Path:
     """Write ``fig`` as PNG to ``path`` atomically (a temporary name, then a rename).
 
     On any failure the temporary file is removed and an existing ``path`` is left untouched.
@@ -36,21 +81,21 @@ def save_png(fig: Figure, path: str | Path, dpi: float = 120) -> Path:
     return Path(path)
 
 
-def png_bytes(fig: Figure, dpi: float = 100) -> bytes:
-    """``fig`` rendered as PNG in memory.
+def write_bytes(data: bytes, path: str | Path) -> Path:
+    """Write ``data`` to ``path`` atomically.
 
     Parameters
     ----------
-    fig : matplotlib.figure.Figure
-        The figure.
-    dpi : float
-        Resolution [dots per inch].
+    data : bytes
+        A figure's file (:func:`figure_bytes`).
+    path : str or pathlib.Path
+        The file to write.
 
     Returns
     -------
-    bytes
-        The PNG file's content.
+    pathlib.Path
+        ``path``.
     """
-    buffer = io.BytesIO()
-    fig.savefig(buffer, format="png", dpi=dpi)
-    return buffer.getvalue()
+    with atomic_path(path) as tmp:
+        Path(tmp).write_bytes(data)
+    return Path(path)

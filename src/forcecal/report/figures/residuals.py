@@ -8,11 +8,13 @@ from matplotlib.figure import Figure
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
 from ...errors import InputError
+from ...forces.diagnostics import misfit_limits
 from ...forces.steady import ForceEstimate, channels_si
 from ...records import Run
 from ...rig import Rig
 from ...signals.harmonics import fit_harmonics
-from ._common import check_run, panel_title, quantity
+from ..cells import quantity
+from ._common import check_run, panel_title
 
 __all__ = ["fig_residuals"]
 
@@ -54,16 +56,16 @@ def fig_residuals(estimate: ForceEstimate, run: Run | None = None, rig: Rig | No
     """
     if (run is None) != (rig is None):
         raise InputError("fig_residuals: the channel residuals need both the run and the rig")
-    fig = Figure(figsize=(11.0, 8.0 if run is not None else 4.5), layout="constrained")
+    fig = Figure(figsize=(12.0, 9.0 if run is not None else 4.5), layout="constrained")
     fig.suptitle(f"Run '{estimate.run_name}': fit residuals and force amplitudes per harmonic")
     if run is not None and rig is not None:
         check_run(run, estimate)
-        grid = fig.add_gridspec(2, 2, width_ratios=(1.0, 2.2), height_ratios=(1.3, 1.0))
+        grid = fig.add_gridspec(2, 2, width_ratios=(1.0, 2.2), height_ratios=(1.1, 1.0))
         _draw_residuals(fig.add_subplot(grid[0, :]), run, rig, estimate)
         ax_c, ax_a = fig.add_subplot(grid[1, 0]), fig.add_subplot(grid[1, 1])
     else:
         ax_c, ax_a = fig.subplots(1, 2, width_ratios=(1.0, 2.2))
-    _draw_chi2(ax_c, estimate)
+    _draw_chi2(ax_c, estimate, len(rig.sensor_names) if rig is not None else 0)
     _draw_amplitudes(ax_a, estimate)
     return fig
 
@@ -104,22 +106,26 @@ def _draw_residuals(ax: Axes, run: Run, rig: Rig, estimate: ForceEstimate) -> No
     ax.grid(alpha=0.3, axis="x")
 
 
-def _draw_chi2(ax: Axes, estimate: ForceEstimate) -> None:
-    """The reduced chi-square of the sensor fit per harmonic, on a log axis."""
+def _draw_chi2(ax: Axes, estimate: ForceEstimate, n_sensors: int) -> None:
+    """The reduced chi-square of the sensor fit per harmonic on a log axis, with the range the
+    probe check accepts."""
     c = estimate.coordinates
-    ax.axhline(1.0, color="0.5", lw=0.8, ls="--", label="expected (1)")
     finite = np.isfinite(c.chi2)
     if finite.any():
+        rate, _, limits = misfit_limits(c, n_sensors)
+        _draw_acceptance(ax, c.harmonics, limits, rate)
+        ax.axhline(1.0, color="0.5", lw=0.8, ls="--", label="expected (1)")
         ax.plot(c.harmonics[finite], c.chi2[finite], "o", color="C0", ms=7, label="chi2")
         for n, v in zip(c.harmonics[finite], c.chi2[finite], strict=True):
             ax.annotate(f"{v:.2g}", (n, v), textcoords="offset points", xytext=(6, 4),
                         fontsize="small")
         ax.set_yscale("log")
-        lo, hi = np.nanmin(c.chi2[finite]), np.nanmax(c.chi2[finite])
-        ax.set_ylim(min(lo, 1.0) / 3, max(hi, 1.0) * 3)
+        values = np.concatenate([c.chi2[finite], limits[np.isfinite(limits)], [1.0]])
+        ax.set_ylim(values.min() / 3, values.max() * 3)
         ax.yaxis.set_major_locator(LogLocator(base=10.0, subs=(1.0, 2.0, 5.0)))
         ax.yaxis.set_major_formatter(FuncFormatter(lambda v, _pos: f"{v:g}"))
         ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.2), fontsize="small")
     else:
         ax.text(0.5, 0.5, "one sensor:\nno chi-square\n(the fit is exact)",
                 transform=ax.transAxes, ha="center", va="center")
@@ -129,7 +135,20 @@ def _draw_chi2(ax: Axes, estimate: ForceEstimate) -> None:
     ax.set_ylabel(r"reduced $\chi^2$ of the sensor fit [1]")
     panel_title(ax, "Shape model vs probes")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(loc="upper left", fontsize="small")
+
+
+def _draw_acceptance(ax: Axes, harmonics: np.ndarray, limits: np.ndarray, rate: float) -> None:
+    """The range of chi-square the probe check accepts, per harmonic: a shaded bar from the
+    axis' bottom up to its quantile (at ``rate`` per harmonic), the quantile as a line."""
+    ok = np.isfinite(limits)
+    if not ok.any():
+        return
+    for j, (n, q) in enumerate(zip(harmonics[ok], limits[ok], strict=True)):
+        ax.fill_between([n - 0.4, n + 0.4], [1e-12, 1e-12], [q, q], color="C2", alpha=0.15,
+                        lw=0, label="accepted by the probe check" if j == 0 else "_nolegend_")
+        ax.plot([n - 0.4, n + 0.4], [q, q], "-", color="C2", lw=1.2,
+                label=f"the check's limit (quantile at {1 - rate:.5g})" if j == 0
+                else "_nolegend_")
 
 
 def _draw_amplitudes(ax: Axes, estimate: ForceEstimate) -> None:

@@ -20,7 +20,8 @@ from ...errors import DimensionError, InputError
 from ...model.basis import ShapeFit
 from ...model.scan import HarmonicShapes
 from ...model.spatial import ONE_SHAPE_MAC, SpatialModel
-from ._common import MARKERS, panel_title, prefixed_unit
+from ..cells import prefixed_unit
+from ._common import MARKERS, panel_title
 
 __all__ = ["fig_shapes", "fig_shapes_2d", "fig_shapes_body"]
 
