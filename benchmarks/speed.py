@@ -582,10 +582,7 @@ def main(argv=None) -> int:
     if args.only == "stream":
         return only_stream()
     quick = args.quick
-    res: dict = {"machine": {"python": platform.python_version(), "numpy": np.__version__,
-                             "cpu": platform.processor() or platform.machine(),
-                             "load_average": os.getloadavg() if hasattr(os, "getloadavg")
-                             else None, "threads": os.environ.get("OPENBLAS_NUM_THREADS")}}
+    res: dict = {"machine": {**machine(), "threads": os.environ.get("OPENBLAS_NUM_THREADS")}}
     with tempfile.TemporaryDirectory(prefix="forcecal-bench-") as tmp:
         say("simulating the paper preset")
         ctx = setup(Path(tmp))
@@ -645,14 +642,17 @@ def main(argv=None) -> int:
     return 0
 
 
+def machine() -> dict:
+    """What the figures were measured on: Python, NumPy, the processor, its cores and load."""
+    return {"python": platform.python_version(), "numpy": np.__version__,
+            "cpu": platform.processor() or platform.machine(), "cores": os.cpu_count(),
+            "load_average": os.getloadavg() if hasattr(os, "getloadavg") else None}
+
+
 def only_reconstruct(minutes: float = 10.0) -> int:
     """``--only reconstruct``: :func:`time_cli_reconstruct` on ``minutes`` at 10 kHz, HDF5 and
     CSV out, written to :data:`ONLY_RESULTS` (the full run's results stay as they are)."""
-    res: dict = {"machine": {"python": platform.python_version(), "numpy": np.__version__,
-                             "cpu": platform.processor() or platform.machine(),
-                             "cores": os.cpu_count(),
-                             "load_average": os.getloadavg() if hasattr(os, "getloadavg")
-                             else None}}
+    res: dict = {"machine": machine()}
     with tempfile.TemporaryDirectory(prefix="forcecal-bench-") as tmp:
         say("simulating the paper preset")
         ctx = setup(Path(tmp))
@@ -671,11 +671,7 @@ def only_stream(minutes: float = 10.0) -> int:
     """``--only stream``: :func:`time_cli_stream` with a run of ``minutes`` and the Numba cache
     empty then full, written to :data:`STREAM_RESULTS` (the full run's results stay as they
     are)."""
-    res: dict = {"machine": {"python": platform.python_version(), "numpy": np.__version__,
-                             "cpu": platform.processor() or platform.machine(),
-                             "cores": os.cpu_count(),
-                             "load_average": os.getloadavg() if hasattr(os, "getloadavg")
-                             else None}}
+    res: dict = {"machine": machine()}
     with tempfile.TemporaryDirectory(prefix="forcecal-bench-") as tmp:
         say("simulating the paper preset")
         ctx = setup(Path(tmp))

@@ -282,7 +282,7 @@ def _cmd_reconstruct(args) -> int:
 def _workers(args, n_jobs: int) -> int:
     """Local workers for ``n_jobs`` jobs: ``--workers``, else one per core when there are
     several jobs (and a local cluster is worth its start, about a second, and its overhead,
-    about 0.75 s per job), else 1. ``reconstruct`` runs serially unless given ``--workers``
+    1-2 s per job on 2 cores), else 1. ``reconstruct`` runs serially unless given ``--workers``
     (a run of a few seconds' record costs less than a job's overhead)."""
     if args.workers is not None:
         if args.workers < 1:
