@@ -64,6 +64,7 @@ def test_a_failing_job_raises_as_it_did_and_closes_the_cluster():
 def test_a_worker_that_dies_is_one_clear_error_naming_the_job():
     """A job that kills its worker process (out of memory, say) is given up with one line
     naming it, not retried without end."""
+    pytest.importorskip("distributed")    # its defaults loaded before one is set for the test
     with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
             pytest.raises(ForcecalError, match=r"job 'dies': the worker process running it died"):
         run_jobs(os._exit, [3, 3], names=["dies", "dies"], workers=2)

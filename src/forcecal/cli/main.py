@@ -266,11 +266,13 @@ def _cmd_reconstruct(args) -> int:
                          workers=1 if args.workers is None else _workers(args, len(runs)),
                          scheduler=args.scheduler,
                          progress=_progress if len(runs) > 1 else None)
+    sources = [run.source for run in runs]
+    del runs, tare                   # the records, freed before the outputs are written
     lines = []
     origin = _provenance(args)
     with staged_folder(args.output) as stage:
-        for est, run in zip(estimates, runs, strict=True):
-            series, _ = write_estimate(est, stage, source=run.source, fmt=args.format,
+        for est, source in zip(estimates, sources, strict=True):
+            series, _ = write_estimate(est, stage, source=source, fmt=args.format,
                                        provenance=origin)
             lines += drive.run_lines(est, Path(args.output) / series.name,
                                      _VERBOSITY[0] >= 2)
