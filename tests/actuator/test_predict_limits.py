@@ -85,11 +85,15 @@ def test_arrays_are_refused_naming_a_value_at_fault():
 
 def test_within_the_factor_a_prediction_extrapolates_with_a_warning():
     cal = _calibration()
-    with pytest.warns(ExtrapolationWarning, match="current from 9.9 to 9.9 A"):
+    with pytest.warns(ExtrapolationWarning, match="current from 9.9 to 9.9 A") as said:
         pred = forcecal.predict(cal, 0.99 * EXTRAPOLATION * CURRENT_RANGE[1], 1e-3)
     assert np.isfinite(pred.total).all()
-    with pytest.warns(ExtrapolationWarning, match="gap from 11 to 11 mm"):
+    assert "by up to 8.9 A (1112 % of the range)" in str(said[0].message)   # 8.9 A / 0.8 A
+    with pytest.warns(ExtrapolationWarning, match="gap from 11 to 11 mm") as said:
         forcecal.predict(cal, 1.0, 11e-3)
+    assert "by up to 9.8 mm (1633 % of the range)" in str(said[0].message)   # 9.8 / 0.6 mm
+    with pytest.warns(ExtrapolationWarning, match=r"by up to 0\.1 A \(12\.5 % of the range\)"):
+        forcecal.predict(cal, 1.1, 1e-3)
 
 
 @pytest.mark.parametrize(("current", "gap", "parameter", "says"), REFUSED, ids=IDS)

@@ -32,6 +32,7 @@ CAUGHT = {
     "gauge offset 1 N": (NOTED, ("Maxwell force", "gauge 'R1' offset")),
     "skew gauges 4": (NOTED, ("Maxwell force", "a delay of the gauges")),
     "probes sign both": (NOTED, ("Maxwell force", "the probes' sign")),
+    "force point 5 cm": (NOTED, ("Maxwell force", "forces[0].x (force 'F1') off by -49.7 mm")),
 }
 """The mistakes forcecal catches: the verdict each must keep, and the phrase of every check that
 catches it (the pull-only check, the probes against the scan's shape, the DC force against the

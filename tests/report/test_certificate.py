@@ -23,6 +23,7 @@ import pytest
 import tomli_w
 from matplotlib.figure import Figure
 
+from forcecal.actuator import FrequencyLaw
 from forcecal.campaign import (
     CampaignResult,
     calibrate_runs,
@@ -311,6 +312,90 @@ def test_candidate_laws_are_a_table_and_nothing_is_preformatted(certified):
     assert _table(page, "Repeated setpoints")[1][1].split("\n") == ["g1000", "g1000_r2"]
     assert not re.search(r'(src|href)="(?!data:)', page)  # self-contained
     assert page.count('src="data:image/png;base64,') == 1  # fig. 9
+
+
+def test_validity_domain_states_the_ranges_of_the_samples(certified):
+    rows = _by_first(_table(certified.page, "Domain checked"))
+    runs = certified.result.runs
+    gaps = np.concatenate([r.samples.gaps for r in runs])          # (n_obs, n_poles) [m]
+    expected = {"coil current i": (certified.doc["current_range"], 1.0, "A")}
+    for p in range(gaps.shape[1]):
+        expected[f"air gap of pole {p + 1} s{p + 1}"] = (
+            (gaps[:, p].min(), gaps[:, p].max()), 1e3, "mm")
+    assert set(rows) == set(expected)   # one frequency, a (current, gap) law: no f, no flux
+    for label, ((lo, hi), factor, unit) in expected.items():
+        assert rows[label][3] == unit
+        assert float(rows[label][1]) == pytest.approx(factor * lo, rel=RANGE_RTOL), label
+        assert float(rows[label][2]) == pytest.approx(factor * hi, rel=RANGE_RTOL), label
+    assert rows["coil current i"][4].startswith("warns; refuses beyond 10 ×")
+
+
+def test_validity_domain_states_the_departure_at_the_edges(certified):
+    rows = _table(certified.page, "Departure of the law from the data at the domain's edges")
+    body = _by_first(rows)
+    run_res = certified.result.run_residual
+    n_obs = sum(r.samples.n for r in certified.result.runs)
+    every = body["every calibration sample"]
+    assert int(every[2]) == n_obs
+    # the runs hold as many samples each: the RMS over all is that of the runs' own RMS
+    assert float(every[3].rstrip(" %")) == pytest.approx(
+        100 * np.sqrt(np.mean(run_res ** 2)), abs=5e-4)
+    edges = [name for name in body if "tenth" in name]
+    assert edges == ["lowest tenth of coil current", "highest tenth of coil current",
+                     "lowest tenth of air gap of pole 1", "highest tenth of air gap of pole 1",
+                     "lowest tenth of air gap of pole 2", "highest tenth of air gap of pole 2"]
+    currents = np.concatenate([r.samples.current for r in certified.result.runs])
+    low, high = body["lowest tenth of coil current"], body["highest tenth of coil current"]
+    assert int(low[2]) == int(high[2]) == int(np.ceil(0.1 * n_obs))
+    assert float(low[1].split()[1]) == pytest.approx(currents.min(), rel=RANGE_RTOL)
+    assert float(high[1].split()[3]) == pytest.approx(currents.max(), rel=RANGE_RTOL)
+    for name in edges:   # an edge's RMS is no more than its largest residual
+        rms, top = float(body[name][3].rstrip(" %")), abs(float(body[name][4].rstrip(" %")))
+        assert 0 < rms <= top + 1e-3, name
+
+
+def test_validity_domain_says_why_each_candidate_was_not_chosen(certified):
+    rows = _by_first(_table(certified.page, "Candidates not chosen, and why"))
+    doc = certified.doc
+    chosen = doc["chosen"]["law"]
+    others = {row["law"]: row for row in doc["candidates"] if row["law"] != chosen}
+    assert set(rows) == set(others) and chosen not in rows
+    for name, row in others.items():
+        why = rows[name][3]
+        if "skipped" in row:
+            assert why.startswith("not fitted: ")
+        else:
+            assert float(rows[name][2].rstrip(" %")) == pytest.approx(
+                100 * row["held_out"], abs=5e-4)
+            assert why.startswith(("held-out error above", "held-out error within",
+                                   "as simple and as good")), why
+
+
+def test_validity_domain_with_a_frequency_law_states_its_band_and_models(certified):
+    result = certified.result
+    cal = result.calibration
+    band = (12.5, 80.0)                                                  # [Hz]
+    fl = FrequencyLaw(
+        k=1e-5, s_fe=5e-5, tau=1e-3, covariance=np.eye(3) * 1e-12, n_poles=cal.n_poles,
+        frequency_range=band, current_range=cal.current_range, gap_range=cal.gap_range,
+        model="first-order", reason="'first-order' is the simplest model",
+        candidates=({"model": "first-order", "held_out": 0.010, "bic": -50.0},
+                    {"model": "half-order", "held_out": 0.040, "bic": -40.0},
+                    {"model": "lumped", "skipped": "too few steps"}))
+    page = calibration_certificate(
+        certified.rig, dataclasses.replace(result, calibration=cal.with_frequency_law(fl)),
+        provenance([]))
+    ranges = _by_first(_table(page, "Domain checked"))
+    assert _numbers(ranges["drive frequency f"][1:3]) == list(band)
+    assert ranges["drive frequency f"][3] == "Hz"
+    edges = _by_first(_table(page, "Departure of the law"))
+    assert {"lowest tenth of drive frequency", "highest tenth of drive frequency"} <= set(edges)
+    why = _by_first(_table(page, "Candidates not chosen, and why"))
+    assert "frequency model 'first-order'" not in why
+    assert why["frequency model 'half-order'"][2] == "4.000 %"
+    assert why["frequency model 'half-order'"][3].startswith("held-out error above the best's "
+                                                             "(1.000 %)")
+    assert why["frequency model 'lumped'"][3] == "not fitted: too few steps"
 
 
 def test_provenance_gives_the_sha256_of_every_input(certified):

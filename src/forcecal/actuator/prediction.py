@@ -13,6 +13,7 @@ throughout.
 from __future__ import annotations
 
 import json
+import math
 import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -424,14 +425,21 @@ def _warn_outside(
     values: np.ndarray, bounds: tuple[float, float], what: str, unit: str, factor: float
 ) -> None:
     """Warn (ExtrapolationWarning, at the caller of the public function) when ``values`` leave
-    ``bounds``; ``factor`` converts both to ``unit`` for the message."""
+    ``bounds``, stating by how much (in ``unit`` and in % of the range's width); ``factor``
+    converts both to ``unit`` for the message."""
     lo, hi = bounds
     slack = 1e-9 * max(abs(lo), abs(hi))
     vmin, vmax = float(values.min()), float(values.max())
     if vmin < lo - slack or vmax > hi + slack:
+        beyond = max(lo - vmin, vmax - hi)
+        width = hi - lo if hi > lo else max(abs(lo), abs(hi))
+        pct = 100 * beyond / width if width > 0 else math.nan
+        share = "" if not width > 0 else f" ({pct:.3g} % of the range)" if pct < 1e3 else \
+            f" ({pct:.0f} % of the range)"
         warnings.warn(
             f"{what} from {factor * vmin:.4g} to {factor * vmax:.4g} {unit} lies outside the "
-            f"calibrated range {factor * lo:.4g} to {factor * hi:.4g} {unit}; extrapolating",
+            f"calibrated range {factor * lo:.4g} to {factor * hi:.4g} {unit}, by up to "
+            f"{factor * beyond:.4g} {unit}{share}; extrapolating",
             ExtrapolationWarning,
             stacklevel=3,
         )

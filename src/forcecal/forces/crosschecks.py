@@ -233,7 +233,7 @@ def _column(cause: _Cause, pick: Callable[[np.ndarray], np.ndarray]) -> np.ndarr
 def _size(cause: _Cause, problem: _Problem, pick: Callable[[np.ndarray], np.ndarray],
           period_ms: float) -> tuple[float, float]:
     """(chi-square, size) of the forces with ``cause`` free against c times Maxwell's."""
-    if cause.form != "delay":
+    if cause.form in ("relative", "linear"):
         c2, coef = problem.freeing(cause.name).fit(pick(cause.forces(0.0)),
                                                    (_column(cause, pick),))
         b = float(coef[-1])

@@ -16,6 +16,7 @@ import math
 import warnings
 from collections.abc import Mapping, Sequence
 from dataclasses import replace
+from functools import lru_cache
 
 import numpy as np
 
@@ -90,6 +91,22 @@ def _settings(model: SpatialModel, f0_guess: float, fs: float, n_harmonics: int 
                          f"{1 / (1 - lam):.3g} samples, less than twice the "
                          f"{2 * h + 1} regressors of {h} harmonics")
     return h, lam
+
+
+@lru_cache(maxsize=8)
+def _decay(lam: float, m: int, n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The factors of the noise tracking's scaled cumulative sum over a piece of ``m``
+    samples whose last ``n`` have a second difference: lam^-i and lam^(i+1) (i = 0..m-1), and
+    the cumulative sum of lam^-i over those ``n`` (the same for every piece of that length)."""
+    ages = np.arange(m, dtype=float)
+    grow = np.exp(-ages * math.log(lam))
+    ones = np.zeros(m)
+    ones[m - n:] = 1.0
+    shrink = np.exp((ages + 1.0) * math.log(lam))
+    counted = np.cumsum(ones * grow)
+    for a in (grow, shrink, counted):
+        a.setflags(write=False)
+    return grow, shrink, counted
 
 
 class StreamEstimator:
@@ -222,17 +239,16 @@ class StreamEstimator:
         self._tail = z[:, -2:]
         d2 = z[:, 2:] - 2.0 * z[:, 1:-1] + z[:, :-2]
         m, n = y.shape[1], d2.shape[1]                # d2[:, i] ends at sample m - n + i
-        ages = np.arange(m, dtype=float)
         # E_j = lam^(j+1) E_prev + sum_{i <= j} lam^(j - i) d2_i^2, as a scaled cumulative sum
         # (pieces are at most chunk_limit(lam) samples: lam^-m stays finite)
-        grow = np.exp(-ages * math.log(self.lam))
-        sq = np.zeros((y.shape[0], m))
-        sq[:, m - n:] = d2 * d2
-        ones = np.zeros(m)
-        ones[m - n:] = 1.0
-        shrink = np.exp((ages + 1.0) * math.log(self.lam))
+        grow, shrink, counted = _decay(self.lam, m, n)
+        if n == m:
+            sq = d2 * d2
+        else:
+            sq = np.zeros((y.shape[0], m))
+            sq[:, m - n:] = d2 * d2
         energy = shrink * (self._d2_energy[:, None] + np.cumsum(sq * grow, axis=1))
-        weight = shrink * (self._d2_weight + np.cumsum(ones * grow))
+        weight = shrink * (self._d2_weight + counted)
         if m:
             self._d2_energy, self._d2_weight = energy[:, -1].copy(), float(weight[-1])
         return energy, weight
@@ -288,6 +304,7 @@ class StreamEstimator:
         step = self._state.step
         self._readout = self._force_readout(2 * np.pi * step * self.fs)
         self._kappa = mixing(self._readout, self.lam, step, self.n_harmonics)
+        self._var_rows: np.ndarray | None = None      # _piece_std's, for this readout
 
     # ------------------------------------------------------------------ set-up
 
@@ -466,10 +483,12 @@ class StreamEstimator:
         after k samples is (1 + lambda^k) / (1 - lambda^k) times its stationary one. Before a
         channel's noise can be measured (its first two samples) its own size stands for it."""
         sigma2 = np.divide(energy, 6.0 * weight, out=y * y, where=weight > 0)
-        cov = stationary(self.lam, self._state.step, self.n_harmonics)[2]
-        k = self._readout[:self._n_f]                                    # (n_f, n_ch, p)
-        rows = np.concatenate([k, k.sum(axis=0, keepdims=True)])
-        var = np.einsum("fcp,pq,fcq->fc", rows, cov, rows) @ sigma2      # (n_f + 1, m)
+        if self._var_rows is None:        # (n_f + 1, n_ch): per unit variance of each channel
+            cov = stationary(self.lam, self._state.step, self.n_harmonics)[2]
+            k = self._readout[:self._n_f]                                # (n_f, n_ch, p)
+            rows = np.concatenate([k, k.sum(axis=0, keepdims=True)])
+            self._var_rows = np.einsum("fcp,pq,fcq->fc", rows, cov, rows)
+        var = self._var_rows @ sigma2                                    # (n_f + 1, m)
         counts = count0 + 1.0 + np.arange(energy.shape[1])
         power = np.exp(counts * math.log(self.lam))
         std: np.ndarray = np.sqrt(var * ((1.0 + power) / (1.0 - power)))

@@ -12,9 +12,9 @@ lays them out. The certificate states
 - the calibrated range (current, static and instantaneous gap, frequency, flux, force) over the
   campaign's runs, and the conditions (drive frequency, ambient temperature, gauges' coupling);
 - the uncertainty budget, with the type-B inputs and whether the rig declares each;
-- the candidate laws and why one was chosen, the reactions-only comparison, the repeatability
-  and the runs; fig. 9, the provenance (version, date, command line, SHA-256 of every input,
-  paths relative to one stated root) and a sign-off.
+- the candidate laws and why one was chosen, the validity domain (:mod:`.domain`), the
+  reactions-only comparison, the repeatability and the runs; fig. 9, the provenance (version,
+  date, command line, SHA-256 of every input, paths relative to one stated root), a sign-off.
 
 Numbers are written as GUM 7.2.6 suggests (:mod:`forcecal.report.cells`), in the units a
 laboratory writes (gaps in mm, a length parameter in µm); ranges with six significant digits.
@@ -35,6 +35,7 @@ from ..campaign.statistics import COVERAGE_FACTOR, METHOD, TYPE_B_SOURCES
 from ..rig import Rig, TypeB
 from ._templates import render
 from .cells import NONE, Grid, lab_unit, math_text, num, pct, rel, relative_paths, unc, value
+from .domain import validity_domain
 
 if TYPE_CHECKING:
     from ..campaign import CampaignResult
@@ -594,6 +595,7 @@ def calibration_certificate(rig: Rig, result: CampaignResult, provenance: Mappin
         "candidates": candidates,
         "skipped": skipped,
         "held_out": result.selection.best.held_out.scheme,
+        "domain": validity_domain(result),
         "reactions": _reactions(result),
         "pooled": pooled,
         "groups": groups,
