@@ -178,6 +178,10 @@ class CalibrationData:
         assert self.force_floor is not None  # set by __post_init__
         return np.maximum(np.abs(self.force), self.force_floor)
 
+    def relative_residual(self, model: np.ndarray) -> np.ndarray:
+        """``(model - force) / scale`` at every observation [-]: a law's relative residual."""
+        return (np.asarray(model) - self.force) / self.scale
+
     @property
     def weights(self) -> np.ndarray:
         """Denominator of the fitted residual: ``sigma`` if given, else :attr:`scale` [N]."""

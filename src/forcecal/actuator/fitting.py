@@ -289,7 +289,7 @@ def _law_fit(
     norm = np.outer(stderr, stderr)
     corr = np.divide(cov, norm, out=np.zeros_like(cov), where=norm > 0)
     np.fill_diagonal(corr, 1.0)
-    rel = (_total(law, params, data) - data.force) / data.scale
+    rel = data.relative_residual(_total(law, params, data))
     log_l = n * math.log(max(rss, np.finfo(float).tiny) / n)
     flux_range = None
     if data.flux is not None:

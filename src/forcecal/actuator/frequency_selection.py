@@ -18,17 +18,11 @@ from typing import Any
 import numpy as np
 
 from .frequency_models import FrequencyModel
-from .selection import HELD_OUT_ABS_TOL, HELD_OUT_REL_TOL
+from .selection import HELD_OUT_ABS_TOL, HELD_OUT_REL_TOL, finite_or_none
 
 __all__: list[str] = []
 
 _NAMES = ("K", "s_fe", "tau")
-
-
-def _number(x: float) -> float | None:
-    """``x`` as a float, or None when it is not finite (JSON has no NaN)."""
-    x = float(x)
-    return x if math.isfinite(x) else None
 
 
 @dataclass(frozen=True)
@@ -94,11 +88,11 @@ class ModelScore:
             "model": self.name, "formula": self.model.formula,
             "params": dict(zip(_NAMES, map(float, self.params), strict=True)),
             "stderr": dict(zip(_NAMES, map(float, std), strict=True)),
-            "chi2": _number(self.chi2), "dof": int(self.dof), "aic": _number(self.aic),
-            "bic": _number(self.bic),
-            "held_out": None if self.held_out is None else _number(self.held_out),
+            "chi2": finite_or_none(self.chi2), "dof": int(self.dof),
+            "aic": finite_or_none(self.aic), "bic": finite_or_none(self.bic),
+            "held_out": None if self.held_out is None else finite_or_none(self.held_out),
             "held_out_steps": [] if self.held_out_steps is None else
-            [_number(e) for e in self.held_out_steps],
+            [finite_or_none(e) for e in self.held_out_steps],
         }
 
 

@@ -117,7 +117,7 @@ def held_out_error(law: Law, data: CalibrationData) -> HeldOutError:
             pred = fit.total(held)
         except (FitError, InputError) as exc:
             raise FitError(f"held-out set {label} ({scheme}): {exc}") from exc
-        errors[j] = np.sqrt(np.mean(((pred - held.force) / held.scale) ** 2))
+        errors[j] = np.sqrt(np.mean(held.relative_residual(pred) ** 2))
     return HeldOutError(
         rms=float(np.sqrt(np.mean(errors**2))), labels=labels, per_group=errors, scheme=scheme
     )
@@ -127,7 +127,7 @@ def held_out_error(law: Law, data: CalibrationData) -> HeldOutError:
 # Selection
 
 
-def _finite_or_none(x: float) -> float | None:
+def finite_or_none(x: float) -> float | None:
     """``x`` as a float, or None when it is not finite (JSON has no NaN)."""
     x = float(x)
     return x if math.isfinite(x) else None
@@ -172,12 +172,12 @@ class Candidate:
             "formula": law.formula,
             "params": self.fit.params_dict,
             "stderr": {
-                n: _finite_or_none(v) for n, v in zip(law.param_names, self.fit.stderr, strict=True)
+                n: finite_or_none(v) for n, v in zip(law.param_names, self.fit.stderr, strict=True)
             },
-            "aic": _finite_or_none(self.fit.aic),
-            "bic": _finite_or_none(self.fit.bic),
-            "held_out": _finite_or_none(self.held_out.rms),
-            "rms_residual": _finite_or_none(self.fit.rms_residual),
+            "aic": finite_or_none(self.fit.aic),
+            "bic": finite_or_none(self.fit.bic),
+            "held_out": finite_or_none(self.held_out.rms),
+            "rms_residual": finite_or_none(self.fit.rms_residual),
         }
 
 

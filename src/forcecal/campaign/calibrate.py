@@ -86,7 +86,7 @@ def _amplitude_factor(law: Law, params: np.ndarray, data: CalibrationData) -> tu
     w = data.weights
     b, y = model / w, data.force / w
     c = float(b @ y / (b @ b))
-    residual = float(np.sqrt(np.mean(((model - data.force) / data.scale) ** 2)))
+    residual = float(np.sqrt(np.mean(data.relative_residual(model) ** 2)))
     return c, residual
 
 

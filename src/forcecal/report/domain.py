@@ -60,19 +60,13 @@ def sample_residuals(result: CampaignResult) -> np.ndarray:
     Returns
     -------
     (n_obs,) array [-]
-        ``(law - force) / scale`` run by run, as the campaign's per-run residuals
-        (``result.run_residual`` is the RMS of each run's share).
+        :meth:`~forcecal.actuator.CalibrationData.relative_residual` of the chosen law, as the
+        campaign's per-run residuals (``result.run_residual`` is the RMS of each run's share).
     """
     fit = result.selection.best.fit
     data = calibration_data(result.runs, "total", result.ac_only)
-    assert data.group is not None  # set by CalibrationData.__post_init__
-    out = np.empty(data.n_obs)
-    for k in range(len(result.runs)):
-        mask = data.group == k
-        sub = data.subset(mask)
-        model = fit.law.per_pole(fit.params, sub.current, sub.gaps, sub.flux).sum(axis=1)
-        out[mask] = (model - sub.force) / sub.scale
-    return out
+    return data.relative_residual(
+        fit.law.per_pole(fit.params, data.current, data.gaps, data.flux).sum(axis=1))
 
 
 def _ranges(result: CampaignResult) -> Grid:
