@@ -59,10 +59,13 @@ from mistakes import (  # noqa: E402
 RESULTS = Path(__file__).resolve().parent / "results" / "mistakes.json"
 FALSE_ALARMS = RESULTS.with_name("false_alarms.json")
 NOTE_CHARS = 100
-FALSE_ALARM_LABS = ("paper", "paper-lab", "tilt")
-"""The labs of ``--clean-seeds``: ideal sensors; lab realism with a tare; unequal gaps."""
+FALSE_ALARM_LABS = ("paper", "paper-lab", "paper-noflux", "tilt", "campaign")
+"""The labs of ``--clean-seeds``: ideal sensors; lab realism with a tare, with and without a
+flux channel; unequal gaps; a campaign's gaps and currents against one scan."""
 CHECKS = (
     ("flux", ("Maxwell force",)),
+    ("pole", ("pull unalike",)),
+    ("scan", ("the scan's motion per unit",)),
     ("misfit", ("disagree with the scan model's shape",)),
     ("pull-only", ("pushes",)),
     ("dc", ("far from the",)),
@@ -73,7 +76,7 @@ CHECKS = (
     ("span", ("load differs from every scan",)),
 )
 """Which check wrote a note: the first whose phrases the note holds (else ``other``)."""
-ALARMS = ("flux", "misfit", "pull-only", "dc", "drift", "mains", "dropped", "other")
+ALARMS = ("flux", "pole", "scan", "misfit", "pull-only", "dc", "drift", "mains", "dropped", "other")
 """The checks whose notes are alarms (``info`` and ``span`` only inform)."""
 COLUMNS = (*ALARMS, "info", "span")
 

@@ -186,3 +186,19 @@ def test_deep_nesting_is_refused_in_one_line(tmp_path):
     path = write(tmp_path, VALID + "deep = " + "[" * 100_000 + "\n")
     with pytest.raises(RigError, match="not a valid TOML file"):
         load_rig(path)
+
+
+def test_cores_group_the_poles_that_carry_one_flux(tmp_path):
+    """Poles naming one core, or else one flux channel (the actuator's by default), are one
+    core's; poles on their own flux channels, or without any, are alone."""
+    shared = load_rig(write(tmp_path, VALID))
+    assert shared.cores == {"phi": [0, 1]}
+    declared = VALID.replace('gap = 1.0e-3\n', 'gap = 1.0e-3\ncore = "U"\n')
+    declared = declared.replace('flux = "phi"\n', "")
+    assert load_rig(write(tmp_path, declared, "core.toml")).cores == {"U": [0, 1]}
+    own = VALID.replace('name = "F2"\n', 'name = "F2"\nflux = "phi2"\n')
+    assert load_rig(write(tmp_path, own, "own.toml")).cores == {}
+    assert load_rig(write(tmp_path, VALID.replace('flux = "phi"\n', ""), "none.toml")).cores == {}
+    again = load_rig(write(tmp_path, tomli_w.dumps(rig_to_dict(load_rig(
+        write(tmp_path, declared, "c2.toml")))), "again.toml"))
+    assert again.cores == {"U": [0, 1]}

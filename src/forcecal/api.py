@@ -28,9 +28,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from .actuator import Calibration, Law, predict, predict_flux
+from .actuator.ac_only import DEFAULT_SAMPLES_PER_PERIOD
 from .campaign import CampaignResult, calibrate_campaign, write_calibration
 from .campaign import load_calibration as _load_calibration
-from .campaign.samples import DEFAULT_SAMPLES_PER_PERIOD
 from .cluster.threads import limited, thread_count, with_threads
 from .drives import drive_of
 from .forces.estimate import Estimate

@@ -93,6 +93,9 @@ class ForcePoint:
     flux: str | None = None
     """The run files' channel of the flux through this pole (``forces[].flux``); None: the
     actuator's (``actuator.flux``), when the rig gives one."""
+    core: str | None = None
+    """The magnetic circuit of this pole (``forces[].core``): poles of one core carry one flux
+    and pull alike (:attr:`Rig.cores`)."""
 
 
 @dataclass(frozen=True)
@@ -234,6 +237,19 @@ class Rig:
         return list(dict.fromkeys(n for n in names if n is not None))
 
     @property
+    def cores(self) -> dict[str, list[int]]:
+        """The poles of each core with two or more, by the core's name: the forces that name
+        one ``forces[].core``, or else one flux channel (``forces[].flux``, else
+        ``actuator.flux``: a flux channel is one circuit's). Poles of one core carry one flux
+        and pull alike."""
+        out: dict[str, list[int]] = {}
+        for k, f in enumerate(self.forces):
+            name = f.core or f.flux or self.actuator.flux
+            if name is not None:
+                out.setdefault(name, []).append(k)
+        return {name: poles for name, poles in out.items() if len(poles) > 1}
+
+    @property
     def gauge_names(self) -> list[str]:
         return [g.name for g in self.gauges]
 
@@ -356,7 +372,7 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     gauges = tuple(Gauge(**g, scale=k.scale)
                    for k, g in zip(keys.gauges, _points(fail, keys.gauges, "gauges", structure),
                                    strict=True))
-    forces = tuple(ForcePoint(**f, gap=k.gap, flux=k.flux)
+    forces = tuple(ForcePoint(**f, gap=k.gap, flux=k.flux, core=k.core)
                    for k, f in zip(keys.forces, _points(fail, keys.forces, "forces", structure),
                                    strict=True))
     sensors = tuple(Sensor(**p, scale=k.scale)
@@ -515,7 +531,7 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         "name": rig.name,
         "structure": structure,
         "gauges": [point(g, ("scale",)) for g in rig.gauges],
-        "forces": [point(f, ("gap", "flux")) for f in rig.forces],
+        "forces": [point(f, ("gap", "flux", "core")) for f in rig.forces],
         "sensors": [point(s, ("scale",)) for s in rig.sensors],
     }
     act: dict[str, Any] = {"current": rig.actuator.current}

@@ -5,7 +5,10 @@ must stay refused or noted with the cause named, so that a broken check turns a 
 
 The force-against-flux check (``forces.crosschecks``) catches, and the note names, a gauge's
 scale 10 % off, a 1 N offset on one gauge, 4 samples of skew between the gauges and the rest,
-and both probes' signs flipped: asserted below. Not asserted here (see
+and both probes' signs flipped; the probes against the scan (``forces.scan_check``) a sign, a
+unit slip and a delay of the probes; without the flux channel, the poles of one core against
+each other (``forces.crosschecks.pole_notes``) a gauge's scale, offset or a force point's
+position: asserted below. Not asserted here (see
 ``benchmarks/mistakes.py`` for their verdicts): both gauges 2 % high (a common scale hides in
 the fringing factor), a gauge 2 cm off or a force point 5 cm off (named among causes the data
 cannot tell apart from a gauge's scale), the columns or names swapped on a rig whose poles pull
@@ -31,8 +34,11 @@ CAUGHT = {
     "gauge scale +10%": (NOTED, ("Maxwell force", "gauge 'R1' scale")),
     "gauge offset 1 N": (NOTED, ("Maxwell force", "gauge 'R1' offset")),
     "skew gauges 4": (NOTED, ("Maxwell force", "a delay of the gauges")),
-    "probes sign both": (NOTED, ("Maxwell force", "the probes' sign")),
+    "probes sign both": (NOTED, ("Maxwell force", "the probes' sign",
+                                 "against the scan's motion")),
     "force point 5 cm": (NOTED, ("Maxwell force", "forces[0].x (force 'F1') off by -49.7 mm")),
+    "probes m, scale mm": (NOTED, ("0.00100 times the scan's motion", "unit or scale slip")),
+    "skew probes 4": (NOTED, ("+0.4", "ms late against the current channel")),
 }
 """The mistakes forcecal catches: the verdict each must keep, and the phrase of every check that
 catches it (the pull-only check, the probes against the scan's shape, the DC force against the
@@ -40,6 +46,16 @@ current, the forces against their poles' Maxwell force (no tare at all draws the
 with current draws, so it is left to the benchmark); the refusals of a sampling too slow
 for the drive, of a nominal frequency the data contradict, of a gap beyond the rig's bounds),
 so that breaking any one of them turns a test red."""
+
+CAUGHT_WITHOUT_FLUX = {
+    "gauge scale +10%": ("pull unalike", "gauge 'R1' scale"),
+    "gauge offset 1 N": ("pull unalike", "gauge 'R1' offset"),
+    "force point 5 cm": ("pull unalike", "forces[0].x (force 'F1') off by"),
+    "probes sign both": ("against the scan's motion",),
+    "skew current 4": ("ms late against the current channel",),
+}
+"""On the same lab without its flux channel (``paper-noflux``), the poles of its one core
+against each other and the probes against the scan catch these (the notes' phrases)."""
 
 
 @pytest.fixture(scope="module")
@@ -63,4 +79,19 @@ def test_caught_mistake_keeps_its_verdict(lab, name):
     assert result.cause_named, (result.message, result.notes)
     said = result.message if expected == REFUSED else " ".join(result.notes)
     for phrase in phrases:
+        assert phrase in said, (phrase, said)
+
+
+@pytest.fixture(scope="module")
+def lab_without_flux(tmp_path_factory):
+    return build_lab("paper-noflux", 0, tmp_path_factory.mktemp("noflux"), scan_step=2)
+
+
+@pytest.mark.parametrize("name", sorted(CAUGHT_WITHOUT_FLUX))
+def test_caught_without_flux(lab_without_flux, name):
+    assert lab_without_flux.clean.all_notes == []
+    result = verdict(lab_without_flux, mistake(name))
+    assert result.verdict == NOTED and result.cause_named, (result.message, result.notes)
+    said = " ".join(result.notes)
+    for phrase in CAUGHT_WITHOUT_FLUX[name]:
         assert phrase in said, (phrase, said)

@@ -30,7 +30,7 @@ BEAM = {
     "structure": {"kind": "beam", "length": 0.6, "mass_per_length": 3.768,
                   "masses": [{"x": 0.3, "mass": 0.25}]},
     "gauges": [{"name": "R1", "x": 0.0, "scale": -1.0}, {"name": "R2", "x": 0.6}],
-    "forces": [{"name": "F1", "x": 0.25, "gap": 1e-3},
+    "forces": [{"name": "F1", "x": 0.25, "gap": 1e-3, "core": "U"},
                {"name": "F2", "x": 0.35, "gap": 1e-3, "flux": "phi2"}],
     "sensors": [{"name": "s1", "x": 0.1, "scale": 1e-3}, {"name": "s2", "x": 0.5}],
     "actuator": {"current": "i", "current_scale": 0.1, "flux": "phi", "flux_scale": 1e-3,

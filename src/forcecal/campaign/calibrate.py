@@ -35,6 +35,7 @@ from ..actuator import (
     Selection,
     select_law,
 )
+from ..actuator.ac_only import DEFAULT_SAMPLES_PER_PERIOD
 from ..actuator.frequency import SteadyRecord
 from ..actuator.frequency_fit import STEP_TOLERANCE, fit_frequency_law
 from ..actuator.propagation import NoiseColumns, column_effects, covariance_of
@@ -45,7 +46,7 @@ from ..rig import Rig
 from .repeatability import repeatability
 from .result import CampaignResult, ReactionsOnly, k_total_of
 from .runs import CampaignInputs, RunResult, campaign_entries, reconstruct_campaign
-from .samples import DEFAULT_SAMPLES_PER_PERIOD, calibration_data
+from .samples import calibration_data
 from .statistics import ParameterUncertainty, noise_columns, parameter_uncertainty
 
 __all__ = ["calibrate_campaign", "calibrate_runs"]

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..actuator.ac_only import DEFAULT_SAMPLES_PER_PERIOD
 from ..actuator.gaps import static_gaps
 from ..cluster.pool import pool_map, unguarded_script
 from ..errors import InputError
@@ -31,7 +32,7 @@ from ..model.spatial import SpatialModel
 from ..records import Run
 from ..rig import Rig
 from ..signals.checks import check_run_for_rig
-from .samples import DEFAULT_SAMPLES_PER_PERIOD, CalibrationSamples, run_samples
+from .samples import CalibrationSamples, run_samples
 
 __all__ = ["RunResult", "load_campaign", "reconstruct_campaign", "rig_for_entry"]
 

@@ -32,7 +32,7 @@ from .noise import RunNoise, run_noise
 if TYPE_CHECKING:
     from .runs import RunResult
 
-__all__ = ["DEFAULT_SAMPLES_PER_PERIOD", "CalibrationSamples", "calibration_data"]
+__all__ = ["CalibrationSamples", "calibration_data"]
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,6 @@
 """The estimate against the data's own redundancy: each pole's force against the Maxwell force of
-its flux (METHOD.md section 6; docs/method.md section 7).
+its flux (:func:`flux_notes`), and without one, the poles of one core against each other
+(:func:`pole_notes`) (METHOD.md section 6; docs/method.md section 7).
 
 A pole face of area A carrying the flux Phi pulls with Maxwell's stress Phi^2 / (2 mu0 A), to
 within fringing; poles of one core carry one flux and pull alike. The reconstructed forces
@@ -30,7 +31,7 @@ from ..rig import Rig
 from ..signals.harmonics import fit_harmonics
 from .diagnostics import FALSE_ALARM
 
-__all__ = ["NUISANCE", "EstimateTerms", "flux_notes"]
+__all__ = ["EstimateTerms", "flux_notes", "pole_notes"]
 
 MU0 = 4e-7 * math.pi
 FRINGING = 0.02
@@ -202,6 +203,8 @@ class _Problem:
     m: np.ndarray
     w: np.ndarray
     nuisance: tuple[tuple[str, np.ndarray, float], ...]
+    c_prior: float = 0.0
+    """The standard deviation that holds the reference's coefficient to zero; 0: free."""
 
     def freeing(self, name: str) -> _Problem:
         """The problem with the nuisance ``name`` left out (a cause fitted free in its place)."""
@@ -213,10 +216,12 @@ class _Problem:
         cols = [self.m, *(d for _, d, _ in self.nuisance), *extra]
         a = np.stack([np.concatenate([c.real, c.imag]) for c in cols], axis=1) * self.w[:, None]
         b = np.concatenate([y.real, y.imag]) * self.w
-        prior = np.zeros((len(self.nuisance), len(cols)))
-        for j, (_, _, sigma) in enumerate(self.nuisance):
-            prior[j, 1 + j] = 1.0 / sigma
-        a, b = np.vstack([a, prior]), np.concatenate([b, np.zeros(len(self.nuisance))])
+        held = [(1 + j, sigma) for j, (_, _, sigma) in enumerate(self.nuisance)]
+        held += [(0, self.c_prior)] if self.c_prior > 0 else []
+        prior = np.zeros((len(held), len(cols)))
+        for j, (col, sigma) in enumerate(held):
+            prior[j, col] = 1.0 / sigma
+        a, b = np.vstack([a, prior]), np.concatenate([b, np.zeros(len(held))])
         coef, *_ = np.linalg.lstsq(a, b, rcond=None)
         return float(np.sum((b - a @ coef) ** 2)), coef
 
@@ -325,35 +330,108 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     def pick(forces: np.ndarray) -> np.ndarray:
         return forces[poles][sel]
 
+    def head(coef: np.ndarray) -> str:
+        return (f"{what}: the forces {', '.join(rig.force_names[k] for k in poles)} disagree "
+                f"with their poles' Maxwell force Phi^2 / (2 mu0 A) (A = actuator.pole_area, "
+                f"c = {coef[0]:.3g})")
+
+    return [*notes, *_judged(rig, terms, _Problem(m[sel], w, ()), pick, head)]
+
+
+def pole_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]:
+    """A note per core whose poles pull unalike (see the module docstring), naming the causes
+    that explain it; the cores whose every pole :func:`flux_notes` checks against its own
+    flux are left to it.
+
+    Parameters
+    ----------
+    rig : Rig
+        Its :attr:`~forcecal.rig.Rig.cores` (``forces[].core``, or poles on one flux channel).
+    run : Run
+    terms : EstimateTerms
+    what : str
+        The run, at the start of the note.
+
+    Returns
+    -------
+    list of str
+    """
+    maxwell = set(pole_fluxes(rig, run)) if rig.actuator.pole_area is not None else set()
+    return [note for core, poles in rig.cores.items() if not set(poles) <= maxwell
+            for note in _core_notes(rig, terms, core, poles, what)]
+
+
+def _core_notes(rig: Rig, terms: EstimateTerms, core: str, poles: list[int],
+                what: str) -> list[str]:
+    """:func:`pole_notes` of one core."""
+    mean, sel, w = _alike(poles, terms)
+
+    def pick(forces: np.ndarray) -> np.ndarray:
+        f = forces[poles]
+        return (f[:-1] - f.mean(axis=0))[sel]
+
+    def head(coef: np.ndarray) -> str:
+        return (f"{what}: the forces {', '.join(rig.force_names[k] for k in poles)} of core "
+                f"'{core}' (forces[].core) pull unalike, though poles of one core carry one "
+                f"flux and pull alike to within fringing ({FRINGING:.0%}; their difference, "
+                f"fitted: {2 * coef[0]:+.2%})")
+
+    problem = _Problem(np.broadcast_to(mean, sel.shape)[sel], w, (), c_prior=FRINGING)
+    return _judged(rig, terms, problem, pick, head)
+
+
+def _alike(poles: list[int], terms: EstimateTerms) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The core's mean force (H+1,), the compared elements (each pole but the last, minus the
+    mean; the kept harmonics, the DC where observed) and the weights of their real and
+    imaginary parts, stacked."""
+    n, h = len(poles), terms.force.shape[1] - 1
+    mean = terms.force[poles].mean(axis=0)
+    var = terms.std[poles] ** 2
+    # pole k less the mean: (1 - 1/n) F_k - (1/n) sum of the others
+    own = (1 - 2 / n) * var[:-1] + var.sum(axis=0) / n**2
+    sigma = np.sqrt(own + (FRINGING * np.abs(mean)) ** 2
+                    + (1e-6 * np.abs(mean).max()) ** 2) + 1e-300
+    sel = np.zeros((n - 1, h + 1), dtype=bool)
+    sel[:, terms.kept] = True
+    sel[:, 0] &= bool(terms.kept[0])
+    w = np.concatenate([(1 / sigma)[sel], np.where(np.arange(h + 1)[None, :] > 0, 1 / sigma,
+                                                   0.0)[sel]])
+    return mean, sel, w
+
+
+def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
+            pick: Callable[[np.ndarray], np.ndarray],
+            head: Callable[[np.ndarray], str]) -> list[str]:
+    """The note, if any, on the forces ``pick`` selects against ``problem``'s reference: the
+    sensors' mistakes, one parameter each, decide (the whole misfit or one of their gains
+    beyond chance, each at half of :data:`FALSE_ALARM`); the geometry's (a search over
+    positions, a swap) only explain what they decided."""
     causes = _causes(rig, terms)
-    problem = _Problem(m[sel], w, tuple((c.name, _column(c, pick), c.prior) for c in causes
-                                        if c.prior > 0))
-    dof = int(np.count_nonzero(w)) - 1
+    problem = dataclasses.replace(problem, nuisance=tuple(
+        (c.name, _column(c, pick), c.prior) for c in causes if c.prior > 0))
+    dof = int(np.count_nonzero(problem.w)) - (0 if problem.c_prior else 1)
     chi2, coef = problem.fit(pick(terms.force))
     if dof < 2:
-        return notes
+        return []
+    h = terms.force.shape[1] - 1
     period_ms = 1e3 * 2 * np.pi / (terms.w0 * max(h, 1))
-    # the sensors' mistakes, one parameter each, decide: either the whole misfit or one of
-    # their gains is beyond chance, each at half the rate; the geometry's (a search over
-    # positions, a swap) only explain what they decided
     sensors = [c for c in causes if c.form in ("relative", "linear", "delay")]
     gain = _limit(1, FALSE_ALARM / (2 * len(sensors)))
-    if chi2 <= min(gain, _limit(dof, FALSE_ALARM / 2)):
-        return notes                 # no cause can gain more than the whole chi-square
+    whole = _limit(dof, FALSE_ALARM / 2)
+    if chi2 <= min(gain, whole):
+        return []                    # no cause can gain more than the whole chi-square
     tried = sorted((c2, c.name, c.unit, size) for c in sensors
                    for c2, size in [_size(c, problem, pick, period_ms)])
     best_gain = chi2 - tried[0][0]
-    if chi2 <= _limit(dof, FALSE_ALARM / 2) and best_gain <= gain:
-        return notes
+    if chi2 <= whole and best_gain <= gain:
+        return []
     tried = sorted(tried + [(c2, c.name, c.unit, size) for c in causes if c not in sensors
                             for c2, size in [_size(c, problem, pick, period_ms)]])
     explain = [t for t in tried if chi2 - t[0] > gain and t[0] <= _limit(dof - 1)]
-    head = (f"{what}: the forces {', '.join(rig.force_names[k] for k in poles)} disagree with "
-            f"their poles' Maxwell force Phi^2 / (2 mu0 A) (A = actuator.pole_area, c = "
-            f"{coef[0]:.3g}): chi-square {chi2:.3g} for {dof} degrees of freedom (chance "
-            f"exceeds {_limit(dof, FALSE_ALARM / 2):.3g} at a {FALSE_ALARM / 2:g} rate), "
-            f"{best_gain:.3g} less with one sensor's mistake free (chance: {gain:.3g})")
-    return [*notes, head + _explained(tried, explain, {c.name for c in sensors})]
+    return [f"{head(coef)}: chi-square {chi2:.3g} for {dof} degrees of freedom (chance exceeds "
+            f"{whole:.3g} at a {FALSE_ALARM / 2:g} rate), {best_gain:.3g} less with one sensor's "
+            f"mistake free (chance: {gain:.3g})"
+            + _explained(tried, explain, {c.name for c in sensors})]
 
 
 def _explained(tried: list[tuple[float, str, str, float]],

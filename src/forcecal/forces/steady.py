@@ -39,7 +39,7 @@ from ..signals.mains import hum_variance, on_mains
 from ..signals.sweeps import swept_drive
 from .budget import SolveInputs, pooled_variance, type_b_variance
 from .coordinates import Coordinates, deflection, generalized_coordinates
-from .crosschecks import NUISANCE, EstimateTerms, flux_notes
+from .crosschecks import NUISANCE, EstimateTerms, flux_notes, pole_notes
 from .diagnostics import (
     DRIFT_TOLERANCE,
     dc_vs_ac_notes,
@@ -50,6 +50,7 @@ from .diagnostics import (
     span_notes,
 )
 from .estimate import ForceEstimate
+from .scan_check import scan_notes
 from .solve import SPLIT_CONDITION, force_solve, reactions_only
 from .uncertainty import (
     combinations,
@@ -412,9 +413,10 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     # the records in SI are gone with their fits: the series over the record come now, so
     # that memory holds the run, its series and no more
     flux = flux_notes(rig, run, seen.terms, f"run '{run.source}'")
+    flux += pole_notes(rig, run, seen.terms, f"run '{run.source}'")
     static_series = _static_series(rig, run, seen.pinv, seen.tare_dc, ac_coupled)
     series = _series(est.force, est.f0, run)
-    checks = _self_checks(rig, run, est, seen, series, ac_coupled)
+    checks = _self_checks(rig, model, run, est, seen, series, ac_coupled)
     return dataclasses.replace(est, time=_times(run), series=series,
                                static_series=static_series,
                                notes=(*est.notes, *checks, *flux, *seen.dropped))
@@ -427,7 +429,7 @@ class _Seen(NamedTuple):
     tare_dc: np.ndarray       # (n_g,) [N] the gauges' zero
     terms: EstimateTerms      # for the flux check
     drift: list[str]          # the current's drift notes
-    current: np.ndarray | None  # (H+1,) the current's phasors (None: AC-coupled gauges)
+    current: np.ndarray       # (H+1,) the current's phasors
     dropped: list[str]        # the note on harmonics left out
 
 
@@ -472,10 +474,10 @@ def _from_records(rig: Rig, model: SpatialModel, run: Run, h: int, tare: Run | N
     n_f = len(rig.forces)
     notes += span_notes(model, coords, len(rig.sensors), f"run '{run.source}'")
     dropped = _dropped(rig, model, run, rec, f0, h, pinv, force)
-    current = None if ac_coupled else fit_harmonics(rec.current, run.fs, f0, h, t0=run.t0)
+    current = fit_harmonics(rec.current, run.fs, f0, h, t0=run.t0).phasors
     seen = _Seen(pinv, tare_dc, terms,
                  drift_notes(rec.current, run.fs, f0, f"run '{run.source}'", t0=run.t0),
-                 None if current is None else current.phasors, dropped[0])
+                 current, dropped[0])
     return ForceEstimate(
         run_name=run.name, force_names=tuple(rig.force_names),
         gauge_names=tuple(rig.gauge_names), f0=f0, harmonics=np.arange(h + 1),
@@ -643,15 +645,15 @@ def _check_arguments(rig: object, model: object, run: object, tare: object) -> N
                              f"{type(value).__name__}")
 
 
-def _self_checks(rig: Rig, run: Run, est: ForceEstimate, seen: _Seen, series: np.ndarray,
-                 ac_coupled: bool) -> list[str]:
+def _self_checks(rig: Rig, model: SpatialModel, run: Run, est: ForceEstimate, seen: _Seen,
+                 series: np.ndarray, ac_coupled: bool) -> list[str]:
     """Step 7: the estimate's self-checks (:mod:`forcecal.forces.diagnostics`), those of the
     current's record made by :func:`_from_records` (``seen``)."""
     what = f"run '{run.source}'"
     notes = probe_misfit_notes(est.coordinates, rig.sensor_names, what)
+    notes += scan_notes(model, est.coordinates, seen.current, rig.sensor_names, what)
     notes += seen.drift
     if not ac_coupled:
-        assert seen.current is not None
         instant = np.sqrt(np.sum(est.force_std**2, axis=1))
         notes += pull_only_notes(rig.force_names, series, est.force[:, 0].real, instant, what)
         notes += dc_vs_ac_notes(rig.force_names, est.force, est.force_std, seen.current, what)

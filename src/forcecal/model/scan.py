@@ -16,6 +16,7 @@ each line.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -324,6 +325,10 @@ class HarmonicShapes:
     drive_phase: np.ndarray
     source: str = "<scan>"
     reference_ok: np.ndarray | None = None
+    drive: np.ndarray | None = None
+    """(H+1,) complex [A]: the coil current's harmonics 0..H, each record's aligned and scaled
+    as its shapes, averaged over the records that show the drive (the fundamental real); None
+    where the scan gave the reference's fundamental only (spectra)."""
 
     def snr(self, keep: np.ndarray | None = None) -> np.ndarray:
         """(n_harm,) RMS shape amplitude over the records divided by the records' median
@@ -401,8 +406,22 @@ def harmonic_shapes(scan: Scan | ScanSpectra | ScanFRF, f0_nominal: float,
     f0 = _refined(scan, f0_nominal, n_harmonics)
     ref = fit_harmonics(scan.reference, scan.fs, f0, n_harmonics)
     resp = fit_harmonics(scan.response, scan.fs, f0, n_harmonics)
-    return aligned_shapes(scan.points, f0, resp.phasors[:, 1:], resp.phasor_std[:, 1:],
-                          ref.phasors[:, 1], ref.phasor_std[:, 1], scan.quantity, scan.source)
+    hs = aligned_shapes(scan.points, f0, resp.phasors[:, 1:], resp.phasor_std[:, 1:],
+                        ref.phasors[:, 1], ref.phasor_std[:, 1], scan.quantity, scan.source)
+    return dataclasses.replace(hs, drive=_aligned_drive(ref.phasors, hs))
+
+
+def _aligned_drive(reference: np.ndarray, hs: HarmonicShapes) -> np.ndarray:
+    """The references' harmonics 0..H (n_points, H+1), aligned by exp(-j n theta_k) and scaled
+    by mean |I_1| / |I_1(k)| as the shapes are, averaged over the records showing the drive."""
+    ok = np.ones(len(reference), dtype=bool) if hs.reference_ok is None else hs.reference_ok
+    n = np.arange(reference.shape[1])
+    amp = hs.drive_amplitude[ok]
+    aligned = (reference[ok] * np.exp(-1j * np.outer(hs.drive_phase[ok], n))
+               * (amp.mean() / amp)[:, None])
+    drive: np.ndarray = aligned.mean(axis=0)
+    drive[0] = reference[ok, 0].real.mean()             # the DC: not aligned, not scaled
+    return drive
 
 
 def _refined(scan: Scan, f0_nominal: float, n_harmonics: int) -> float:

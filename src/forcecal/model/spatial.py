@@ -85,6 +85,10 @@ class SpatialModel:
         that has one is built from a broadband model, which is.
     file : the MODEL.json the model was read from (:func:`load_model`); empty for a model
         built here. Refusals name the model by it (:attr:`origin`).
+    drive : (H+1,) complex [A], the scan's coil current, harmonics 0..H, aligned and scaled as
+        the shapes are (:attr:`forcecal.model.scan.HarmonicShapes.drive`): the drive under
+        which a coordinate of 1 is the scan's motion; None for a model of several scans or of
+        spectra (:mod:`forcecal.forces.scan_check`)
     """
 
     f0: float
@@ -106,6 +110,7 @@ class SpatialModel:
     member_scans: tuple[tuple[int, ...], ...] = ()
     static_shape: ShapeFit | VectorShapeFit | None = None
     file: str = ""
+    drive: np.ndarray | None = None
 
     @property
     def origin(self) -> str:
@@ -211,6 +216,8 @@ class SpatialModel:
             "notes": list(self.notes),
             "set_aside": [{"record": k + 1, "reason": why} for k, why in self.set_aside.items()],
             "rig": {"sha256": _digest(self.rig), "keys": self.rig},
+            **({} if self.drive is None else {"drive_re": self.drive.real.tolist(),
+                                              "drive_im": self.drive.imag.tolist()}),
             **({} if not self.span else {
                 "scans": list(self.scans),
                 "span": [{"harmonic": int(n), "scans": list(self.member_scans[k]),
@@ -250,12 +257,21 @@ class SpatialModel:
                     .reshape(n_g, len(m["shapes"])) for m in span),
                 scans=tuple(doc.get("scans", ())),
                 member_scans=tuple(tuple(int(i) for i in m["scans"]) for m in span),
+                drive=_drive(doc),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InputError(f"model '{source}': not a forcecal spatial model ({exc})") from None
 
     def save(self, path: str | Path) -> Path:
         return write_text_atomic(path, json.dumps(self.to_json(), indent=1))
+
+
+def _drive(doc: dict) -> np.ndarray | None:
+    """The model file's scan drive, when it holds one (both parts, of one length)."""
+    re, im = doc.get("drive_re"), doc.get("drive_im")
+    if re is None or im is None or len(re) != len(im):
+        return None
+    return np.asarray(re, dtype=float) + 1j * np.asarray(im, dtype=float)
 
 
 def shape_to_json(s: Fit) -> dict:
@@ -415,7 +431,8 @@ def build_spatial_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF
                         couplings=couplings, similarity=mac, snr=snr,
                         gauge_names=tuple(rig.gauge_names), dropped=dropped,
                         n_points=int(np.count_nonzero(keep)), source=scan.source, notes=notes,
-                        rig=rig_keys(rig), set_aside=dict(sorted(screening.reasons.items())))
+                        rig=rig_keys(rig), set_aside=dict(sorted(screening.reasons.items())),
+                        drive=hs.drive)
 
 
 def shape_snr(snr: float, n_records: int, n_functions: int) -> float:
@@ -513,7 +530,8 @@ def rig_keys(rig: Rig) -> dict[str, float | str]:
     doc = rig_to_dict(rig)
     keep = {k: doc[k] for k in ("structure", "gauges", "forces", "sensors")}
     for key in ("gauges", "forces", "sensors"):
-        keep[key] = [{a: v for a, v in p.items() if a not in ("scale", "gap")} for p in doc[key]]
+        keep[key] = [{a: v for a, v in p.items() if a not in ("scale", "gap", "core")}
+                     for p in doc[key]]
     flat: dict[str, float | str] = {}
     _flatten(keep, "", flat)
     return flat

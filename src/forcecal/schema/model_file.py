@@ -201,6 +201,11 @@ class ModelFile(Table):
     """The scans of a model of several scans."""
     span: list[SpanEntry] = Field(default_factory=list)
     """Per harmonic, the other scans' shapes and couplings."""
+    drive_re: list[Annotated[float, Number(unit="A", ge=-1e6, le=1e6)]] | None = None
+    """Real parts of the scan's coil current, harmonics 0, 1, ..., aligned and scaled as the
+    shapes are (its fundamental real) [A]; absent where the scan's records gave none."""
+    drive_im: list[Annotated[float, Number(unit="A", ge=-1e6, le=1e6)]] | None = None
+    """Imaginary parts of those harmonics [A]."""
     provenance: Provenance | None = None
     """Where the model comes from."""
 

@@ -84,6 +84,10 @@ class ForcePoint(_Point):
     """optional: the run files' column of the flux through this pole, where the poles do not
     all carry `actuator.flux` (magnets on their own cores); with `actuator.pole_area` each
     force is checked against Maxwell's stress Φ² / (2 μ0 A)"""
+    core: Text | None = None
+    """optional: the magnetic circuit this pole belongs to; poles that name one core (a
+    U-core's two poles in series on one coil) carry one flux and pull alike, and their forces
+    are checked against each other; poles that name one flux channel share a core without it"""
 
 
 class Sensor(_Point):

@@ -50,6 +50,14 @@ def _own_flux(preset: Preset, magnet: Magnet) -> str | None:
     return magnet.flux_channel if len(preset.magnets) > 1 else None
 
 
+def _core(preset: Preset, magnet: Magnet) -> str | None:
+    """The core a pole names where its magnet has several poles (one flux through them all,
+    :mod:`.magnet`); None for a magnet's only pole."""
+    if len(magnet.poles) < 2:
+        return None
+    return f"magnet{preset.magnets.index(magnet) + 1}"
+
+
 def public_rig(preset: Preset) -> Rig:
     """What the lab writes in its rig file: geometry, masses, channels; no stiffness, no truth.
 
@@ -69,7 +77,8 @@ def public_rig(preset: Preset) -> Rig:
             gauges=tuple(Gauge(name=n, x=x, y=y, z=z, direction=_unit(d))
                          for n, x, y, z, *d in _rows(b.gauges)),
             forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, z=p.z, gap=p.gap,
-                                    direction=_unit(p.direction), flux=_own_flux(preset, m))
+                                    direction=_unit(p.direction), flux=_own_flux(preset, m),
+                                    core=_core(preset, m))
                          for m in preset.magnets for p in m.poles),
             sensors=tuple(Sensor(name=n, x=x, y=y, z=z, direction=_unit(d))
                           for n, x, y, z, *d in _rows(preset.sensors)),
@@ -85,7 +94,7 @@ def public_rig(preset: Preset) -> Rig:
                                          for x, y, m in _rows(b.masses))),
             gauges=tuple(Gauge(name=n, x=x, y=y) for n, x, y in _rows(b.gauges)),
             forces=tuple(ForcePoint(name=p.name, x=p.x, y=p.y, gap=p.gap,
-                                    flux=_own_flux(preset, m))
+                                    flux=_own_flux(preset, m), core=_core(preset, m))
                          for m in preset.magnets for p in m.poles),
             sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
@@ -97,7 +106,8 @@ def public_rig(preset: Preset) -> Rig:
         structure=Beam(length=b.length, mass_per_length=b.mass_per_length,
                        masses=tuple(LumpedMass(x=x, mass=m) for x, m in _rows(b.masses))),
         gauges=tuple(Gauge(name=n, x=x) for n, x in _rows(b.gauges)),
-        forces=tuple(ForcePoint(name=p.name, x=p.x, gap=p.gap, flux=_own_flux(preset, m))
+        forces=tuple(ForcePoint(name=p.name, x=p.x, gap=p.gap, flux=_own_flux(preset, m),
+                                core=_core(preset, m))
                      for m in preset.magnets for p in m.poles),
         sensors=tuple(Sensor(name=n, x=x) for n, x in _rows(preset.sensors)),
         actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,

@@ -1,0 +1,119 @@
+"""The run against the scan: the probes' motion per unit of the actuator's drive must agree with
+the scan's (METHOD.md section 6; docs/method.md section 7).
+
+The scan measured the structure's motion with the coil current as its reference; a run under a
+steady drive records both the current and the probes. An electromagnet pulls with i^2, so the
+run's coordinate of the fundamental per unit of the fundamental of i^2,
+rho = Q_1 P_1(scan) / P_1(run) (P: the harmonics of i^2 from each record's current; a
+coordinate of 1 is the scan's motion), is real and positive whatever the current's bias,
+amplitude or sign, and its size changes only with what the actuator's law does between scan
+and run (the gap, the current's level). So:
+
+- rho negative (beyond 90 degrees): the probes move against the scan's motion: their sign;
+- rho's phase beyond its noise and :data:`PHASE_TOLERANCE`: a delay between the probes and the
+  current channel (DAQ skew; n w0 tau at harmonic n);
+- |rho| beyond :data:`MOTION_SPAN` either way: a unit or scale slip of the probes.
+
+A model of several scans (one load each) or of spectra holds no single drive: not checked.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..model.spatial import SpatialModel
+from .coordinates import Coordinates
+
+__all__ = ["scan_notes"]
+
+PHASE_TOLERANCE = math.radians(1.0)
+"""[rad] how far the phase of the motion per unit of i^2 may move between scan and run without
+a mistake: the structure's and the core's phase change with the load (gap, bias, level) away
+from a resonance. Over the ``campaign`` preset's gaps (0.8-1.2 mm) and currents it moves by at
+most 0.3 degrees; a delay of 4 samples at 10 kHz moves it by 2.9 degrees at 20 Hz."""
+PHASE_SIGMAS = 5.0
+"""...and how many of its standard uncertainties."""
+MOTION_SPAN = 20.0
+"""[1] the farthest factor by which the motion per unit of i^2 moves between scan and run
+without a mistake: the law's K(s) ~ 1 / s^2 over a campaign's gaps and the magnetic stiffness
+(a factor of 0.65 to 2.3 over the ``campaign`` preset); a unit slip (1000 for mm as m, 25.4
+for inches as mm) lies beyond it."""
+MIN_SHARE = 0.05
+"""The fundamental of i^2 must hold at least this share of its AC, in the scan and in the run
+(a drive without DC bias pulls at 2 w0 only)."""
+
+
+def square_phasors(current: np.ndarray) -> np.ndarray:
+    """The harmonics 0..H of i(t)^2 from those of i(t) (x = X_0 + sum Re X_n e^{j n w0 t},
+    :mod:`forcecal.signals.harmonics`), the products above H left out.
+
+    Parameters
+    ----------
+    current : (H+1,) complex ndarray
+
+    Returns
+    -------
+    (H+1,) complex ndarray
+    """
+    h = len(current) - 1
+    n_t = 4 * (h + 1)
+    grid = np.exp(2j * np.pi * np.outer(np.arange(n_t), np.arange(h + 1)) / n_t)
+    series = (grid @ current).real
+    spectrum = np.fft.fft(series**2) / n_t
+    return np.concatenate([[spectrum[0].real], 2 * spectrum[1:h + 1]])
+
+
+def scan_notes(model: SpatialModel, coords: Coordinates, current: np.ndarray,
+               sensor_names: list[str], what: str) -> list[str]:
+    """A note when the probes' motion per unit of i^2 contradicts the scan's (see the module
+    docstring).
+
+    Parameters
+    ----------
+    model : SpatialModel
+        With the scan's drive (:attr:`~forcecal.model.spatial.SpatialModel.drive`); without it
+        the check is not made.
+    coords : Coordinates
+    current : (H+1,) complex ndarray [A]
+        The run's coil current, harmonics 0..H.
+    sensor_names : list of str
+    what : str
+        The run, at the start of the note.
+
+    Returns
+    -------
+    list of str
+    """
+    if model.drive is None or 1 not in model.harmonics or len(current) < 2:
+        return []
+    k = model.index(1)
+    members, q, _ = coords.span(k)
+    if len(members) != 1 or not np.isfinite(q[0]):
+        return []
+    scan_p, run_p = square_phasors(model.drive)[:3], square_phasors(current[:3])
+    if not all(abs(p[1]) > MIN_SHARE * np.abs(p[1:]).sum() for p in (scan_p, run_p)):
+        return []
+    rho = complex(q[0] * scan_p[1] / run_p[1])
+    probes = ", ".join(sensor_names)
+    phase, size = math.degrees(np.angle(rho)), abs(rho)
+    head = (f"{what}: the probes {probes} move {size:#.3g} times the scan's motion per unit of "
+            f"the current squared, at {phase:+#.3g} degrees to it (harmonic 1)")
+    if abs(phase) > 90:
+        return [f"{head}: they move against the scan's motion, so the probes' sign is likely "
+                "flipped (sensors[].scale), or the scan's response; the inertia is taken "
+                "with the wrong sign"]
+    if not 1 / MOTION_SPAN <= size <= MOTION_SPAN:
+        return [f"{head}, beyond the factor of {MOTION_SPAN:g} that the gap and the current's "
+                "level allow: a unit or scale slip of the probes (sensors[].scale: mm for m is "
+                "1000) or of the scan's response; the inertia is off by as much"]
+    sigma = float(coords.q_std[k]) / max(abs(complex(q[0])), 1e-300)
+    limit = max(PHASE_SIGMAS * sigma, PHASE_TOLERANCE)
+    if abs(np.angle(rho)) > limit:
+        lag = -np.angle(rho) / (2 * np.pi * model.f0)         # x(t - tau): e^{-j w0 tau}
+        return [f"{head}, beyond the {math.degrees(limit):.2g} degrees that noise and the "
+                f"load allow: the probes {probes} recorded {1e3 * lag:+.3g} ms late against "
+                "the current channel (a delay, DAQ skew between modules or a filter's), or a "
+                "probe's position"]
+    return []
