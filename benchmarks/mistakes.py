@@ -70,14 +70,15 @@ CHECKS = (
     ("pull-only", ("pushes",)),
     ("dc", ("far from the",)),
     ("drift", ("drifts", "drift")),
-    ("mains", ("mains",)),
+    ("info", ("mains",)),
     ("dropped", ("leave them out",)),
-    ("info", ("the rig declares none", "type-B")),
+    ("info", ("the rig declares none", "type-B", "no shape in the scan model")),
     ("span", ("load differs from every scan",)),
 )
 """Which check wrote a note: the first whose phrases the note holds (else ``other``)."""
-ALARMS = ("flux", "pole", "scan", "misfit", "pull-only", "dc", "drift", "mains", "dropped", "other")
-"""The checks whose notes are alarms (``info`` and ``span`` only inform)."""
+ALARMS = ("flux", "pole", "scan", "misfit", "pull-only", "dc", "drift", "dropped", "other")
+"""The checks whose notes are alarms (``info`` and ``span`` only inform: a harmonic near the
+mains', one without a shape, the type-B sources the rig leaves out, a load between the scans')."""
 COLUMNS = (*ALARMS, "info", "span")
 
 
@@ -225,18 +226,26 @@ def false_alarm_lines(records: list[dict]) -> tuple[list[str], dict]:
                               for name in FALSE_ALARM_LABS}, "totals": totals}
 
 
-def false_alarms(n_seeds: int, out: Path) -> int:
-    """``--clean-seeds``: the survey, its table and ``out``."""
+def false_alarms(seeds: list[int], out: Path, merge: list[Path] | None = None) -> int:
+    """``--clean-seeds``: the survey, its table and ``out``; ``--merge``: the surveys of
+    earlier ``--clean-seeds`` runs (their seeds apart) in one table."""
     import forcecal
     from forcecal.forces.crosschecks import FALSE_ALARM
 
-    seeds = list(range(1, n_seeds + 1))
     start = time.perf_counter()
-    records, draws = survey(seeds)
-    elapsed = time.perf_counter() - start
+    if merge:
+        docs = [json.loads(p.read_text(encoding="utf-8")) for p in merge]
+        seeds = sorted(s for d in docs for s in d["seeds"])
+        records = [{**r, "notes": [{**n, "check": check_of(n["text"])} for n in r["notes"]]}
+                   for d in docs for r in d["runs"]]
+        draws = {k: v for d in docs for k, v in d["simulator_draws"].items()}
+        elapsed = sum(d["elapsed_s"] for d in docs)
+    else:
+        records, draws = survey(seeds)
+        elapsed = time.perf_counter() - start
     lines, counts = false_alarm_lines(records)
-    print(f"\nfalse alarms on clean runs, seeds 1..{n_seeds} (runs with a note of each check; "
-          f"the flux check's stated rate: {FALSE_ALARM:g} per run); {elapsed:.0f} s")
+    print(f"\nfalse alarms on clean runs, seeds {seeds[0]}..{seeds[-1]} (runs with a note of "
+          f"each check; the checks' stated rate: {FALSE_ALARM:g} per run); {elapsed:.0f} s")
     print("\n".join(lines))
     doc = {"forcecal": {"version": forcecal.__version__,
                         "source": str(Path(forcecal.__file__).resolve().parent)},
@@ -258,11 +267,18 @@ def main() -> int:
     parser.add_argument("--clean-seeds", type=int, default=0, metavar="N",
                         help="instead of the campaign, count the false alarms on the clean "
                         f"runs of {', '.join(FALSE_ALARM_LABS)} at seeds 1..N (default 0: off)")
+    parser.add_argument("--first-seed", type=int, default=1, metavar="K",
+                        help="with --clean-seeds, seeds K..K+N-1 (default 1)")
+    parser.add_argument("--merge", nargs="+", default=None, metavar="JSON",
+                        help="instead, one table of earlier --clean-seeds surveys")
     parser.add_argument("--out", default=None, help="the JSON to write (default "
                         f"{RESULTS.name}, or {FALSE_ALARMS.name} with --clean-seeds)")
     args = parser.parse_args()
+    if args.merge:
+        return false_alarms([], Path(args.out or FALSE_ALARMS), [Path(p) for p in args.merge])
     if args.clean_seeds > 0:
-        return false_alarms(args.clean_seeds, Path(args.out or FALSE_ALARMS))
+        return false_alarms(list(range(args.first_seed, args.first_seed + args.clean_seeds)),
+                            Path(args.out or FALSE_ALARMS))
     args.out = args.out or str(RESULTS)
     chosen = tuple(m for m in MISTAKES if args.mistakes is None or m.name in args.mistakes)
     wanted = args.labs or sorted({p for m in chosen for p in m.presets})

@@ -277,15 +277,22 @@ def _weighed(fluxes: dict[int, np.ndarray], poles: list[int], area: float, run: 
     m_std = np.zeros((len(poles), h + 1))
     for j, k in enumerate(poles):
         m[j], m_std[j] = _maxwell(fluxes[k], area, run.fs, terms.w0 / (2 * np.pi), h, run.t0)
-    sel = np.zeros((len(poles), h + 1), dtype=bool)
-    sel[:, terms.kept] = True
-    sel[:, 0] &= bool(terms.kept[0])
     scale = np.abs(m).max(axis=1, keepdims=True)
     sigma = np.sqrt(terms.std[poles] ** 2 + m_std**2 + (FRINGING * np.abs(m)) ** 2
                     + (1e-6 * scale) ** 2) + 1e-300
-    w = np.concatenate([(1 / sigma)[sel], np.where(np.arange(h + 1)[None, :] > 0, 1 / sigma,
-                                                   0.0)[sel]])
-    return m, sel, w
+    return (m, *_compared(terms.kept, sigma))
+
+
+def _compared(kept: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The elements compared of rows (n, H+1) with standard deviations ``sigma``: the kept
+    harmonics, the DC where observed; and the weights of their real parts, then of their
+    imaginary parts (the DC's none)."""
+    sel = np.zeros(sigma.shape, dtype=bool)
+    sel[:, kept] = True
+    sel[:, 0] &= bool(kept[0])
+    harmonic = np.arange(sigma.shape[1])[None, :] > 0
+    w = np.concatenate([(1 / sigma)[sel], np.where(harmonic, 1 / sigma, 0.0)[sel]])
+    return sel, w
 
 
 def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]:
@@ -384,19 +391,14 @@ def _alike(poles: list[int], terms: EstimateTerms) -> tuple[np.ndarray, np.ndarr
     """The core's mean force (H+1,), the compared elements (each pole but the last, minus the
     mean; the kept harmonics, the DC where observed) and the weights of their real and
     imaginary parts, stacked."""
-    n, h = len(poles), terms.force.shape[1] - 1
+    n = len(poles)
     mean = terms.force[poles].mean(axis=0)
     var = terms.std[poles] ** 2
     # pole k less the mean: (1 - 1/n) F_k - (1/n) sum of the others
     own = (1 - 2 / n) * var[:-1] + var.sum(axis=0) / n**2
     sigma = np.sqrt(own + (FRINGING * np.abs(mean)) ** 2
                     + (1e-6 * np.abs(mean).max()) ** 2) + 1e-300
-    sel = np.zeros((n - 1, h + 1), dtype=bool)
-    sel[:, terms.kept] = True
-    sel[:, 0] &= bool(terms.kept[0])
-    w = np.concatenate([(1 / sigma)[sel], np.where(np.arange(h + 1)[None, :] > 0, 1 / sigma,
-                                                   0.0)[sel]])
-    return mean, sel, w
+    return (mean, *_compared(terms.kept, sigma))
 
 
 def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
