@@ -3,17 +3,19 @@ harmonics of i^2, and the notes on a sign, a unit slip and a delay of the probes
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import numpy as np
 import pytest
 
 from forcecal.forces.coordinates import Coordinates
-from forcecal.forces.scan_check import PHASE_TOLERANCE, scan_notes, square_phasors
+from forcecal.forces.scan_check import PHASE_TOLERANCE, scan_notes
 from forcecal.model.scan import harmonic_shapes
 from forcecal.model.spatial import SpatialModel, build_spatial_model
 from forcecal.records import Scan
 from forcecal.rig import parse_rig
+from forcecal.signals.fourier_sums import square_phasors
 
 L = 0.6
 F0 = 20.0
@@ -99,3 +101,7 @@ def test_a_sign_a_unit_slip_and_a_delay_are_named(scanned):
     # a drive without a DC bias pulls at 2 w0 only: nothing to compare at the fundamental
     unbiased = np.array([0.0, 0.5, 0.0, 0.0])
     assert scan_notes(model, _coordinates(model, -1.0), unbiased, names, "run") == []
+    # a model file whose drive holds the DC only (or none) cannot be checked: no note, no error
+    for drive in (model.drive[:1], None):
+        short = dataclasses.replace(model, drive=drive)
+        assert scan_notes(short, _coordinates(model, -1.0), DRIVE, names, "run") == []

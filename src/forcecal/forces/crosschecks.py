@@ -85,13 +85,17 @@ def pole_fluxes(rig: Rig, run: Run) -> dict[int, np.ndarray]:
     whose channel the run lacks, are left out. Forces on one channel share one array."""
     out = {}
     scaled: dict[str, np.ndarray] = {}
-    for k, f in enumerate(rig.forces):
-        name = f.flux or rig.actuator.flux
-        if name is not None and name in run.channels:
-            if name not in scaled:
-                scaled[name] = rig.actuator.flux_scale * run.channel(name)
-            out[k] = scaled[name]
+    for k, name in _flux_channels(rig, run).items():
+        if name not in scaled:
+            scaled[name] = rig.actuator.flux_scale * run.channel(name)
+        out[k] = scaled[name]
     return out
+
+
+def _flux_channels(rig: Rig, run: Run) -> dict[int, str]:
+    """Each force's pole flux channel (its own, else the actuator's) that the run holds."""
+    names = {k: f.flux or rig.actuator.flux for k, f in enumerate(rig.forces)}
+    return {k: name for k, name in names.items() if name is not None and name in run.channels}
 
 
 def _maxwell(flux: np.ndarray, area: float, fs: float, f0: float, h: int,
@@ -363,7 +367,7 @@ def pole_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     -------
     list of str
     """
-    maxwell = set(pole_fluxes(rig, run)) if rig.actuator.pole_area is not None else set()
+    maxwell = set(_flux_channels(rig, run)) if rig.actuator.pole_area is not None else set()
     return [note for core, poles in rig.cores.items() if not set(poles) <= maxwell
             for note in _core_notes(rig, terms, core, poles, what)]
 
@@ -378,10 +382,11 @@ def _core_notes(rig: Rig, terms: EstimateTerms, core: str, poles: list[int],
         return (f[:-1] - f.mean(axis=0))[sel]
 
     def head(coef: np.ndarray) -> str:
+        # two poles: (F_a - mean) = (F_a - F_b) / 2 = c mean, their difference 2 c of the mean
+        fitted = f"; their difference, fitted: {2 * coef[0]:+.2%}" if len(poles) == 2 else ""
         return (f"{what}: the forces {', '.join(rig.force_names[k] for k in poles)} of core "
                 f"'{core}' (forces[].core) pull unalike, though poles of one core carry one "
-                f"flux and pull alike to within fringing ({FRINGING:.0%}; their difference, "
-                f"fitted: {2 * coef[0]:+.2%})")
+                f"flux and pull alike to within fringing ({FRINGING:.0%}{fitted})")
 
     problem = _Problem(np.broadcast_to(mean, sel.shape)[sel], w, (), c_prior=FRINGING)
     return _judged(rig, terms, problem, pick, head)

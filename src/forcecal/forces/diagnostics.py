@@ -11,9 +11,9 @@ command line, kept in the JSON) that says what was found, what it likely means a
   force, DC included, must stay >= 0 within its uncertainty; a pushing force means a gauge's
   sign or the tare is wrong;
 - **DC against AC** (:func:`dc_vs_ac_notes`): a force growing with i^2 has a DC part that the
-  current's own phasors predict from its fundamental, F_0 / |F_1| = (I_0^2 + sum |I_n|^2 / 2)
-  / (2 I_0 |I_1|) (gap modulation aside); a DC far from it points at a gauge offset, a missing
-  or wrong tare, or a sign slip;
+  current's own phasors predict from its fundamental, F_0 / |F_1| = P_0 / |P_1| with P the
+  harmonics of i^2 (P_0 = I_0^2 + sum |I_n|^2 / 2, P_1 ~ 2 I_0 I_1; gap modulation aside); a DC
+  far from it points at a gauge offset, a missing or wrong tare, or a sign slip;
 - **a drifting drive** (:func:`drift_notes`): the drive's frequency should hold over a record;
   the current's fundamental phase over the record's quarters shows a drift.
 """
@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..model.spatial import SpatialModel
+from ..signals.fourier_sums import square_phasors
 from ..signals.harmonics import fit_harmonics
 from ..signals.mains import on_mains
 from ..signals.noise import GUARD
@@ -190,7 +191,8 @@ def dc_vs_ac_notes(force_names: list[str], force: np.ndarray, force_std: np.ndar
     i0, i1 = float(np.real(current[0])), abs(complex(current[1]))
     if abs(i0) < 0.05 * i1 or i1 == 0.0:
         return []                      # no DC bias: the force is mostly at 2 w0, F_1 ~ 0
-    ratio = (i0**2 + 0.5 * float(np.sum(np.abs(current[1:]) ** 2))) / (2 * abs(i0) * i1)
+    square = square_phasors(current)
+    ratio = float(square[0].real) / abs(complex(square[1]))
     total = force.sum(axis=0)
     total_std = np.sqrt(np.sum(force_std**2, axis=0))
     expected = ratio * abs(complex(total[1]))

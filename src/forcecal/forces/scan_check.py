@@ -24,6 +24,7 @@ import math
 import numpy as np
 
 from ..model.spatial import SpatialModel
+from ..signals.fourier_sums import square_phasors
 from .coordinates import Coordinates
 
 __all__ = ["scan_notes"]
@@ -43,26 +44,6 @@ for inches as mm) lies beyond it."""
 MIN_SHARE = 0.05
 """The fundamental of i^2 must hold at least this share of its AC, in the scan and in the run
 (a drive without DC bias pulls at 2 w0 only)."""
-
-
-def square_phasors(current: np.ndarray) -> np.ndarray:
-    """The harmonics 0..H of i(t)^2 from those of i(t) (x = X_0 + sum Re X_n e^{j n w0 t},
-    :mod:`forcecal.signals.harmonics`), the products above H left out.
-
-    Parameters
-    ----------
-    current : (H+1,) complex ndarray
-
-    Returns
-    -------
-    (H+1,) complex ndarray
-    """
-    h = len(current) - 1
-    n_t = 4 * (h + 1)
-    grid = np.exp(2j * np.pi * np.outer(np.arange(n_t), np.arange(h + 1)) / n_t)
-    series = (grid @ current).real
-    spectrum = np.fft.fft(series**2) / n_t
-    return np.concatenate([[spectrum[0].real], 2 * spectrum[1:h + 1]])
 
 
 def scan_notes(model: SpatialModel, coords: Coordinates, current: np.ndarray,
@@ -86,7 +67,7 @@ def scan_notes(model: SpatialModel, coords: Coordinates, current: np.ndarray,
     -------
     list of str
     """
-    if model.drive is None or 1 not in model.harmonics or len(current) < 2:
+    if model.drive is None or len(model.drive) < 2 or 1 not in model.harmonics or len(current) < 2:
         return []
     k = model.index(1)
     members, q, _ = coords.span(k)

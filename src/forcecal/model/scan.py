@@ -16,7 +16,6 @@ each line.
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -406,22 +405,9 @@ def harmonic_shapes(scan: Scan | ScanSpectra | ScanFRF, f0_nominal: float,
     f0 = _refined(scan, f0_nominal, n_harmonics)
     ref = fit_harmonics(scan.reference, scan.fs, f0, n_harmonics)
     resp = fit_harmonics(scan.response, scan.fs, f0, n_harmonics)
-    hs = aligned_shapes(scan.points, f0, resp.phasors[:, 1:], resp.phasor_std[:, 1:],
-                        ref.phasors[:, 1], ref.phasor_std[:, 1], scan.quantity, scan.source)
-    return dataclasses.replace(hs, drive=_aligned_drive(ref.phasors, hs))
-
-
-def _aligned_drive(reference: np.ndarray, hs: HarmonicShapes) -> np.ndarray:
-    """The references' harmonics 0..H (n_points, H+1), aligned by exp(-j n theta_k) and scaled
-    by mean |I_1| / |I_1(k)| as the shapes are, averaged over the records showing the drive."""
-    ok = np.ones(len(reference), dtype=bool) if hs.reference_ok is None else hs.reference_ok
-    n = np.arange(reference.shape[1])
-    amp = hs.drive_amplitude[ok]
-    aligned = (reference[ok] * np.exp(-1j * np.outer(hs.drive_phase[ok], n))
-               * (amp.mean() / amp)[:, None])
-    drive: np.ndarray = aligned.mean(axis=0)
-    drive[0] = reference[ok, 0].real.mean()             # the DC: not aligned, not scaled
-    return drive
+    return aligned_shapes(scan.points, f0, resp.phasors[:, 1:], resp.phasor_std[:, 1:],
+                          ref.phasors[:, 1], ref.phasor_std[:, 1], scan.quantity, scan.source,
+                          reference=ref.phasors)
 
 
 def _refined(scan: Scan, f0_nominal: float, n_harmonics: int) -> float:
@@ -444,7 +430,8 @@ def _refined(scan: Scan, f0_nominal: float, n_harmonics: int) -> float:
 
 def aligned_shapes(points: np.ndarray, f0: float, response: np.ndarray,
                    response_std: np.ndarray, drive: np.ndarray, drive_std: np.ndarray,
-                   quantity: str, source: str) -> HarmonicShapes:
+                   quantity: str, source: str,
+                   reference: np.ndarray | None = None) -> HarmonicShapes:
     """The harmonic shapes from every record's measured phasors: velocity to displacement,
     U_n = V_n / (j n w0); aligned, U_n exp(-j n theta_k) with theta_k = arg I_1(k); scaled by
     mean |I_1| / |I_1(k)| (eq. 11-13).
@@ -467,6 +454,9 @@ def aligned_shapes(points: np.ndarray, f0: float, response: np.ndarray,
         What ``response`` holds.
     source : str
         The scan, for messages.
+    reference : (n_points, H+1) complex array [A], optional
+        Harmonics 0..H of every reference record: aligned and scaled alike, their mean over
+        the records showing the drive is :attr:`HarmonicShapes.drive` (its DC unscaled).
 
     Returns
     -------
@@ -500,6 +490,11 @@ def aligned_shapes(points: np.ndarray, f0: float, response: np.ndarray,
     scale = np.where(weak, 1.0, amp[~weak].mean() / np.where(weak, 1.0, amp))
     values = u * np.exp(-1j * np.outer(theta, n)) * scale[:, None]
     std = u_std * scale[:, None]
+    mean_drive = None
+    if reference is not None:
+        turns = np.exp(-1j * np.outer(theta[~weak], np.arange(reference.shape[1])))
+        mean_drive = (reference[~weak] * turns * scale[~weak, None]).mean(axis=0)
+        mean_drive[0] = reference[~weak, 0].real.mean()
     return HarmonicShapes(points=points, harmonics=n, values=values.T, std=std.T, f0=f0,
                           drive_amplitude=amp, drive_phase=theta, source=source,
-                          reference_ok=~weak)
+                          reference_ok=~weak, drive=mean_drive)

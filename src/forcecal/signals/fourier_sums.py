@@ -466,6 +466,25 @@ def grid_series(phasors: np.ndarray, f0: float, fs: float, t0: float, n: int,
     return out.reshape(*lead, n)
 
 
+def square_phasors(phasors: np.ndarray) -> np.ndarray:
+    """The harmonics 0..H of x(t)^2 from those of x(t) (:func:`grid_series`'s convention), the
+    products above H left out: exact, from the square on a grid of 4 (H+1) points a period.
+
+    Parameters
+    ----------
+    phasors : (H+1,) complex array
+
+    Returns
+    -------
+    (H+1,) complex array
+    """
+    h = len(phasors) - 1
+    n_t = 4 * (h + 1)
+    series = grid_series(np.asarray(phasors), 1.0, float(n_t), 0.0, n_t)
+    spectrum = np.fft.fft(series**2) / n_t
+    return np.concatenate([[spectrum[0].real], 2 * spectrum[1:h + 1]])
+
+
 def series_at(phasors: np.ndarray, f0: float, t: np.ndarray) -> np.ndarray:
     """Fourier series of phasors at any times, a block of times at a time.
 
