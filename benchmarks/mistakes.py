@@ -118,6 +118,8 @@ def check_of(note: str) -> str:
 
 def clean_runs(lab: Lab) -> list[Path]:
     """Every run of the lab's ``runs/`` folder that its manifest does not call a tare."""
+    if lab.spec.only_run:
+        return [lab.root / "runs" / f"{lab.spec.run}.csv"]
     manifest = lab.root / "manifest.csv"
     if manifest.exists():
         rows = list(csv.DictReader(manifest.read_text(encoding="utf-8").splitlines()))
@@ -158,13 +160,14 @@ def simulator_draws(lab: Lab) -> dict:
     return {k: v for k, v in realism.items() if k not in ("settings", "scans")}
 
 
-def survey(seeds: list[int], progress: bool = True) -> tuple[list[dict], dict]:
-    """Every clean run's notes of :data:`FALSE_ALARM_LABS` at ``seeds``, and the draws."""
+def survey(seeds: list[int], labs: tuple[str, ...] = FALSE_ALARM_LABS,
+           progress: bool = True) -> tuple[list[dict], dict]:
+    """Every clean run's notes of ``labs`` at ``seeds``, and the draws."""
     records: list[dict] = []
     draws: dict[str, dict] = {}
     for seed in seeds:
         start = time.perf_counter()
-        for name in FALSE_ALARM_LABS:
+        for name in labs:
             with tempfile.TemporaryDirectory() as tmp:
                 lab = build_lab(name, seed, Path(tmp))
                 got = survey_lab(lab)
@@ -204,10 +207,11 @@ def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
 
 def false_alarm_lines(records: list[dict]) -> tuple[list[str], dict]:
     """The table (runs with an alarm per check and lab, rate per run) and the totals."""
+    labs = list(dict.fromkeys(r["lab"] for r in records))
     cols = (*COLUMNS, "any", "refused")
     lines = [f"{'lab':<10} {'runs':>5} " + " ".join(f"{c:>9}" for c in cols)
              + f" {'rate/run':>9}"]
-    for name in [*FALSE_ALARM_LABS, "total"]:
+    for name in [*labs, "total"]:
         mine = [r for r in records if name in ("total", r["lab"])]
         c = alarm_counts(mine)
         lines.append(f"{name:<10} {len(mine):>5} " + " ".join(f"{c[k]:>9}" for k in cols)
@@ -223,10 +227,11 @@ def false_alarm_lines(records: list[dict]) -> tuple[list[str], dict]:
         lines.append(f"{check:<10} {counts[check]:>6} {n:>5} {counts[check] / n:>9.3g}  "
                      f"[{low:.3g}, {high:.3g}]")
     return lines, {"by_lab": {name: alarm_counts([r for r in records if r["lab"] == name])
-                              for name in FALSE_ALARM_LABS}, "totals": totals}
+                              for name in labs}, "totals": totals}
 
 
-def false_alarms(seeds: list[int], out: Path, merge: list[Path] | None = None) -> int:
+def false_alarms(seeds: list[int], out: Path, merge: list[Path] | None = None,
+                 labs: tuple[str, ...] = FALSE_ALARM_LABS) -> int:
     """``--clean-seeds``: the survey, its table and ``out``; ``--merge``: the surveys of
     earlier ``--clean-seeds`` runs (their seeds apart) in one table."""
     import forcecal
@@ -241,7 +246,7 @@ def false_alarms(seeds: list[int], out: Path, merge: list[Path] | None = None) -
         draws = {k: v for d in docs for k, v in d["simulator_draws"].items()}
         elapsed = sum(d["elapsed_s"] for d in docs)
     else:
-        records, draws = survey(seeds)
+        records, draws = survey(seeds, labs)
         elapsed = time.perf_counter() - start
     lines, counts = false_alarm_lines(records)
     print(f"\nfalse alarms on clean runs, seeds {seeds[0]}..{seeds[-1]} (runs with a note of "
@@ -249,7 +254,8 @@ def false_alarms(seeds: list[int], out: Path, merge: list[Path] | None = None) -
     print("\n".join(lines))
     doc = {"forcecal": {"version": forcecal.__version__,
                         "source": str(Path(forcecal.__file__).resolve().parent)},
-           "seeds": seeds, "labs": list(FALSE_ALARM_LABS), "elapsed_s": elapsed,
+           "seeds": seeds, "labs": list(dict.fromkeys(r["lab"] for r in records)),
+           "elapsed_s": elapsed,
            "stated_rate": {"flux": FALSE_ALARM}, "checks": {k: list(v) for k, v in CHECKS},
            "alarms": list(ALARMS), **counts, "simulator_draws": draws, "runs": records}
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -278,7 +284,8 @@ def main() -> int:
         return false_alarms([], Path(args.out or FALSE_ALARMS), [Path(p) for p in args.merge])
     if args.clean_seeds > 0:
         return false_alarms(list(range(args.first_seed, args.first_seed + args.clean_seeds)),
-                            Path(args.out or FALSE_ALARMS))
+                            Path(args.out or FALSE_ALARMS), labs=tuple(args.labs or
+                                                                     FALSE_ALARM_LABS))
     args.out = args.out or str(RESULTS)
     chosen = tuple(m for m in MISTAKES if args.mistakes is None or m.name in args.mistakes)
     wanted = args.labs or sorted({p for m in chosen for p in m.presets})

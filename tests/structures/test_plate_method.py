@@ -201,7 +201,7 @@ def test_plate_forces_against_the_virtual_rig(plate_lab):
 
 
 def test_inside_polygon_on_a_concave_outline():
-    from forcecal.structures import inside_polygon
+    from forcecal.structures.plate import inside_polygon
 
     outline = np.array([[0, 0], [0.5, 0], [0.5, 0.4], [0.2, 0.4], [0.2, 0.2], [0, 0.2]])
     points = np.array([[0.1, 0.1], [0.1, 0.3], [0.3, 0.3], [0.5, 0.2], [0.2, 0.3], [0.6, 0.1]])

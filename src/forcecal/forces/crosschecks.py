@@ -12,7 +12,8 @@ mistake (a gauge's scale or offset, a delay of the gauges or of the probes again
 channels, the inertia's scale: a mass, a probe's scale, the probes' sign), is beyond chance at
 a stated false-alarm rate; the note names the mistakes that explain it, the best first with
 the size each would have, the rig's geometry (a position, a swap) beside them where the data
-cannot tell them apart.
+cannot tell them apart. A steady drive's harmonics are compared; any drive's, lines of the
+record's spectrum over the band (:func:`line_terms`).
 """
 
 from __future__ import annotations
@@ -29,9 +30,11 @@ from ..model.relaxation import force_matrix
 from ..records import Run
 from ..rig import Rig
 from ..signals.harmonics import fit_harmonics
+from ..signals.mains import near_mains
+from ..signals.noise import GUARD
 from .diagnostics import FALSE_ALARM
 
-__all__ = ["EstimateTerms", "flux_notes", "pole_notes"]
+__all__ = ["EstimateTerms", "flux_notes", "line_terms", "pole_notes"]
 
 MU0 = 4e-7 * math.pi
 FRINGING = 0.02
@@ -43,6 +46,8 @@ cycle. A lab mistake that moves a force by less is not told from it."""
 ALIKE = 4.0
 """Causes whose chi-squares lie within this of the best one's are told apart by less than
 two standard deviations: the note says the data cannot tell them apart."""
+MAX_LINES = 400
+"""Under any drive, the most lines of the record's spectrum compared (spread over the band)."""
 SHIFT_MM = 200.0
 """[mm] the farthest a point is looked for from where the rig puts it."""
 NUISANCE = ("gauge sensitivity", "probe sensitivity", "masses")
@@ -68,6 +73,10 @@ class EstimateTerms:
     kept : (H+1,) bool ndarray
         The harmonics estimated; the DC among them only where the gauges observe it.
     w0 : float [rad/s]
+    lines : (H+1,) int ndarray, optional
+        Under any drive (:func:`line_terms`), the columns are these lines of the record's
+        discrete Fourier transform, ``w0`` apart, the first the DC; None: harmonics 0..H of a
+        steady drive's fundamental w0.
     """
 
     force: np.ndarray
@@ -77,6 +86,77 @@ class EstimateTerms:
     pinv: np.ndarray
     kept: np.ndarray
     w0: float
+    lines: np.ndarray | None = None
+
+    @property
+    def angular(self) -> np.ndarray:
+        """[rad/s] each column's angular frequency."""
+        n = np.arange(self.force.shape[1]) if self.lines is None else self.lines
+        out: np.ndarray = n * self.w0
+        return out
+
+    def phasors(self, x: np.ndarray, run: Run) -> tuple[np.ndarray, np.ndarray]:
+        """The columns' phasors of a record of the run (x = X_0 + sum Re X_n e^{j w_n t}) and
+        their standard uncertainties (none for lines: the forces' and the fringing's count)."""
+        if self.lines is None:
+            fit = fit_harmonics(x, run.fs, self.w0 / (2 * np.pi), self.force.shape[1] - 1,
+                                t0=run.t0)
+            return fit.phasors, fit.phasor_std
+        return _at_lines(x, self.lines, self.w0, run.t0), np.zeros(len(self.lines))
+
+
+def _at_lines(x: np.ndarray, lines: np.ndarray, spacing: float, t0: float) -> np.ndarray:
+    """The phasors X_n (x = X_0 + sum Re X_n e^{j w_n t}, t from ``t0``) of these lines of the
+    records' discrete Fourier transform, ``spacing`` [rad/s] apart, on the last axis."""
+    rows = np.reshape(x, (-1, x.shape[-1]))
+    # row by row: a record's whole spectrum lives only while its lines are read
+    spectrum = np.stack([np.fft.rfft(row)[lines] for row in rows]) * (2 / x.shape[-1])
+    spectrum[:, lines == 0] /= 2
+    out: np.ndarray = (spectrum * np.exp(-1j * lines * spacing * t0)).reshape(
+        *x.shape[:-1], len(lines))
+    return out
+
+
+def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray,
+               pinv: np.ndarray, fs: float, t0: float, band: tuple[float, float],
+               mains: float | None) -> EstimateTerms:
+    """The terms of an estimate under any drive, on at most :data:`MAX_LINES` lines of the
+    records' discrete Fourier transform spread over the band (and the DC), none
+    within GUARD + 1 lines of a harmonic of the mains (hum on the flux or the gauges is not the
+    force's): the forces Psi^+ (J - R) line by line, each with its noise spread evenly over
+    the band's lines (the mean variance of the force over the record, shared among them: the
+    estimate's noise lies in the band).
+
+    Parameters
+    ----------
+    force_std : (n_f, N) ndarray [N]
+        Each force's standard uncertainty sample by sample.
+    reactions, inertia : (n_g, N) ndarray [N]
+        R(t) and J(t), as the estimate used them.
+    pinv : (n_f, n_g) ndarray
+    fs : float [Hz]
+    t0 : float [s]
+        Time of the first sample.
+    band : (low, high) [Hz]
+    mains : float or None [Hz]
+        ``acquisition.mains``.
+
+    Returns
+    -------
+    EstimateTerms
+    """
+    n = reactions.shape[-1]
+    freq = np.fft.rfftfreq(n, 1 / fs)
+    inside = np.flatnonzero((freq >= band[0]) & (freq <= band[1]) & (freq > 0)
+                            & ~near_mains(freq, mains, (GUARD + 1) * fs / n))
+    lines = np.concatenate([[0], inside[::max(1, -(-len(inside) // MAX_LINES))]]).astype(int)
+    spacing = 2 * np.pi * fs / n
+    r, j = (_at_lines(x, lines, spacing, t0) for x in (reactions, inertia))
+    force = pinv @ (j - r)
+    sigma = np.sqrt(np.mean(np.square(force_std), axis=1) / max(len(inside), 1))
+    kept = np.ones(len(lines), dtype=bool)
+    return EstimateTerms(force=force, std=np.repeat(sigma[:, None], len(lines), axis=1),
+                         reactions=r, inertia=j, pinv=pinv, kept=kept, w0=spacing, lines=lines)
 
 
 def pole_fluxes(rig: Rig, run: Run) -> dict[int, np.ndarray]:
@@ -98,13 +178,12 @@ def _flux_channels(rig: Rig, run: Run) -> dict[int, str]:
     return {k: name for k, name in names.items() if name is not None and name in run.channels}
 
 
-def _maxwell(flux: np.ndarray, area: float, fs: float, f0: float, h: int,
-             t0: float) -> tuple[np.ndarray, np.ndarray]:
-    """Phasors of Phi^2 / (2 mu0 A) and their standard uncertainties."""
+def _maxwell(flux: np.ndarray, area: float, run: Run,
+             terms: EstimateTerms) -> tuple[np.ndarray, np.ndarray]:
+    """Phasors of Phi^2 / (2 mu0 A) in the terms' columns and their standard uncertainties."""
     stress = np.square(flux)                       # Phi^2 / (2 mu0 A), made in place
     stress /= 2 * MU0 * area
-    fit = fit_harmonics(stress, fs, f0, h, t0=t0)
-    return fit.phasors, fit.phasor_std
+    return terms.phasors(stress, run)
 
 
 @dataclass(frozen=True)
@@ -175,7 +254,7 @@ def _causes(rig: Rig, t: EstimateTerms) -> list[_Cause]:
     """The single mistakes tried. A gauge's scale off by x leaves reactions (1 + x) R and
     forces that differ by x / (1 + x) Psi^+ R_g, linear in that; an offset, the inertia's
     scale alike; a delay tau turns harmonic n by n w0 tau, undone exactly."""
-    jw = 1j * np.arange(t.force.shape[1]) * t.w0
+    jw = 1j * t.angular
     out: list[_Cause] = []
     for g, name in enumerate(rig.gauge_names):
         col, r_g = t.pinv[:, g:g + 1], t.reactions[g]
@@ -280,7 +359,7 @@ def _weighed(fluxes: dict[int, np.ndarray], poles: list[int], area: float, run: 
     m = np.zeros((len(poles), h + 1), dtype=complex)
     m_std = np.zeros((len(poles), h + 1))
     for j, k in enumerate(poles):
-        m[j], m_std[j] = _maxwell(fluxes[k], area, run.fs, terms.w0 / (2 * np.pi), h, run.t0)
+        m[j], m_std[j] = _maxwell(fluxes[k], area, run, terms)
     scale = np.abs(m).max(axis=1, keepdims=True)
     sigma = np.sqrt(terms.std[poles] ** 2 + m_std**2 + (FRINGING * np.abs(m)) ** 2
                     + (1e-6 * scale) ** 2) + 1e-300
@@ -324,15 +403,13 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     notes = [f"{what}: force '{f.name}': its flux channel '{f.flux}' (forces[{k}].flux) is not "
              "in the run; its force is not checked against Maxwell's stress"
              for k, f in enumerate(rig.forces) if f.flux is not None and k not in fluxes]
-    h = terms.force.shape[1] - 1
     poles = sorted(fluxes)
     dc = max(abs(float(np.mean(fluxes[k]))) for k in poles)
     ac = max(float(np.std(fluxes[k])) for k in poles)
     if ac <= 1e-12 * dc:                 # a constant channel, to rounding
         return [*notes, f"{what}: the flux is constant, without any drive: the forces are not "
                 "checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
-    if h >= 2 and dc < 0.05 * ac and (np.abs(terms.force[poles, 1]).sum()
-                                      > np.abs(terms.force[poles, 2]).sum()):
+    if dc < 0.05 * ac and _biased(rig, run, terms, poles):
         return [*notes, f"{what}: the flux holds no DC though the forces pull mostly at the "
                 "drive's fundamental (an AC-coupled flux sensor, a search coil?): the forces are "
                 "not checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
@@ -347,6 +424,19 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
                 f"c = {coef[0]:.3g})")
 
     return [*notes, *_judged(rig, terms, _Problem(m[sel], w, ()), pick, head)]
+
+
+def _biased(rig: Rig, run: Run, terms: EstimateTerms, poles: list[int]) -> bool:
+    """Whether the drive is biased, so that the flux must hold a DC: a steady drive's forces
+    pull more at its fundamental than at twice it; any drive's current holds a DC (without the
+    current channel, not said)."""
+    if terms.lines is None:
+        return bool(terms.force.shape[1] > 2 and np.abs(terms.force[poles, 1]).sum()
+                    > np.abs(terms.force[poles, 2]).sum())
+    if rig.actuator.current not in run.channels:
+        return False
+    current = run.channel(rig.actuator.current)
+    return abs(float(np.mean(current))) > 0.05 * float(np.std(current))
 
 
 def pole_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]:
@@ -398,10 +488,12 @@ def _alike(poles: list[int], terms: EstimateTerms) -> tuple[np.ndarray, np.ndarr
     imaginary parts, stacked."""
     n = len(poles)
     mean = terms.force[poles].mean(axis=0)
-    var = terms.std[poles] ** 2
-    # pole k less the mean: (1 - 1/n) F_k - (1/n) sum of the others
-    own = (1 - 2 / n) * var[:-1] + var.sum(axis=0) / n**2
-    sigma = np.sqrt(own + (FRINGING * np.abs(mean)) ** 2
+    std = terms.std[poles]
+    # pole k less the mean, (1 - 1/n) F_k - (1/n) sum of the others: the forces' errors
+    # correlate through Psi^+ (close poles' split errs in opposite senses), so their standard
+    # deviations add, the most they can
+    own = (1 - 2 / n) * std[:-1] + std.sum(axis=0) / n
+    sigma = np.sqrt(own**2 + (FRINGING * np.abs(mean)) ** 2
                     + (1e-6 * np.abs(mean).max()) ** 2) + 1e-300
     return (mean, *_compared(terms.kept, sigma))
 
@@ -417,11 +509,10 @@ def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
     problem = dataclasses.replace(problem, nuisance=tuple(
         (c.name, _column(c, pick), c.prior) for c in causes if c.prior > 0))
     dof = int(np.count_nonzero(problem.w)) - (0 if problem.c_prior else 1)
-    chi2, coef = problem.fit(pick(terms.force))
     if dof < 2:
         return []
-    h = terms.force.shape[1] - 1
-    period_ms = 1e3 * 2 * np.pi / (terms.w0 * max(h, 1))
+    chi2, coef = problem.fit(pick(terms.force))
+    period_ms = 1e3 * 2 * np.pi / max(float(terms.angular.max()), terms.w0)
     sensors = [c for c in causes if c.form in ("relative", "linear", "delay")]
     gain = _limit(1, FALSE_ALARM / (2 * len(sensors)))
     whole = _limit(dof, FALSE_ALARM / 2)

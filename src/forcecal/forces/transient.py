@@ -47,6 +47,7 @@ from ..signals.wiener import (
     wiener_smooth,
 )
 from .budget import TypeBMoves, series_type_b_variance, type_b_moves, type_b_notes
+from .crosschecks import flux_notes, line_terms, pole_notes
 from .estimate import inertia_share_of, series_summary
 from .inertia_errors import ScanNoiseShare, inertia_error_weights
 from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
@@ -793,7 +794,11 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     est = window_forces(setup, model, gauges, probes, frame, run.source)
     scan = ScanNoiseShare(fs, run.t0)
     scan.add(np.vstack([est.scan_noise, est.total_std**2]))
-    notes = (f"short-time Wiener gains ({frame} samples a frame) let through "
+    terms = line_terms(est.force_std, est.reactions, est.inertia, setup.pinv, fs, run.t0,
+                       model.band, rig.mains)
+    what = f"run '{run.source}'"
+    notes = (*flux_notes(rig, run, terms, what), *pole_notes(rig, run, terms, what),
+             f"short-time Wiener gains ({frame} samples a frame) let through "
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
              transfer_note(setup.transfer, run.source),
              *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),

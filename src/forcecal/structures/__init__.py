@@ -9,7 +9,7 @@ one entry in :data:`KINDS`.
 from .base import UP, LumpedMass, Structure, locations
 from .beam import Beam
 from .body import Body
-from .plate import Plate, inside_polygon
+from .plate import Plate
 
 KINDS: dict[str, type[Structure]] = {cls.kind: cls for cls in (Beam, Plate, Body)}
 """The rig file's ``structure.kind`` -> the class that reads and answers for it."""
@@ -22,6 +22,5 @@ __all__ = [
     "LumpedMass",
     "Plate",
     "Structure",
-    "inside_polygon",
     "locations",
 ]
