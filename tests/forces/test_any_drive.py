@@ -332,11 +332,12 @@ def _late(run, names, samples):
 
 def test_the_cross_checks_hold_under_any_drive(beam, bb_model, random_run):
     """The same cross-checks as a steady drive's, on up to 400 lines of the record's spectrum
-    over the band: the U-core's two poles against each other (no flux recorded), then against
-    their Maxwell force from a flux channel (Phi = sqrt(2 mu0 A f), 0.1 % noise). A clean run
-    draws neither note; R1's scale 10 % off is named by both with its size (achieved +10.3 %
-    and +10 %, test 9-11 %); the gauges 4 samples late, which move both poles alike, by the
-    flux check as their delay (achieved +0.4 ms, test within 10 % of the 0.4 ms)."""
+    over the band where the reactions carry the forces: the U-core's two poles against each
+    other (no flux recorded), then against their Maxwell force from a flux channel
+    (Phi = sqrt(2 mu0 A f), 0.1 % noise). A clean run draws neither note; R1's scale 10 % off
+    is named by both with its size (achieved +10.1 % and +10 %, test 9-11 %); the gauges 4
+    samples late, which move both poles alike, by the flux check as their delay (achieved
+    +0.4 ms, test within 10 % of the 0.4 ms)."""
     from forcecal.forces.crosschecks import MU0
 
     run, u, _ = random_run

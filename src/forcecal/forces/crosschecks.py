@@ -46,6 +46,9 @@ cycle. A lab mistake that moves a force by less is not told from it."""
 ALIKE = 4.0
 """Causes whose chi-squares lie within this of the best one's are told apart by less than
 two standard deviations: the note says the data cannot tell them apart."""
+INERTIA_SHARE = 0.5
+"""Under any drive, the lines compared are those where each force's inertia part is at most
+this share of its reactions' part."""
 MAX_LINES = 400
 """Under any drive, the most lines of the record's spectrum compared (spread over the band)."""
 SHIFT_MM = 200.0
@@ -147,15 +150,20 @@ def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray
     """
     n = reactions.shape[-1]
     freq = np.fft.rfftfreq(n, 1 / fs)
+    spacing = 2 * np.pi * fs / n
     inside = np.flatnonzero((freq >= band[0]) & (freq <= band[1]) & (freq > 0)
                             & ~near_mains(freq, mains, (GUARD + 1) * fs / n))
+    # the inertia is the estimate's least known part, most near a resonance: lines where the
+    # reactions carry the forces (the inertia at most INERTIA_SHARE of them) are compared
+    by_j, by_r = (np.abs(pinv @ _at_lines(x, inside, spacing, t0)) for x in (inertia, reactions))
+    inside = inside[np.all(by_j <= INERTIA_SHARE * by_r, axis=0)]
     lines = np.concatenate([[0], inside[::max(1, -(-len(inside) // MAX_LINES))]]).astype(int)
-    spacing = 2 * np.pi * fs / n
     r, j = (_at_lines(x, lines, spacing, t0) for x in (reactions, inertia))
     force = pinv @ (j - r)
     sigma = np.sqrt(np.mean(np.square(force_std), axis=1) / max(len(inside), 1))
+    var = np.repeat(sigma[:, None] ** 2, len(lines), axis=1)
     kept = np.ones(len(lines), dtype=bool)
-    return EstimateTerms(force=force, std=np.repeat(sigma[:, None], len(lines), axis=1),
+    return EstimateTerms(force=force, std=np.sqrt(var),
                          reactions=r, inertia=j, pinv=pinv, kept=kept, w0=spacing, lines=lines)
 
 
