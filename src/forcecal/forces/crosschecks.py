@@ -124,11 +124,12 @@ def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray
                pinv: np.ndarray, fs: float, t0: float, band: tuple[float, float],
                mains: float | None) -> EstimateTerms:
     """The terms of an estimate under any drive, on at most :data:`MAX_LINES` lines of the
-    records' discrete Fourier transform spread over the band (and the DC), none
-    within GUARD + 1 lines of a harmonic of the mains (hum on the flux or the gauges is not the
-    force's): the forces Psi^+ (J - R) line by line, each with its noise spread evenly over
-    the band's lines (the mean variance of the force over the record, shared among them: the
-    estimate's noise lies in the band).
+    records' discrete Fourier transform spread over the band (and the DC): none within
+    GUARD + 1 lines of a harmonic of the mains (hum on the flux or the gauges is not the
+    force's), only those where the reactions carry the forces (:data:`INERTIA_SHARE`). The
+    forces are Psi^+ (J - R) line by line, each line's noise the force's mean variance over the
+    record shared among the lines the reactions carry (more than its share: it lies on the
+    band's other lines too).
 
     Parameters
     ----------
@@ -153,18 +154,20 @@ def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray
     spacing = 2 * np.pi * fs / n
     inside = np.flatnonzero((freq >= band[0]) & (freq <= band[1]) & (freq > 0)
                             & ~near_mains(freq, mains, (GUARD + 1) * fs / n))
+    every = np.concatenate([[0], inside]).astype(int)             # the DC, then the band
+    r, j = (_at_lines(x, every, spacing, t0) for x in (reactions, inertia))
     # the inertia is the estimate's least known part, most near a resonance: lines where the
     # reactions carry the forces (the inertia at most INERTIA_SHARE of them) are compared
-    by_j, by_r = (np.abs(pinv @ _at_lines(x, inside, spacing, t0)) for x in (inertia, reactions))
-    inside = inside[np.all(by_j <= INERTIA_SHARE * by_r, axis=0)]
-    lines = np.concatenate([[0], inside[::max(1, -(-len(inside) // MAX_LINES))]]).astype(int)
-    r, j = (_at_lines(x, lines, spacing, t0) for x in (reactions, inertia))
-    force = pinv @ (j - r)
-    sigma = np.sqrt(np.mean(np.square(force_std), axis=1) / max(len(inside), 1))
-    var = np.repeat(sigma[:, None] ** 2, len(lines), axis=1)
-    kept = np.ones(len(lines), dtype=bool)
-    return EstimateTerms(force=force, std=np.sqrt(var),
-                         reactions=r, inertia=j, pinv=pinv, kept=kept, w0=spacing, lines=lines)
+    carried = np.all(np.abs(pinv @ j) <= INERTIA_SHARE * np.abs(pinv @ r), axis=0)
+    carried[0] = True
+    n_carried = int(np.count_nonzero(carried[1:]))
+    chosen = np.flatnonzero(carried)
+    chosen = np.concatenate([[0], chosen[1::max(1, -(-n_carried // MAX_LINES))]])
+    r, j = r[:, chosen], j[:, chosen]
+    sigma = np.sqrt(np.mean(np.square(force_std), axis=1) / max(n_carried, 1))
+    return EstimateTerms(force=pinv @ (j - r), std=np.repeat(sigma[:, None], len(chosen), axis=1),
+                         reactions=r, inertia=j, pinv=pinv, kept=np.ones(len(chosen), dtype=bool),
+                         w0=spacing, lines=every[chosen])
 
 
 def pole_fluxes(rig: Rig, run: Run) -> dict[int, np.ndarray]:
