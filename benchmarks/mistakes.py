@@ -72,13 +72,17 @@ CHECKS = (
     ("drift", ("drifts", "drift")),
     ("info", ("mains",)),
     ("dropped", ("leave them out",)),
-    ("info", ("the rig declares none", "type-B", "no shape in the scan model")),
+    ("info", ("the rig declares none", "type-B", "no shape in the scan model",
+              "short-time Wiener gains", "the reactions carry the inertia",
+              "above the scan's band", "the scan's noise makes")),
     ("span", ("load differs from every scan",)),
 )
 """Which check wrote a note: the first whose phrases the note holds (else ``other``)."""
 ALARMS = ("flux", "pole", "scan", "misfit", "pull-only", "dc", "drift", "dropped", "other")
 """The checks whose notes are alarms (``info`` and ``span`` only inform: a harmonic near the
-mains', one without a shape, the type-B sources the rig leaves out, a load between the scans')."""
+mains', one without a shape, the type-B sources the rig leaves out, a load between the scans';
+under any drive, what the smoother lets through, the reactions' transfer, a force above the
+scan's band, the scan's share of the variance)."""
 COLUMNS = (*ALARMS, "info", "span")
 
 
