@@ -6,7 +6,9 @@ job), calibrated as ``forcecal calibrate RIG MODEL --manifest M1 M2 ... --worker
 (:func:`forcecal.cluster.run_jobs` with the CLI's own jobs, each campaign's manifest and records
 read by the client and carried in its job, the reading timed with the jobs). Reported for each W:
 the wall time (cluster start included; one worker too, a cluster of one), the cluster's start
-alone, the speed-up over the serial path and the parallel efficiency (speed-up / W), and the
+alone, the speed-up over the serial path and the parallel efficiency (speed-up / W), the
+efficiency once the cluster is up (the jobs' wall time alone: a running or remote cluster, or a
+batch long enough that the start does not count), and the
 overhead per job (the worker time a job costs beyond its serial compute:
 ``(W wall - serial) / jobs``) with its breakdown (:func:`breakdown`: start, slower compute,
 transfer, deserialisation, idle workers, the client's reading). The results are checked
@@ -166,6 +168,8 @@ def main(argv=None) -> int:
             out, row = spread_over(rig, model, manifests, w)
             row = {"workers": w, **row, "speed_up": t_serial / row["seconds_wall"],
                    "identical": [r.calibration.params.tolist() for r in out] == reference,
+                   "efficiency": t_serial / row["seconds_wall"] / w,
+                   "efficiency_once_up": t_serial / row["seconds_jobs"] / w,
                    "overhead_per_job_s": (w * row["seconds_wall"] - t_serial) / args.jobs}
             row["overhead_breakdown_s_per_job"] = breakdown(row, t_serial / args.jobs, args.jobs)
             rows.append(row)
@@ -176,6 +180,7 @@ def main(argv=None) -> int:
     batch = {f"{c}_cores_hours": (BATCH * cost / c + best["seconds_start"]) / 3600
              for c in (2, 64, 512)}
     res = {"machine": {"python": platform.python_version(), "cores": os.cpu_count(),
+                       "processor": platform.processor() or platform.machine(),
                        "load_average": os.getloadavg()},
            "jobs": args.jobs, "runs_per_job": 8, "serial_seconds": t_serial,
            "serial_seconds_per_job": per_job, "by_workers": rows,
@@ -185,10 +190,10 @@ def main(argv=None) -> int:
     print(f"\n{args.jobs} campaigns of 8 runs (+ tare), {os.cpu_count()} cores; serial "
           f"{t_serial:.1f} s ({per_job:.2f} s per campaign)")
     print(f"{'workers':>8}{'wall s':>9}{'start s':>9}{'speed-up':>10}{'efficiency':>11}"
-          f"{'overhead/job s':>16}{'identical':>11}")
+          f"{'once up':>9}{'overhead/job s':>16}{'identical':>11}")
     for r in rows:
         print(f"{r['workers']:>8}{r['seconds_wall']:9.2f}{r['seconds_start']:9.2f}"
-              f"{r['speed_up']:10.2f}{r['speed_up'] / r['workers']:11.2f}"
+              f"{r['speed_up']:10.2f}{r['efficiency']:11.2f}{r['efficiency_once_up']:9.2f}"
               f"{r['overhead_per_job_s']:16.3f}{r['identical']!s:>11}")
     parts = list(rows[0]["overhead_breakdown_s_per_job"])
     print(f"\noverhead per job, s (of {per_job:.2f} s of serial compute):")

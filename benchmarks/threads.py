@@ -8,7 +8,9 @@ removed):
 - ``forcecal reconstruct`` of the demo's 'paper' run (its scan, one run);
 - ``forcecal calibrate --workers 1`` of the demo's campaign (seed 1, 21 runs and the report);
 
-each with the default (one thread) and with ``--threads C`` (C the cores), on an idle machine
+each with the default (one thread), with the thread variables set to one in its environment (as
+a Makefile pins them; the default must match it) and with ``--threads C`` (C the cores), on an
+idle machine
 and beside a busy process (a NumPy matrix product in a loop, on one core). Each figure is the
 minimum and median of ``--repeats`` runs, the two thread settings alternated run by run, after
 one warm-up run of each command (Numba's cache).
@@ -24,6 +26,7 @@ import contextlib
 import json
 import os
 import platform
+import shutil
 import statistics
 import subprocess
 import sys
@@ -34,6 +37,8 @@ from pathlib import Path
 
 RESULTS = Path(__file__).resolve().parent / "results" / "threads.json"
 FORCECAL = str(Path(sys.executable).with_name("forcecal"))
+if not Path(FORCECAL).exists():                  # installed elsewhere than the interpreter
+    FORCECAL = shutil.which("forcecal") or FORCECAL
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS",
                     "FORCECAL_THREADS")
 BUSY = ("import numpy as np\n"
@@ -49,11 +54,16 @@ def clean_env() -> dict[str, str]:
     return {k: v for k, v in os.environ.items() if k not in THREAD_VARIABLES}
 
 
-def run(argv: list[str]) -> float:
-    """Wall seconds of one command, as a whole process; it must succeed."""
+PINNED = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+"""The thread variables as a Makefile pins them."""
+
+
+def run(argv: list[str], pinned: bool = False) -> float:
+    """Wall seconds of one command, as a whole process (its environment's thread variables
+    pinned to one, or none set); it must succeed."""
     t0 = time.perf_counter()
-    subprocess.run(argv, env=clean_env(), check=True, stdout=subprocess.DEVNULL,
-                   stderr=subprocess.PIPE)
+    subprocess.run(argv, env={**clean_env(), **(PINNED if pinned else {})}, check=True,
+                   stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     return time.perf_counter() - t0
 
 
@@ -61,8 +71,7 @@ def run(argv: list[str]) -> float:
 def busy_neighbour() -> Iterator[None]:
     """A process holding one core for the block's duration."""
     proc = subprocess.Popen([sys.executable, "-c", BUSY],
-                            env={**clean_env(), "OPENBLAS_NUM_THREADS": "1",
-                                 "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"})
+                            env={**clean_env(), **PINNED})
     try:
         time.sleep(1.0)                                  # let it start spinning
         yield
@@ -90,10 +99,12 @@ def demo_lab(folder: Path) -> dict[str, list[str]]:
 
 
 def measure(argv: list[str], cores: int, repeats: int) -> dict[str, dict[str, float]]:
-    """min and median wall seconds of the command on one thread and on ``cores``, alternated."""
-    settings = {"1 thread": [], f"{cores} threads": []}
+    """min and median wall seconds of the command on one thread (its default), pinned by the
+    environment, and on ``cores``, alternated."""
+    settings: dict[str, list[float]] = {"1 thread": [], "pinned": [], f"{cores} threads": []}
     for _ in range(repeats):
         settings["1 thread"].append(run(argv))
+        settings["pinned"].append(run(argv, pinned=True))
         settings[f"{cores} threads"].append(run([*argv, "--threads", str(cores)]))
     return {k: {"min_s": min(v), "median_s": statistics.median(v), "runs_s": v}
             for k, v in settings.items()}
@@ -102,6 +113,8 @@ def measure(argv: list[str], cores: int, repeats: int) -> dict[str, dict[str, fl
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=3, help="runs of each figure (default 3)")
+    ap.add_argument("--conditions", nargs="+", default=["idle", "one core busy"],
+                    choices=["idle", "one core busy"], help="the machine's states (default both)")
     args = ap.parse_args(argv)
     cores = os.cpu_count() or 1
     rows = []
@@ -111,7 +124,7 @@ def main(argv=None) -> int:
         for name, command in commands.items():
             print(f"warm-up: {name}", flush=True)
             run(command)
-        for condition in ("idle", "one core busy"):
+        for condition in args.conditions:
             for name, command in commands.items():
                 print(f"{condition}: {name}", flush=True)
                 with busy_neighbour() if condition != "idle" else contextlib.nullcontext():
@@ -125,13 +138,16 @@ def main(argv=None) -> int:
     many = f"{cores} threads"
     print(f"\nwall seconds, min / median of {args.repeats} runs; {cores} cores; no thread "
           "variable set")
-    print(f"{'condition':<15}{'command':<34}{'1 thread':>15}{many:>15}{'ratio':>8}")
+    print(f"{'condition':<15}{'command':<34}{'default':>15}{'pinned':>15}{many:>15}"
+          f"{'default/pinned':>16}{'many/default':>14}")
     for r in rows:
-        one, more = r["1 thread"], r[many]
+        one, pin, more = r["1 thread"], r["pinned"], r[many]
         print(f"{r['condition']:<15}{r['command']:<34}"
-              f"{one['min_s']:7.2f} /{one['median_s']:6.2f}{more['min_s']:7.2f} /"
-              f"{more['median_s']:6.2f}{more['median_s'] / one['median_s']:8.2f}")
-    print(f"\nratio: median on {cores} threads over median on one\nwritten: {RESULTS}")
+              + "".join(f"{x['min_s']:7.2f} /{x['median_s']:6.2f}" for x in (one, pin, more))
+              + f"{one['min_s'] / pin['min_s']:16.2f}{more['median_s'] / one['median_s']:14.2f}")
+    print(f"\ndefault: forcecal's own limit (one thread); pinned: the thread variables set to one "
+          f"in the environment\ndefault/pinned: of the minima; many/default: of the medians "
+          f"({cores} threads over the default)\nwritten: {RESULTS}")
     return 0
 
 
