@@ -11,9 +11,10 @@ scale, the inertia's) are fitted as parameters held to their declared uncertaint
 mistake (a gauge's scale or offset, a delay of the gauges or of the probes against the other
 channels, the inertia's scale: a mass, a probe's scale, the probes' sign), is beyond chance at
 a stated false-alarm rate; the note names the mistakes that explain it, the best first with
-the size each would have, the rig's geometry (a position, a swap) beside them where the data
-cannot tell them apart. A steady drive's harmonics are compared; any drive's, lines of the
-record's spectrum over the band (:func:`line_terms`).
+the size each would have, the tare (every gauge's offset at once) and the rig's geometry (a
+position, a swap) beside them where the data cannot tell them apart. A steady drive's
+harmonics are compared; any drive's, lines of the record's spectrum over the band
+(:func:`line_terms`).
 """
 
 from __future__ import annotations
@@ -51,6 +52,9 @@ INERTIA_SHARE = 0.5
 this share of its reactions' part."""
 MAX_LINES = 400
 """Under any drive, the most lines of the record's spectrum compared (spread over the band)."""
+AKAIKE = 2.0
+"""Chi-square a cause of several sizes (every gauge's offset: the tare) must gain per size
+beyond the best single gauge's offset to be named beside it (Akaike's criterion)."""
 SHIFT_MM = 200.0
 """[mm] the farthest a point is looked for from where the rig puts it."""
 NUISANCE = ("gauge sensitivity", "probe sensitivity", "masses")
@@ -207,7 +211,10 @@ class _Cause:
     forces: Callable[[float], np.ndarray]
     form: str = "relative"
     """``relative``: forces(x) = F + d x / (100 + x), x in %; ``linear``: F + d x; ``delay``
-    and ``shift``: nonlinear in x; ``swap``: no size."""
+    and ``shift``: nonlinear in x; ``swap``: no size; ``offsets``: F + sum_j d_j x_j, one
+    size per name of ``parts`` (forces(j) the forces with x_j = 1, the others 0)."""
+    parts: tuple[str, ...] = ()
+    """The sizes' names of an ``offsets`` cause."""
     prior: float = 0.0
     """[1] the standard uncertainty the rig declares for it (type B, relative): within it, a
     mistake is not one, and every fit allows it."""
@@ -219,6 +226,17 @@ def _rescaled(force: np.ndarray, d: np.ndarray, x: float) -> np.ndarray:
 
 def _offset(force: np.ndarray, d: np.ndarray, x: float) -> np.ndarray:
     return force + d * x
+
+
+_Size = float | tuple[tuple[str, float], ...]
+"""A cause's size: one number, or one per part of an ``offsets`` cause."""
+
+
+def _tared(t: EstimateTerms, dc: np.ndarray, j: float) -> np.ndarray:
+    """The forces with a unit offset on gauge ``j - 1`` (none for ``j = 0``)."""
+    if j == 0:
+        return t.force
+    return t.force + t.pinv[:, int(j) - 1:int(j)] * dc
 
 
 def _moved(rig: Rig, t: EstimateTerms, group: str, k: int, axis: str, mm: float) -> np.ndarray:
@@ -274,6 +292,10 @@ def _causes(rig: Rig, t: EstimateTerms) -> list[_Cause]:
         if t.kept[0]:
             out.append(_Cause(f"gauge '{name}' offset (a tare missing or wrong)", "N",
                               partial(_offset, t.force, col * (jw == 0)), "linear"))
+    if t.kept[0] and len(rig.gauge_names) > 1:
+        out.append(_Cause("the tare (every gauge's offset: the tare record missing, wrong or of "
+                          "another day)", "N", partial(_tared, t, jw == 0), "offsets",
+                          parts=tuple(rig.gauge_names)))
     out.append(_Cause(
         "a delay of the gauges " + ", ".join(rig.gauge_names) + " behind the other channels "
         "(DAQ skew)", "ms", lambda ms: t.pinv @ (t.inertia - t.reactions * np.exp(jw * ms / 1e3)),
@@ -330,7 +352,7 @@ def _column(cause: _Cause, pick: Callable[[np.ndarray], np.ndarray]) -> np.ndarr
 
 
 def _size(cause: _Cause, problem: _Problem, pick: Callable[[np.ndarray], np.ndarray],
-          period_ms: float) -> tuple[float, float]:
+          period_ms: float) -> tuple[float, _Size]:
     """(chi-square, size) of the forces with ``cause`` free against c times Maxwell's."""
     if cause.form in ("relative", "linear"):
         c2, coef = problem.freeing(cause.name).fit(pick(cause.forces(0.0)),
@@ -341,6 +363,12 @@ def _size(cause: _Cause, problem: _Problem, pick: Callable[[np.ndarray], np.ndar
         return c2, (100 * b / (1 - b) if b != 1 else math.inf)
     if cause.form == "swap":
         return problem.fit(pick(cause.forces(0.0)))[0], math.nan
+    if cause.form == "offsets":
+        base = pick(cause.forces(0.0))
+        c2, coef = problem.fit(base, tuple(base - pick(cause.forces(j))
+                                           for j in range(1, len(cause.parts) + 1)))
+        return c2, tuple(zip(cause.parts, (float(x) for x in coef[-len(cause.parts):]),
+                             strict=True))
     from scipy.optimize import minimize_scalar  # on use: a steady stream starts without it
 
     bound = period_ms / 2 if cause.form == "delay" else SHIFT_MM
@@ -351,7 +379,10 @@ def _size(cause: _Cause, problem: _Problem, pick: Callable[[np.ndarray], np.ndar
     return float(best.fun), (-size if cause.form == "shift" else size)
 
 
-def _cause_text(name: str, unit: str, size: float) -> str:
+def _cause_text(name: str, unit: str, size: _Size) -> str:
+    if isinstance(size, tuple):
+        return f"{name}, off by " + ", ".join(f"{size:+.3g} {unit} on '{part}'"
+                                              for part, size in size)
     return name if math.isnan(size) else f"{name} off by {size:+.3g} {unit}"
 
 
@@ -536,15 +567,25 @@ def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
         return []
     tried = sorted(tried + [(c2, c.name, c.unit, size) for c in causes if c not in sensors
                             for c2, size in [_size(c, problem, pick, period_ms)]])
-    explain = [t for t in tried if chi2 - t[0] > gain and t[0] <= _limit(dof - 1)]
+    single = min((t[0] for t in tried if t[1] in {c.name for c in causes if c.form == "linear"}),
+                 default=math.inf)
+    tried = [t for t in tried if _free(t[3]) == 1 or single - t[0] > AKAIKE * (_free(t[3]) - 1)]
+    explain = [t for t in tried if chi2 - t[0] > _limit(_free(t[3]), FALSE_ALARM /
+                                                         (2 * len(sensors)))
+               and t[0] <= _limit(dof - _free(t[3]))]
     return [f"{head(coef)}: chi-square {chi2:.3g} for {dof} degrees of freedom (chance exceeds "
             f"{whole:.3g} at a {FALSE_ALARM / 2:g} rate), {best_gain:.3g} less with one sensor's "
             f"mistake free (chance: {gain:.3g})"
             + _explained(tried, explain, {c.name for c in sensors})]
 
 
-def _explained(tried: list[tuple[float, str, str, float]],
-               explain: list[tuple[float, str, str, float]], sensors: set[str]) -> str:
+def _free(size: _Size) -> int:
+    """The parameters a cause of this size frees."""
+    return len(size) if isinstance(size, tuple) else 1
+
+
+def _explained(tried: list[tuple[float, str, str, _Size]],
+               explain: list[tuple[float, str, str, _Size]], sensors: set[str]) -> str:
     """The note's tail: the causes that explain the misfit, the best first (among those the
     data cannot tell apart, a sensor's first: the likelier), or the closest when none does."""
     if not explain:
