@@ -7,6 +7,7 @@ amplitude and phase per pole), as the structure's vibration would give.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 
@@ -35,6 +36,7 @@ from forcecal.actuator import (
     report_text,
     select_law,
 )
+from forcecal.actuator.laws import SATURATING
 from forcecal.errors import FitError, InputError
 
 TURNS = 400
@@ -45,6 +47,7 @@ TRUTH = {
     "k_i2_sfe2": (K_TRUE, 0.2e-3),
     "k_i0_sfe2": (K_TRUE, 0.05, 0.2e-3),
     "power": (4.0 * K_TRUE, 1.9, 1.8, 0.1e-3),
+    "k_i2_sfe2_sat": (K_TRUE, 0.2e-3, 1500.0, 4.0),
     "flux": (4.2e-4,),
 }
 GAPS3 = (0.8e-3, 1.0e-3, 1.3e-3)  # [m]
@@ -177,17 +180,21 @@ def test_uncertainties_are_calibrated_200_seeds(law):
         # an offset of 2 mA on 0.5-2 A raises the held-out error of k_i2_sfe2 by about 60 %,
         # well beyond the 10 % margin: the simpler law must not be preferred
         (K_I0_SFE2, (K_TRUE, 0.002, 0.2e-3), "k_i0_sfe2"),
+        # the iron saturating: the flux density bends over near 1500 A/m of i / (s + s_fe)
+        (SATURATING, TRUTH["k_i2_sfe2_sat"], "k_i2_sfe2_sat"),
     ],
-    ids=["ideal", "iron-path", "current-offset", "small-current-offset"],
+    ids=["ideal", "iron-path", "current-offset", "small-current-offset", "saturating"],
 )
 def test_selection_picks_the_true_law(truth, params, expected):
     data = campaign(truth, params, np.random.default_rng(7), NOISE)
     selection = select_law(data)
     assert selection.chosen == expected, selection.reason
     names = [c.name for c in selection.candidates]
-    assert names == ["k_i2_s2", "k_i2_sfe2", "k_i0_sfe2", "power"]
     skipped = dict(selection.skipped)
-    assert set(skipped) == {"flux"}
+    # the empirical power law may not converge on a saturating magnet's data
+    assert names == [law for law in ("k_i2_s2", "k_i2_sfe2", "k_i0_sfe2", "power",
+                                     "k_i2_sfe2_sat") if law not in skipped]
+    assert set(skipped) - {"power", "k_i2_sfe2_sat"} == {"flux"}   # unsaturated: no knee
     assert "flux" in skipped["flux"]
     best = selection.best
     assert best.held_out.scheme == "leave-one-group-out"
@@ -224,8 +231,8 @@ def test_single_static_gap_is_refused_for_laws_with_s_fe():
     selection = select_law(data)
     assert selection.chosen == "k_i2_s2"
     skipped = dict(selection.skipped)
-    assert set(skipped) == {"k_i2_sfe2", "k_i0_sfe2", "power", "flux"}
-    for name in ("k_i2_sfe2", "k_i0_sfe2", "power"):
+    assert set(skipped) == {"k_i2_sfe2", "k_i0_sfe2", "power", "k_i2_sfe2_sat", "flux"}
+    for name in ("k_i2_sfe2", "k_i0_sfe2", "power", "k_i2_sfe2_sat"):
         assert "static gaps" in skipped[name] and "1.000 mm" in skipped[name]
     assert selection.best.held_out.scheme == "k-fold"
     text = report_text(selection)
@@ -350,3 +357,33 @@ def test_power_law_contains_the_ideal_law():
     data = campaign(K_I2_S2, TRUTH["k_i2_s2"])
     fit = fit_law(POWER, data)
     np.testing.assert_allclose(fit.params, [K_TRUE, 2.0, 2.0, 0.0], rtol=1e-7, atol=1e-12)
+
+
+def test_a_saturating_magnet_takes_the_saturating_law():
+    """The forces of the virtual rig's saturating magnet (its own B-H curve, solved in the
+    magnetic circuit: not the law's formula), 0.4-1.5 A at 0.8-1.2 mm, 0.2 % noise: the
+    saturating law is chosen, its held-out error within 2.5x of the noise (achieved 1.8x: the
+    law's soft limit is not the magnet's B-H curve), ``k_i2_sfe2``'s beyond 10x (achieved 21x:
+    up to 22 % of the pull is lost); its predictions at points between the campaign's within
+    0.8 % of the magnet's (achieved 0.39 %)."""
+    from forcecal.simulate.presets import get_preset
+
+    magnet = get_preset("saturation").magnets[0]
+    law = K_I2_SFE2
+    data = campaign(law, TRUTH[law.name], static_gaps=(0.8e-3, 1.0e-3, 1.2e-3),
+                    currents=(0.4, 0.7, 1.0, 1.3))
+    rng = np.random.default_rng(3)
+    force = np.array([magnet.pole_force(magnet.flux_from_current(i, s)).sum()
+                      for i, s in zip(data.current, data.gaps, strict=True)])
+    data = dataclasses.replace(data, force=force * (1 + NOISE * rng.standard_normal(force.size)))
+    selection = select_law(data)
+    assert selection.chosen == "k_i2_sfe2_sat", selection.reason
+    held = {c.name: c.held_out.rms for c in selection.candidates}
+    assert held["k_i2_sfe2_sat"] < 2.5 * NOISE and held["k_i2_sfe2"] > 10 * NOISE, held
+    i, s = np.meshgrid(np.linspace(0.45, 1.25, 9), np.linspace(0.85e-3, 1.15e-3, 5))
+    gaps = np.repeat(s.ravel()[:, None], 2, axis=1)
+    truth = np.array([magnet.pole_force(magnet.flux_from_current(a, b)).sum()
+                      for a, b in zip(i.ravel(), gaps, strict=True)])
+    fit = selection.best.fit
+    predicted = SATURATING.per_pole(fit.params, i.ravel(), gaps).sum(axis=1)
+    assert np.abs(predicted / truth - 1).max() < 0.008

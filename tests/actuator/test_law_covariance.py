@@ -32,6 +32,7 @@ TRUTH = {
     "k_i2_sfe2": (K_TRUE, 0.2e-3),
     "k_i0_sfe2": (K_TRUE, 0.05, 0.2e-3),
     "power": (4.0 * K_TRUE, 1.9, 1.8, 0.1e-3),
+    "k_i2_sfe2_sat": (K_TRUE, 0.2e-3, 1500.0, 4.0),
     "flux": (4.2e-4,),
 }
 GAPS = (0.8e-3, 1.0e-3, 1.3e-3)                 # [m] static gaps

@@ -250,7 +250,7 @@ def test_single_gap_campaign_refuses_the_sfe_laws(results, campaign):
     result = calibrate_runs(campaign.rig, one_gap, manifest="one-gap.csv")
     assert result.law == "k_i2_s2"
     skipped = dict(result.selection.skipped)
-    assert set(skipped) == {"k_i2_sfe2", "k_i0_sfe2", "power"}
+    assert set(skipped) == {"k_i2_sfe2", "k_i0_sfe2", "power", "k_i2_sfe2_sat"}
     assert "the campaign has 1 (1.000 mm)" in skipped["k_i2_sfe2"]
     with pytest.raises(FitError, match=r"one-gap.csv.*distinct static gaps.*1\.000 mm") as info:
         calibrate_runs(campaign.rig, one_gap, laws=(K_I2_SFE2, K_I0_SFE2), manifest="one-gap.csv")
@@ -319,8 +319,10 @@ def test_calibration_json_round_trips_into_predict(calibrated, tmp_path):
         b = predict(calibrated.calibration, [0.5, 0.7], [[0.9e-3, 0.9e-3], [1.1e-3, 1.1e-3]])
         np.testing.assert_allclose(a.total, b.total, rtol=1e-14)
         np.testing.assert_allclose(a.std, b.std, rtol=1e-12)
-    rows = {row["law"]: row for row in doc["candidates"]}
+    rows = {row["law"]: row for row in doc["candidates"] if "skipped" not in row}
     assert set(rows) == {"k_i2_s2", "k_i2_sfe2", "k_i0_sfe2", "power"}
+    skipped = {row["law"]: row["skipped"] for row in doc["candidates"] if "skipped" in row}
+    assert "the data show no saturation" in skipped.pop("k_i2_sfe2_sat") and not skipped
     for row in rows.values():
         assert {"aic", "bic", "held_out", "params", "stderr"} <= set(row)
     assert doc["chosen"]["law"] == "k_i2_sfe2"

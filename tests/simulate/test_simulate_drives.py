@@ -26,7 +26,7 @@ from forcecal.simulate.beam import hermite_row
 from forcecal.simulate.core import diffusion_response, diffusion_step
 from forcecal.simulate.export import _diffusion_facts, write_simulation
 from forcecal.simulate.integrate import _Stepper, integrate, lead_time
-from forcecal.simulate.magnet import Drive
+from forcecal.simulate.magnet import KNEE, Drive
 from forcecal.simulate.physics import _magnets_at
 from forcecal.simulate.presets import BeamSpec, NoiseSpec, RunSpec, ScanSpec, get_preset
 from forcecal.simulate.virtual_rig import build_model, record_run, scan_offsets, scan_response
@@ -137,15 +137,30 @@ def test_band_limited_random_band_rms_and_gaussian():
     np.testing.assert_allclose(wave.value(t + 2.0), x, atol=1e-12)           # periodic
 
 
-@pytest.mark.parametrize("name", ["sweep", "two-coil", "plate", "solid"])
+def _stepper_case(name: str) -> tuple[presets.Preset, tuple[Drive, ...]]:
+    """The preset and the drives of a compiled-stepper case: its first run's, or on the
+    saturating magnet its most saturated run's; ``paper-saturating`` is the paper's voltage
+    drive on that magnet (the saturated iron in the voltage branch)."""
+    if name == "paper-saturating":
+        preset = get_preset("paper")
+        magnet = dataclasses.replace(preset.magnets[0],
+                                     saturation=get_preset("saturation").magnets[0].saturation)
+        return dataclasses.replace(preset, magnets=(magnet,)), preset.runs[0].drives
+    preset = get_preset(name)
+    if name == "saturation":
+        return preset, max(preset.runs, key=lambda r: r.drives[0].dc / r.gap).drives
+    return preset, preset.runs[0].drives
+
+
+@pytest.mark.parametrize("name", ["sweep", "two-coil", "plate", "solid", "saturation",
+                                  "paper-saturating"])
 def test_the_compiled_stepper_keeps_newmark_and_the_magnetic_circuit(name):
     """Every kept step of the compiled time loop satisfies the modal equations of motion, the
     trapezoidal rule, and each coil's circuit (an imposed current, through the core's eddy lag
     on the sweep rig or its diffusion on the solid one, or an imposed voltage on the
-    plate's)."""
-    preset = get_preset(name)
+    plate's; the iron's reluctance at the step's flux where it saturates)."""
+    preset, drives = _stepper_case(name)       # a sweep, steady currents, a steady voltage
     model = build_model(preset)
-    drives = preset.runs[0].drives                 # a sweep, steady currents, a steady voltage
     dt = 1e-4
     st = _Stepper(model, preset.magnets, drives, dt, model.beta)
     state = st.static_state(-0.1)
@@ -162,7 +177,12 @@ def test_the_compiled_stepper_keeps_newmark_and_the_magnetic_circuit(name):
     np.testing.assert_allclose(rec["f"], rec["lam"] ** 2 * np.array(st.fscale)[:, None],
                                rtol=1e-12)
     gaps = st.S @ (st.static_gap[:, None] - st.pole_modal @ rec["q"])
-    rel = (gaps + np.array(st.iron)[:, None]) / np.array(st.mu_a)[:, None]
+    # the B-H curve of the magnet's docstring, |B| / B_s = |lambda| / (N A B_s)
+    iron = np.array(st.iron)[:, None] * (1 + (np.abs(rec["lam"]) * np.array(st.sat)[:, None])
+                                         ** KNEE)
+    if "satur" in name:
+        assert iron.max() > 1.5 * max(st.iron)                       # well into saturation
+    rel = (gaps + iron) / np.array(st.mu_a)[:, None]
     magnetising = rec["lam"] * rel / np.array(st.turns2)[:, None]
     for m, d in enumerate(drives):
         if d.voltage_driven:                                          # lam' = v - R i

@@ -350,6 +350,7 @@ def fit_law(law: Law, data: CalibrationData, start: np.ndarray | None = None) ->
     problem, x0, lo, hi = _start(law, data, start)
     sol = _solve(problem, x0, lo, hi)
     params = sol.x * problem.scale
+    law.check_fitted(params, data)
     col, sv, vt = _normalised_svd(law, problem.jacobian(sol.x))
     r = problem.residual(sol.x)
     n, p = data.n_obs, law.n_params

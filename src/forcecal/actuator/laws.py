@@ -28,6 +28,7 @@ __all__ = [
     "LAWS",
     "MU0",
     "POWER",
+    "SATURATING",
     "Law",
     "ideal_k",
 ]
@@ -289,6 +290,15 @@ class Law:
                 f"{1e3 * sfe:.4f} mm is not positive; the law is singular there"
             )
 
+    def check_fitted(self, params: np.ndarray, data: CalibrationData) -> None:
+        """Refuse fitted parameters that the data do not determine (none by default).
+
+        Raises
+        ------
+        FitError
+            In one line, naming the parameter and why.
+        """
+
     def _value_and_jacobian(
         self, p: np.ndarray, i: np.ndarray, s: np.ndarray, phi: np.ndarray | None
     ) -> tuple[np.ndarray, np.ndarray]:
@@ -403,6 +413,59 @@ class _Power(Law):
         return np.array([abs(params[0]), 1.0, 1.0, float(np.median(data.static_gap))])
 
 
+KNEE_REACH = 10.0
+"""How far beyond the data's largest ``i / s`` the saturating law's knee may lie: beyond it the
+data show no saturation and the law is not fitted."""
+
+
+class _Saturating(Law):
+    """``f = K x^2 / (1 + (|x| / x_s)^q)^(2/q)``, ``x = i / (s + s_fe)``: ``k_i2_sfe2`` whose flux
+    density is limited softly as the iron saturates.
+
+    ``x`` is the flux density without saturation in units of ``2 B / (mu0 N)``; the flux density
+    bends over near ``x_s`` (the iron's knee), with the sharpness ``q``, towards a force that no
+    longer grows with the current. For ``x`` well below ``x_s`` it is ``k_i2_sfe2``.
+    """
+
+    def _value_and_jacobian(
+        self, p: np.ndarray, i: np.ndarray, s: np.ndarray, phi: np.ndarray | None
+    ) -> tuple[np.ndarray, np.ndarray]:
+        k, sfe, xs, q = p
+        g = s + sfe
+        x = i[:, None] / g
+        ratio = np.abs(x) / xs
+        log_ratio = _safe_log(ratio)
+        u = np.where(ratio > 0, np.exp(np.clip(q * log_ratio, -700.0, 700.0)), 0.0)
+        f = k * x**2 * (1.0 + u) ** (-2.0 / q)
+        return f, np.stack([f / k, -2.0 * f / ((1.0 + u) * g), 2.0 * f * u / ((1.0 + u) * xs),
+                            f * (2.0 / q**2 * np.log1p(u) - 2.0 / q * u * log_ratio / (1.0 + u))],
+                           axis=-1)
+
+    def guess(self, data: CalibrationData) -> np.ndarray:
+        k, sfe = K_I2_SFE2.guess(data)
+        return np.array([k, sfe, 1.5 * self._x_max(data, sfe), 4.0])
+
+    def bounds(self, data: CalibrationData) -> tuple[np.ndarray, np.ndarray]:
+        reach = KNEE_REACH * self._x_max(data, 0.0)
+        lo = np.array([-np.inf, -0.9 * data.gaps.min(), 0.0, 2.0])
+        return lo, np.array([np.inf, np.inf, reach, 20.0])
+
+    def check_fitted(self, params: np.ndarray, data: CalibrationData) -> None:
+        reach = self.bounds(data)[1][2]
+        if params[2] >= 0.99 * reach:
+            raise FitError(
+                f"law '{self.name}': the data show no saturation (the knee x_s is beyond "
+                f"{KNEE_REACH:g} times the largest i / s, {reach / KNEE_REACH:.4g} A/m)")
+
+    @staticmethod
+    def _x_max(data: CalibrationData, sfe: float) -> float:
+        """The largest ``|i| / (s + s_fe)`` of the data [A/m]."""
+        return float(np.max(np.abs(data.current)[:, None] / (data.gaps + sfe)))
+
+    def typical(self, params: np.ndarray, data: CalibrationData) -> np.ndarray:
+        return np.array([abs(params[0]), float(np.median(data.static_gap)), abs(params[2]), 1.0])
+
+
 class _Flux(Law):
     """``f = phi^2 / (MU0 A_eff)``: Maxwell's pull from the flux, independent of the gap.
 
@@ -460,9 +523,17 @@ POWER = _Power(
     needs_gaps=3,
     separates="to separate K, b and s_fe",
 )
+SATURATING = _Saturating(
+    "k_i2_sfe2_sat",
+    "f = K x^2 / (1 + (|x| / x_s)^q)^(2/q), x = i / (s + s_fe)",
+    ("K", "s_fe", "x_s", "q"),
+    ("N m^2/A^2", "m", "A/m", "-"),
+    needs_gaps=2,
+    separates="to separate K from s_fe",
+)
 FLUX = _Flux("flux", "f = phi^2 / (mu0 A_eff)", ("A_eff",), ("m^2",), needs_gaps=0, needs_flux=True)
 
-ALL_LAWS: tuple[Law, ...] = (K_I2_S2, K_I2_SFE2, K_I0_SFE2, POWER, FLUX)
+ALL_LAWS: tuple[Law, ...] = (K_I2_S2, K_I2_SFE2, K_I0_SFE2, POWER, SATURATING, FLUX)
 """Every law, simplest first."""
 
 LAWS: dict[str, Law] = {law.name: law for law in ALL_LAWS}

@@ -38,6 +38,7 @@ from ..actuator import (
 from ..actuator.ac_only import DEFAULT_SAMPLES_PER_PERIOD
 from ..actuator.frequency import SteadyRecord
 from ..actuator.frequency_fit import STEP_TOLERANCE, fit_frequency_law
+from ..actuator.laws import SATURATING
 from ..actuator.propagation import NoiseColumns, column_effects, covariance_of
 from ..errors import FitError, InputError
 from ..model.broadband import BroadbandModel
@@ -51,7 +52,7 @@ from .statistics import ParameterUncertainty, noise_columns, parameter_uncertain
 
 __all__ = ["calibrate_campaign", "calibrate_runs"]
 
-CURRENT_GAP_LAWS: tuple[Law, ...] = (K_I2_S2, K_I2_SFE2, K_I0_SFE2, POWER)
+CURRENT_GAP_LAWS: tuple[Law, ...] = (K_I2_S2, K_I2_SFE2, K_I0_SFE2, POWER, SATURATING)
 """The laws tried by default: those predicting from (current, gap), which is what
 ``forcecal predict --current --gap`` needs. The flux law is fitted only when asked for."""
 

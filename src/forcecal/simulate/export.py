@@ -31,7 +31,7 @@ from ..records import Scan
 from ..rig import rig_to_dict
 from .beam import natural_frequencies
 from .lab import draw_errors, record_lab_scan
-from .magnet import Drive
+from .magnet import KNEE, Drive
 from .physics import Model, Truth, build_model, scan_file, static_gaps
 from .presets import BodySpec, PlateSpec, Preset, get_preset, with_tare
 from .realism import Realism
@@ -144,7 +144,9 @@ def _simulator_facts(preset: Preset) -> dict:
         "magnet": {"turns": mag.turns, "pole_area_m2": mag.pole_area,
                    "iron_length_m": mag.iron_length, "mu_r": mag.mu_r,
                    "resistance_ohm": mag.resistance, "gap_offset_m": mag.gap_offset,
-                   "ideal_K_total_Nm2_A2": mag.ideal_k},
+                   "ideal_K_total_Nm2_A2": mag.ideal_k,
+                   **({"saturation_T": mag.saturation, "knee": KNEE} if mag.saturation
+                      else {})},
         "noise": dict(vars(preset.noise)),
         **_eddy_facts(preset),
         **_scans_and_runs(preset),

@@ -29,7 +29,7 @@ import numpy as np
 
 from .beam import BeamModel
 from .core import diffusion_step
-from .magnet import MU0, Drive, Magnet, Pole
+from .magnet import MU0, Drive, Magnet, Pole, saturated_linkage
 from .newmark import CLOSED_GAP, NO_CONVERGENCE, march
 from .plate import PlateModel
 from .response import Record, Response, _finish_record, _new_record
@@ -122,6 +122,7 @@ class _Stepper:
         self.turns2 = [mg.turns**2 for mg in magnets]
         self.mu_a = [MU0 * mg.pole_area for mg in magnets]
         self.iron = [mg.iron_gap for mg in magnets]
+        self.sat = [mg.saturation_scale for mg in magnets]
         self.res = [mg.resistance for mg in magnets]
         self.voltage_driven = [d.voltage_driven for d in drives]
         self.fscale = [1.0 / (2 * mg.turns**2 * MU0 * mg.pole_area) for mg in magnets]
@@ -130,7 +131,7 @@ class _Stepper:
         self.sp = np.ascontiguousarray(self.S @ self.pole_modal)            # (n_m, n_modes)
         self.gsum0 = self.S @ self.static_gap
         self.coils = (np.array(self.fscale), np.array(self.mu_a), np.array(self.iron),
-                      np.array(self.turns2), np.array(self.res),
+                      np.array(self.sat), np.array(self.turns2), np.array(self.res),
                       np.array(self.voltage_driven, dtype=bool))
         self.eddy_a = np.array(self.eddy)
         self.cores = _core_steps(magnets, dt)
@@ -197,8 +198,8 @@ class _Stepper:
         stiff = np.where(self.w2 > 0, self.w2, np.inf)
         for _ in range(500):
             gaps = self.static_gap - self.pole_modal @ q
-            rel = (self.S @ gaps + np.array(self.iron)) / np.array(self.mu_a)
-            lam = np.array(self.turns2) * cur / rel
+            lam = saturated_linkage(np.array(self.turns2) * np.array(self.mu_a) * cur,
+                                    self.S @ gaps, np.array(self.iron), np.array(self.sat))
             f = lam**2 * np.array(self.fscale)
             q_new = (self.modal_force @ f) / stiff
             done = np.max(np.abs(q_new - q)) <= 1e-14 * np.max(np.abs(q_new)) + 1e-300

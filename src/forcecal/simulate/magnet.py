@@ -18,6 +18,11 @@ core, the default. A ``solid`` or ``laminated`` core (``Magnet.core``, current d
 instead takes its magnetising current from the flux diffusing into its iron (``conductivity``,
 ``core_thickness``; :mod:`.core`): eddy currents distributed in depth, a response of half order
 above the diffusion time's frequency, near first order for thin laminations.
+
+Saturation (``Magnet.saturation`` B_s): the iron's B-H curve H = B / (mu0 mu_r) (1 + (|B| /
+B_s)^KNEE), its permeability falling from mu_r as the flux density nears B_s; the iron path's
+equivalent gap grows by that factor, and the flux solves N i = Phi (sum of gaps + l_fe / mu_r
+(1 + (|Phi| / (A B_s))^KNEE)) / (mu0 A) (:func:`saturated_linkage`).
 """
 
 from __future__ import annotations
@@ -35,6 +40,42 @@ __all__: list[str] = []
 
 MU0 = 4e-7 * math.pi
 """Permeability of free space [H/m] (the classical value, as in every textbook formula)."""
+KNEE = 6.0
+"""The order of the iron's B-H curve's knee: mu(B) = mu0 mu_r / (1 + (|B| / B_s)^KNEE)."""
+
+
+def saturated_linkage(drive: ArrayLike, gap_sum: ArrayLike, iron: ArrayLike,
+                      sat: ArrayLike) -> np.ndarray:
+    """The flux linkage lambda of a magnetic circuit under saturation, by Newton's method.
+
+    Solves ``lambda (G + iron (1 + (|lambda| sat)^KNEE)) = drive``, which is increasing and
+    convex in ``|lambda|``: Newton from the unsaturated solution (never below the root) falls
+    onto it monotonically.
+
+    Parameters
+    ----------
+    drive : array
+        ``N^2 mu0 A i`` [Wb m] (the linkage times the gaps without saturation).
+    gap_sum, iron : arrays [m]
+        G, the summed air gaps, and ``l_fe / mu_r``, the iron path's unsaturated equivalent gap.
+    sat : array [1/Wb]
+        ``1 / (N A B_s)`` (0: no saturation).
+
+    Returns
+    -------
+    array [Wb]
+        lambda, broadcast over the inputs.
+    """
+    c, g, fe, s = np.broadcast_arrays(*(np.asarray(x, dtype=float)
+                                        for x in (drive, gap_sum, iron, sat)))
+    lam = c / (g + fe)
+    for _ in range(100):
+        x = np.abs(lam) * s
+        step = (lam * (g + fe * (1 + x**KNEE)) - c) / (g + fe * (1 + (KNEE + 1) * x**KNEE))
+        lam = lam - step
+        if np.all(np.abs(step) <= 1e-15 * np.abs(lam) + 1e-300):
+            break
+    return np.asarray(lam)
 
 
 @dataclass(frozen=True)
@@ -210,6 +251,8 @@ class Magnet:
         faces.
     core_nodes : int
         Finite elements across a solid or laminated core's half-thickness.
+    saturation : float [T]
+        B_s of the iron's B-H curve (:data:`KNEE`); 0: the iron never saturates.
     """
 
     poles: tuple[Pole, ...]
@@ -226,8 +269,12 @@ class Magnet:
     conductivity: float = 0.0
     core_thickness: float = 0.0
     core_nodes: int = CORE_NODES
+    saturation: float = 0.0
 
     def __post_init__(self) -> None:
+        if not self.saturation >= 0.0 or (self.saturation and self.core != "lag"):
+            raise ValueError(f"a magnet's saturation must be >= 0 T, and 0 for a {self.core} "
+                             f"core (its diffusion is linear), not {self.saturation!r}")
         if not self.eddy_time >= 0.0:
             raise ValueError(f"a magnet's eddy_time must be >= 0 s, not {self.eddy_time!r}")
         if self.core not in CORES:
@@ -283,6 +330,12 @@ class Magnet:
         return self.iron_gap / len(self.poles)
 
     @property
+    def saturation_scale(self) -> float:
+        """``1 / (N A B_s)`` [1/Wb]: ``|lambda|`` times it is ``|B| / B_s``; 0 without
+        saturation."""
+        return 1.0 / (self.turns * self.pole_area * self.saturation) if self.saturation else 0.0
+
+    @property
     def ideal_k(self) -> float:
         """mu0 N^2 A / 4 [N m^2 / A^2]."""
         return MU0 * self.turns**2 * self.pole_area / 4.0
@@ -315,9 +368,13 @@ class Magnet:
         Returns
         -------
         array [Wb]
-            N i / reluctance, the same through every pole.
+            N i / reluctance, the same through every pole (the iron's reluctance at that flux
+            where it saturates: :func:`saturated_linkage`).
         """
-        return self.turns * np.asarray(current) / self.reluctance(gaps)
+        drive = self.turns**2 * MU0 * self.pole_area * np.asarray(current)
+        lam = saturated_linkage(drive, np.sum(gaps, axis=0), self.iron_gap,
+                                self.saturation_scale)
+        return lam / self.turns
 
     def pole_force(self, flux: ArrayLike) -> np.ndarray:
         """Force per pole, acting on the structure toward the magnet.
@@ -335,7 +392,7 @@ class Magnet:
         return np.asarray(flux) ** 2 / (2 * MU0 * self.pole_area)
 
     def static_force(self, current: float, gap: float) -> float:
-        """Per-pole force with every pole at the same gap (closed form).
+        """Per-pole force with every pole at the same gap (the saturated iron solved for).
 
         Parameters
         ----------
@@ -349,6 +406,5 @@ class Magnet:
         float
             The force per pole [N].
         """
-        n_p = len(self.poles)
-        return (MU0 * self.turns**2 * self.pole_area * current**2
-                / (2 * (n_p * gap + self.iron_gap) ** 2))
+        flux = self.flux_from_current(current, np.full(len(self.poles), gap))
+        return float(self.pole_force(flux))

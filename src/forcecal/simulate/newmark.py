@@ -17,6 +17,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from .magnet import KNEE
+
 __all__: list[str] = []
 
 CLOSED_GAP = 1
@@ -28,7 +30,7 @@ _NEWTON_STEPS = 40
 
 @numba.njit(cache=True)
 def march(q, qd, qdd, lam, lam_prev, cur, mag, drive, dt, c, keff, g, sp, gsum0, hs,
-          fscale, mu_a, iron, turns2, res, voltage, eddy, cores, nodes, keep_every, forces,
+          fscale, mu_a, iron, sat, turns2, res, voltage, eddy, cores, nodes, keep_every, forces,
           rec_q, rec_qd, rec_qdd, rec_lam, rec_i, rec_f, rec_d):  # pragma: no cover - compiled
     """Step the rig ``drive.shape[1] - 1`` times, in place.
 
@@ -54,9 +56,10 @@ def march(q, qd, qdd, lam, lam_prev, cur, mag, drive, dt, c, keff, g, sp, gsum0,
         Each magnet's summed static pole gaps [m].
     hs : (n_m, n_m) float array
         The summed gaps' change of magnet m per unit force of magnet k in the step.
-    fscale, mu_a, iron, turns2, res : (n_m,) float arrays
-        Force per flux linkage squared, mu_0 times pole area, iron's equivalent gap, turns
-        squared, coil resistance.
+    fscale, mu_a, iron, sat, turns2, res : (n_m,) float arrays
+        Force per flux linkage squared, mu_0 times pole area, iron's equivalent gap
+        (unsaturated), ``1 / (N A B_s)`` (0: no saturation; :func:`_iron`), turns squared, coil
+        resistance.
     voltage : (n_m,) bool array
         Whether the magnet's voltage is imposed (else its current).
     eddy : (n_m,) float array
@@ -106,11 +109,11 @@ def march(q, qd, qdd, lam, lam_prev, cur, mag, drive, dt, c, keff, g, sp, gsum0,
         _linear_prediction(n_modes, q, qd, qdd, c, keff, a0, a1, v4, q_lin)
         _newton_start(n_m, n_modes, lam, lam_prev, lam_old, guess, gsum_lin, gsum0, sp, q_lin)
         status = _newton_flux(n_m, lam, lam_old, cur, eff_old, eff_new, gsum_lin, hs, fscale,
-                              mu_a, iron, turns2, res, voltage, dt, f, r, jac, step)
+                              mu_a, iron, sat, turns2, res, voltage, dt, f, r, jac, step)
         if status != 0:
             return status, n
-        _coil_currents(n_m, n, lam, cur, f, gsum_lin, hs, fscale, mu_a, iron, turns2, voltage,
-                       drive, forces)
+        _coil_currents(n_m, n, lam, cur, f, gsum_lin, hs, fscale, mu_a, iron, sat, turns2,
+                       voltage, drive, forces)
         _modal_update(n_modes, n_m, q, qd, qdd, q_lin, g, f, a0, a1, v4)
         for m in range(n_m):
             eff_old[m] = eff_new[m]
@@ -179,12 +182,12 @@ def _newton_start(n_m, n_modes, lam, lam_prev, lam_old, guess, gsum_lin, gsum0, 
 
 @numba.njit(cache=True)
 def _newton_flux(n_m, lam, lam_old, cur, eff_old, eff_new, gsum_lin, hs, fscale, mu_a, iron,
-                 turns2, res, voltage, dt, f, r, jac, step):  # pragma: no cover - compiled
+                 sat, turns2, res, voltage, dt, f, r, jac, step):  # pragma: no cover - compiled
     """Newton on the flux linkages of the step, ``lam`` updated in place: 0 once converged,
     :data:`CLOSED_GAP` when a pole closes its gap, else :data:`NO_CONVERGENCE`."""
     for _ in range(_NEWTON_STEPS):
         if _newton_residual(n_m, lam, lam_old, cur, eff_old, eff_new, gsum_lin, hs, fscale,
-                            mu_a, iron, turns2, res, voltage, dt, f, r, jac):
+                            mu_a, iron, sat, turns2, res, voltage, dt, f, r, jac):
             return CLOSED_GAP
         _newton_solve(n_m, r, jac, step)
         if _newton_update(n_m, lam, step):
@@ -193,8 +196,20 @@ def _newton_flux(n_m, lam, lam_old, cur, eff_old, eff_new, gsum_lin, hs, fscale,
 
 
 @numba.njit(cache=True)
+def _iron(iron, sat, lam):  # pragma: no cover - compiled
+    """The iron path's equivalent gap at the flux linkage ``lam``, ``iron (1 + (|lam| sat)^KNEE)``
+    (the B-H curve of :mod:`.magnet`), and its derivative in ``lam``."""
+    if sat == 0.0:
+        return iron, 0.0
+    x = abs(lam) * sat
+    xk = x**KNEE
+    slope = iron * KNEE * xk / lam if lam != 0.0 else 0.0
+    return iron * (1.0 + xk), slope
+
+
+@numba.njit(cache=True)
 def _newton_residual(n_m, lam, lam_old, cur, eff_old, eff_new, gsum_lin, hs, fscale, mu_a,
-                     iron, turns2, res, voltage, dt, f, r, jac):  # pragma: no cover - compiled
+                     iron, sat, turns2, res, voltage, dt, f, r, jac):  # pragma: no cover - compiled
     """The coils' residuals ``r`` and their Jacobian ``jac`` at the flux linkages ``lam`` (the
     forces ``f`` with them); True when a pole's gap has closed."""
     for k in range(n_m):
@@ -205,20 +220,21 @@ def _newton_residual(n_m, lam, lam_old, cur, eff_old, eff_new, gsum_lin, hs, fsc
             gs -= hs[m, k] * f[k]
         if gs <= 0:
             return True
-        rel = (gs + iron[m]) / mu_a[m]
+        fe, dfe = _iron(iron[m], sat[m], lam[m])
+        rel = (gs + fe) / mu_a[m]
         if voltage[m]:
             i_m = lam[m] * rel / turns2[m]
             gr = dt / 2 * res[m]
             r[m] = (lam[m] - lam_old[m] - dt / 2 * (eff_old[m] + eff_new[m])
                     + gr * (cur[m] + i_m))
             for k in range(n_m):
-                drel = -hs[m, k] * 2 * lam[k] * fscale[k] / mu_a[m]
+                drel = (-hs[m, k] * 2 * lam[k] * fscale[k] + (dfe if k == m else 0.0)) / mu_a[m]
                 jac[m, k] = ((1.0 + gr * rel / turns2[m] if k == m else 0.0)
                              + gr * lam[m] / turns2[m] * drel)
         else:
             r[m] = lam[m] - turns2[m] * eff_new[m] / rel
             for k in range(n_m):
-                drel = -hs[m, k] * 2 * lam[k] * fscale[k] / mu_a[m]
+                drel = (-hs[m, k] * 2 * lam[k] * fscale[k] + (dfe if k == m else 0.0)) / mu_a[m]
                 jac[m, k] = ((1.0 if k == m else 0.0)
                              + turns2[m] * eff_new[m] / rel**2 * drel)
     return False
@@ -247,8 +263,8 @@ def _newton_update(n_m, lam, step):  # pragma: no cover - compiled
 
 
 @numba.njit(cache=True)
-def _coil_currents(n_m, n, lam, cur, f, gsum_lin, hs, fscale, mu_a, iron, turns2, voltage,
-                   drive, forces):  # pragma: no cover - compiled
+def _coil_currents(n_m, n, lam, cur, f, gsum_lin, hs, fscale, mu_a, iron, sat, turns2,
+                   voltage, drive, forces):  # pragma: no cover - compiled
     """The converged step's magnet forces (into ``f`` and column ``n`` of ``forces``) and coil
     currents: from the flux linkage where the voltage is imposed, else the drive."""
     for k in range(n_m):
@@ -258,7 +274,8 @@ def _coil_currents(n_m, n, lam, cur, f, gsum_lin, hs, fscale, mu_a, iron, turns2
             gs = gsum_lin[m]
             for k in range(n_m):
                 gs -= hs[m, k] * f[k]
-            cur[m] = lam[m] * (gs + iron[m]) / mu_a[m] / turns2[m]
+            fe, _ = _iron(iron[m], sat[m], lam[m])
+            cur[m] = lam[m] * (gs + fe) / mu_a[m] / turns2[m]
         else:
             cur[m] = drive[m, n + 1]
         forces[m, n] = f[m]
