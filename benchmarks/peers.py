@@ -11,20 +11,24 @@ estimates the pole forces F1 and F2 four ways from the same records:
   probes' displacements s1, s2 and the gauges' reactions R1, R2, each weighted by its noise
   level), Tikhonov-regularised with the parameter chosen per line and per frame by generalized
   cross-validation, and the frames overlap-added back into time series; the record's mean is
-  inverted through the static FRF on its own;
+  inverted through the static FRF on its own; the lines above the top of the rig file's band
+  (200 Hz, the analysis band forcecal is given too) are left out, as an inversion over the
+  FRFs' band does (every line to fs / 2 is reported beside it);
 - an augmented Kalman filter (random-walk forces on a modal model, after Lourens et al. 2012):
   the modes below :data:`MODE_TOP` times the band's top kept as states (coordinates and
   velocities), the others as residual static flexibility (a feedthrough), the measurements the
   probes and the gauges; the steady-state filter and its Rauch-Tung-Striebel smoother, the
   random walk's variance chosen by the innovations' maximum likelihood over :data:`Q_GRID`;
-  the smoother's covariance is its stated uncertainty.
+  the smoother's covariance is its stated uncertainty (its output with the content above the
+  band's top removed is reported beside it).
 
 Both peers take the virtual rig's own finite-element model (its exact FRF, its true modes and
-damping): a best case for them, information forcecal does not have (it learns its spatial model
-from the SLDV scan). Neither peer is told that both poles carry one flux (F1 = F2 in the
-truth). Every channel's noise level is read from the record itself, from its spectrum between
-:data:`NOISE_BAND` (where the structure's response to the drive is negligible); on the ``lab``
-rig the tare's mean is taken off every channel first, as forcecal takes the tare.
+damping, as the simulator's trapezoidal steps realise them): a best case for them, information
+forcecal does not have (it learns its spatial model from the SLDV scan). Neither peer is told
+that both poles carry one flux (F1 = F2 in the truth). Every channel's noise level is read
+from the record itself, from its spectrum between :data:`NOISE_BAND` (where the structure's
+response to the drive is negligible); on the ``lab`` rig the tare's mean is taken off every
+channel first, as forcecal takes the tare.
 
 For every method it reports the total force's RMS error in every 0.5 s window as a fraction of
 the window's AC RMS (:func:`any_drive._windows`), against the truth and against the truth
