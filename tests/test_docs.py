@@ -144,6 +144,7 @@ def check_shown_candidates(calibration: Path) -> None:
     shown = [ROW.match(line) for line in (DOCS / "guide.md").read_text().splitlines()]
     rows = {m[1]: m for m in shown if m}
     computed = json.loads(calibration.read_text())
+    computed["candidates"] = [c for c in computed["candidates"] if "skipped" not in c]
     table = []
     for c in computed["candidates"]:
         table.append(f"{c['law']:<10}{len(c['params']):>3}  {100 * c['rms_residual']:9.4f}  "

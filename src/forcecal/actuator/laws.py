@@ -28,7 +28,6 @@ __all__ = [
     "LAWS",
     "MU0",
     "POWER",
-    "SATURATING",
     "Law",
     "ideal_k",
 ]
@@ -451,11 +450,15 @@ class _Saturating(Law):
         return lo, np.array([np.inf, np.inf, reach, 20.0])
 
     def check_fitted(self, params: np.ndarray, data: CalibrationData) -> None:
-        reach = self.bounds(data)[1][2]
-        if params[2] >= 0.99 * reach:
+        hi = self.bounds(data)[1]
+        if params[2] >= 0.99 * hi[2]:
             raise FitError(
                 f"law '{self.name}': the data show no saturation (the knee x_s is beyond "
-                f"{KNEE_REACH:g} times the largest i / s, {reach / KNEE_REACH:.4g} A/m)")
+                f"{KNEE_REACH:g} times the largest i / s, {hi[2] / KNEE_REACH:.4g} A/m)")
+        if params[3] >= 0.99 * hi[3]:
+            raise FitError(
+                f"law '{self.name}': the data show no saturation (no knee: its sharpness q "
+                f"reaches its bound {hi[3]:g}, a step at the data's largest i / s)")
 
     @staticmethod
     def _x_max(data: CalibrationData, sfe: float) -> float:

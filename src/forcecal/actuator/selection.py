@@ -302,12 +302,12 @@ def report_text(selection: Selection, k_ideal: float | None = None) -> str:
     str
         Lines separated by newlines, ending with a newline.
     """
-    head = f"{'law':<11} {'n_par':>5} {'rms res %':>10} {'held-out %':>11} {'AIC':>11} {'BIC':>11}"
+    head = f"{'law':<13} {'n_par':>5} {'rms res %':>10} {'held-out %':>11} {'AIC':>11} {'BIC':>11}"
     lines = ["Actuator law selection", head, "-" * len(head)]
     for c in selection.candidates:
         mark = "  <- chosen" if c.name == selection.chosen else ""
         lines.append(
-            f"{c.name:<11} {c.n_params:>5d} {100 * c.fit.rms_residual:>10.4f} "
+            f"{c.name:<13} {c.n_params:>5d} {100 * c.fit.rms_residual:>10.4f} "
             f"{100 * c.held_out.rms:>11.4f} {c.fit.aic:>11.1f} {c.fit.bic:>11.1f}{mark}"
         )
     lines.append("")

@@ -2,27 +2,20 @@
 
 Magnetic circuit: reluctance ``(sum of the pole gaps + l_fe / mu_r) / (mu0 A)``, one flux
 ``Phi = N i / reluctance`` through every pole, force on the structure at each pole
-``Phi^2 / (2 mu0 A)`` toward the magnet (+w). With two equal gaps s this is
-``mu0 N^2 A i^2 / (4 (s + l_fe / (2 mu_r))^2)``.
+``Phi^2 / (2 mu0 A)`` toward the magnet (+w). The iron may saturate (``saturation`` B_s): its
+B-H curve ``H = B / (mu0 mu_r) (1 + (|B| / B_s)^KNEE)`` swells its share of the reluctance
+(:func:`saturated_linkage`).
 
 Coil drive: an ideal current source, or a voltage source through the coil resistance with the
-flux linkage ``lambda = N Phi`` as state: ``v = R i + d(lambda)/dt``. The drive is a steady
-sine on a DC bias, or a broadband :mod:`.waveforms` waveform on it.
+flux linkage ``lambda = N Phi`` as state: ``v = R i + d(lambda)/dt``; a steady sine on a DC
+bias, or a broadband :mod:`.waveforms` waveform on it.
 
-Eddy currents in the core (``Magnet.eddy_time`` tau, current drive only): the magnetising
-current ``i_m`` that produces the flux follows the coil current through a first-order lag,
-``tau di_m/dt + i_m = i``, and the flux and the force take ``i_m`` in place of ``i``. At a fixed
-gap the force's component at frequency f then lags that of ``i^2`` by ``atan(2 pi f tau)``, its
-gain ``K(f) = K / sqrt(1 + (2 pi f tau)^2)`` (``H(f) = 1 / (1 + j 2 pi f tau)``): the ``lag``
-core, the default. A ``solid`` or ``laminated`` core (``Magnet.core``, current drive only)
-instead takes its magnetising current from the flux diffusing into its iron (``conductivity``,
-``core_thickness``; :mod:`.core`): eddy currents distributed in depth, a response of half order
-above the diffusion time's frequency, near first order for thin laminations.
-
-Saturation (``Magnet.saturation`` B_s): the iron's B-H curve H = B / (mu0 mu_r) (1 + (|B| /
-B_s)^KNEE), its permeability falling from mu_r as the flux density nears B_s; the iron path's
-equivalent gap grows by that factor, and the flux solves N i = Phi (sum of gaps + l_fe / mu_r
-(1 + (|Phi| / (A B_s))^KNEE)) / (mu0 A) (:func:`saturated_linkage`).
+Eddy currents (current drive only): in a ``lag`` core (``eddy_time`` tau), the default, the
+magnetising current ``i_m`` follows the coil current, ``tau di_m/dt + i_m = i``, and the flux
+and force take ``i_m`` in place of ``i`` (``H(f) = 1 / (1 + j 2 pi f tau)``). A ``solid`` or
+``laminated`` core takes it from the flux diffusing into its iron (``conductivity``,
+``core_thickness``; :mod:`.core`): half order above the diffusion time's frequency, near first
+order for thin laminations.
 """
 
 from __future__ import annotations
