@@ -20,6 +20,8 @@ periods, a mirrored scan of a two-scan model).
 
 from __future__ import annotations
 
+import dataclasses
+
 import pytest
 from mistakes import CLEAN, K_BOUND, NOTED, REFUSED, build_lab, mistake, verdict
 
@@ -91,6 +93,21 @@ def test_one_gauges_offset_is_not_blamed_on_the_tare(lab):
     said = " ".join(verdict(lab, mistake("gauge offset 1 N")).notes)
     assert "gauge 'R1' offset (a tare missing or wrong) off by +1.01 N" in said
     assert "the tare (every gauge's offset" not in said
+
+
+def test_the_poles_are_checked_where_their_flux_cannot_be(lab):
+    # an AC-coupled flux sensor (its DC lost): the Maxwell check stands aside, and the poles of
+    # the core against each other name the gauge 10 % off in its place
+    scaled = mistake("gauge scale +10%")
+
+    def edit(case):
+        scaled.edit(case)
+        flux = case.channel("phi")
+        case.run[flux] = case.run[flux] - case.run[flux].mean()
+
+    said = " ".join(verdict(lab, dataclasses.replace(scaled, edit=edit)).notes)
+    assert "AC-coupled flux sensor" in said and "not checked against Maxwell" in said
+    assert "pull unalike" in said and "gauge 'R1' scale" in said
 
 
 @pytest.fixture(scope="module")

@@ -446,15 +446,10 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
              "in the run; its force is not checked against Maxwell's stress"
              for k, f in enumerate(rig.forces) if f.flux is not None and k not in fluxes]
     poles = sorted(fluxes)
-    dc = max(abs(float(np.mean(fluxes[k]))) for k in poles)
-    ac = max(float(np.std(fluxes[k])) for k in poles)
-    if ac <= 1e-12 * dc:                 # a constant channel, to rounding
-        return [*notes, f"{what}: the flux is constant, without any drive: the forces are not "
-                "checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
-    if dc < 0.05 * ac and _biased(rig, run, terms, poles):
-        return [*notes, f"{what}: the flux holds no DC though the forces pull mostly at the "
-                "drive's fundamental (an AC-coupled flux sensor, a search coil?): the forces are "
-                "not checked against Maxwell's stress Phi^2 / (2 mu0 A)"]
+    skipped = _unusable(rig, run, terms, fluxes)
+    if skipped:
+        return [*notes, f"{what}: {skipped}: the forces are not checked against Maxwell's "
+                "stress Phi^2 / (2 mu0 A)"]
     m, sel, w = _weighed(fluxes, poles, area, run, terms)
 
     def pick(forces: np.ndarray) -> np.ndarray:
@@ -466,6 +461,21 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
                 f"c = {coef[0]:.3g})")
 
     return [*notes, *_judged(rig, terms, _Problem(m[sel], w, ()), pick, head)]
+
+
+def _unusable(rig: Rig, run: Run, terms: EstimateTerms,
+              fluxes: dict[int, np.ndarray]) -> str | None:
+    """Why the poles' flux channels cannot be weighed against their forces (a constant
+    channel, or one that lost the DC a drive's bias gives it), or None."""
+    poles = sorted(fluxes)
+    dc = max(abs(float(np.mean(fluxes[k]))) for k in poles)
+    ac = max(float(np.std(fluxes[k])) for k in poles)
+    if ac <= 1e-12 * dc:                 # a constant channel, to rounding
+        return "the flux is constant, without any drive"
+    if dc < 0.05 * ac and _biased(rig, run, terms, poles):
+        return ("the flux holds no DC though the forces pull mostly at the drive's fundamental "
+                "(an AC-coupled flux sensor, a search coil?)")
+    return None
 
 
 def _biased(rig: Rig, run: Run, terms: EstimateTerms, poles: list[int]) -> bool:
@@ -484,7 +494,7 @@ def _biased(rig: Rig, run: Run, terms: EstimateTerms, poles: list[int]) -> bool:
 def pole_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]:
     """A note per core whose poles pull unalike (see the module docstring), naming the causes
     that explain it; the cores whose every pole :func:`flux_notes` checks against its own
-    flux are left to it.
+    flux are left to it (not where it cannot: a constant or AC-coupled flux channel).
 
     Parameters
     ----------
@@ -499,7 +509,8 @@ def pole_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     -------
     list of str
     """
-    maxwell = set(_flux_channels(rig, run)) if rig.actuator.pole_area is not None else set()
+    fluxes = pole_fluxes(rig, run) if rig.actuator.pole_area is not None else {}
+    maxwell = set(fluxes) if fluxes and not _unusable(rig, run, terms, fluxes) else set()
     return [note for core, poles in rig.cores.items() if not set(poles) <= maxwell
             for note in _core_notes(rig, terms, core, poles, what)]
 
