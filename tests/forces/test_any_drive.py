@@ -364,3 +364,29 @@ def test_the_cross_checks_hold_under_any_drive(beam, bb_model, random_run):
     late_ms = 1e3 * 4 / run.fs            # every gauge late moves both poles alike: the flux
     note = said(rig, _late(fluxed, ("R1", "R2"), 4), "Maxwell")
     assert 0.9 * late_ms < size(note, "a delay of the gauges") < 1.1 * late_ms, note
+
+
+def test_the_probes_are_checked_against_the_scan_under_any_drive(beam, bb_model, random_run):
+    """The probes' first coordinate per unit of coil current against the broadband scan's over
+    the lines that carry the drive: a clean run draws no note (it moves 0.986 times the scan's
+    motion per ampere, at -0.04 degrees); both probes' signs flipped are named (180 degrees,
+    test beyond 90), a slip of mm for m as one (986 times, test beyond the span of 20)."""
+    run, u, _ = random_run
+    rig = beam[3]
+    # the fixture's scan pulls 10 N per ampere of its reference: the current of this force
+    run = dataclasses.replace(run, channels={**run.channels,
+                                             rig.actuator.current: 0.6 + (u - u.mean()) / 10})
+
+    def notes(r, rn):
+        return [s for s in reconstruct_any(r, bb_model, rn).notes if "scan's motion" in s]
+
+    assert notes(rig, run) == []
+    flipped = dataclasses.replace(run, channels={
+        **run.channels, **{s: -run.channels[s] for s in rig.sensor_names}})
+    said = notes(rig, flipped)
+    assert len(said) == 1 and "against the scan's motion" in said[0], said
+    slipped = dataclasses.replace(run, channels={
+        **run.channels, **{s: 1e3 * run.channels[s] for s in rig.sensor_names}})
+    said = notes(rig, slipped)
+    assert len(said) == 1 and "unit or scale slip" in said[0], said
+    assert 900 < float(said[0].split(" move ")[1].split()[0]) < 1100, said

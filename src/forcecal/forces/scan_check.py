@@ -15,6 +15,8 @@ and run (the gap, the current's level). So:
 - |rho| beyond :data:`MOTION_SPAN` either way: a unit or scale slip of the probes.
 
 A model of several scans (one load each) or of spectra holds no single drive: not checked.
+Under any drive (:func:`line_notes`) the same ratio, the first coordinate per unit of coil
+current against the broadband scan's, over the lines that carry the drive: its sign and size.
 """
 
 from __future__ import annotations
@@ -23,8 +25,10 @@ import math
 
 import numpy as np
 
+from ..model.broadband import BroadbandModel
 from ..model.spatial import SpatialModel
 from ..signals.fourier_sums import square_phasors
+from ..signals.mains import near_mains
 from .coordinates import Coordinates
 
 __all__ = ["scan_notes"]
@@ -41,6 +45,9 @@ MOTION_SPAN = 20.0
 without a mistake: the law's K(s) ~ 1 / s^2 over a campaign's gaps and the magnetic stiffness
 (a factor of 0.65 to 2.3 over the ``campaign`` preset); a unit slip (1000 for mm as m, 25.4
 for inches as mm) lies beyond it."""
+DRIVE_SHARE = 0.1
+"""Under any drive, the lines compared carry at least this share of the current's largest line
+in the band."""
 MIN_SHARE = 0.05
 """The fundamental of i^2 must hold at least this share of its AC, in the scan and in the run
 (a drive without DC bias pulls at 2 w0 only)."""
@@ -97,4 +104,71 @@ def scan_notes(model: SpatialModel, coords: Coordinates, current: np.ndarray,
                 f"load allow: the probes {probes} recorded {1e3 * lag:+.3g} ms late against "
                 "the current channel (a delay, DAQ skew between modules or a filter's), or a "
                 "probe's position"]
+    return []
+
+
+def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarray, fs: float,
+               mains: float | None, sensor_names: list[str], what: str) -> list[str]:
+    """Under any drive, a note when the probes' motion per unit of coil current contradicts the
+    broadband scan's in sign or in size (see the module docstring).
+
+    The run's first coordinate and its current, each through a Hann window, give per line of
+    the record ``Q`` and ``I``; the scan's first coordinate per unit of its reference, the
+    current, ``a``, between its lines. Over the lines of the model's band that carry the drive
+    (:data:`DRIVE_SHARE`) and lie clear of the mains' harmonics, rho = sum Q (I a)^* /
+    sum |I a|^2, the motion per unit of current against the scan's: near 1 under the scan's own
+    bias and gap, real and positive whatever they are. Its phase beyond 90 degrees is the
+    probes' sign; its size beyond :data:`MOTION_SPAN` either way a unit or scale slip. A delay
+    is not judged: the lines' phases move with the load near a resonance by more than a skew
+    of a few samples does.
+
+    Parameters
+    ----------
+    model : BroadbandModel
+    coordinate : (n,) array
+        The run's first coordinate, sample by sample.
+    current : (n,) array [A]
+        The run's coil current.
+    fs : float [Hz]
+    mains : float or None [Hz]
+        The mains' frequency (its harmonics' lines left out).
+    sensor_names : list of str
+    what : str
+        The run, at the start of the note.
+
+    Returns
+    -------
+    list of str
+    """
+    n = len(coordinate)
+    window = np.hanning(n)
+    q = np.fft.rfft((coordinate - np.mean(coordinate)) * window)
+    i = np.fft.rfft((current - np.mean(current)) * window)
+    f = np.fft.rfftfreq(n, 1.0 / fs)
+    lo = max(model.band[0], float(model.frequencies.min()))
+    hi = min(model.band[1], float(model.frequencies.max()))
+    band = (f >= lo) & (f <= hi) & ~near_mains(f, mains, 3 * fs / n)
+    if np.count_nonzero(band) < 3:
+        return []
+    lines = band & (np.abs(i) >= DRIVE_SHARE * np.abs(i[band]).max())
+    scan = model.coordinates[0]
+    a = (np.interp(f[lines], model.frequencies, scan.real)
+         + 1j * np.interp(f[lines], model.frequencies, scan.imag))
+    ia = i[lines] * a
+    if np.count_nonzero(lines) < 3 or not np.sum(np.abs(ia) ** 2) > 0:
+        return []
+    rho = complex(np.sum(q[lines] * np.conj(ia)) / np.sum(np.abs(ia) ** 2))
+    probes = ", ".join(sensor_names)
+    phase, size = math.degrees(np.angle(rho)), abs(rho)
+    head = (f"{what}: the probes {probes} move {size:#.3g} times the scan's motion per unit of "
+            f"the coil current, at {phase:+.3g} degrees to it ({np.count_nonzero(lines)} "
+            f"lines, {f[lines].min():.4g}-{f[lines].max():.4g} Hz)")
+    if abs(phase) > 90:
+        return [f"{head}: they move against the scan's motion, so the probes' sign is likely "
+                "flipped (sensors[].scale), or the scan's response; the inertia is taken "
+                "with the wrong sign"]
+    if not 1 / MOTION_SPAN <= size <= MOTION_SPAN:
+        return [f"{head}, beyond the factor of {MOTION_SPAN:g} that the gap and the current's "
+                "level allow: a unit or scale slip of the probes (sensors[].scale: mm for m is "
+                "1000) or of the scan's response; the inertia is off by as much"]
     return []

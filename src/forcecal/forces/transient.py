@@ -51,6 +51,7 @@ from .crosschecks import flux_notes, line_terms, pole_notes
 from .estimate import inertia_share_of, series_summary
 from .inertia_errors import ScanNoiseShare, inertia_error_weights
 from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
+from .scan_check import line_notes
 from .solve import force_solve, reactions_only
 from .steady import channels_si
 from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
@@ -755,6 +756,17 @@ def run_inputs(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None
     return gauges, probes, zero, reach.notes(run.source)
 
 
+def _scan_notes(rig: Rig, model: BroadbandModel, run: Run, coordinate: np.ndarray,
+                what: str) -> list[str]:
+    """The probes against the scan (:func:`.scan_check.line_notes`), where the run has the
+    coil current."""
+    act = rig.actuator
+    if act.current not in run.channels:
+        return []
+    return line_notes(model, coordinate, act.current_scale * run.channel(act.current), run.fs,
+                      rig.mains, list(rig.sensor_names), what)
+
+
 def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None
                     ) -> TransientEstimate:
     """The forces of a run under any drive, sample by sample.
@@ -798,6 +810,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
                        model.band, rig.mains)
     what = f"run '{run.source}'"
     notes = (*flux_notes(rig, run, terms, what), *pole_notes(rig, run, terms, what),
+             *_scan_notes(rig, model, run, est.coordinate, what),
              f"short-time Wiener gains ({frame} samples a frame) let through "
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
              transfer_note(setup.transfer, run.source),
