@@ -88,14 +88,9 @@ def scan_notes(model: SpatialModel, coords: Coordinates, current: np.ndarray,
     phase, size = math.degrees(np.angle(rho)), abs(rho)
     head = (f"{what}: the probes {probes} move {size:#.3g} times the scan's motion per unit of "
             f"the current squared, at {phase:+#.3g} degrees to it (harmonic 1)")
-    if abs(phase) > 90:
-        return [f"{head}: they move against the scan's motion, so the probes' sign is likely "
-                "flipped (sensors[].scale), or the scan's response; the inertia is taken "
-                "with the wrong sign"]
-    if not 1 / MOTION_SPAN <= size <= MOTION_SPAN:
-        return [f"{head}, beyond the factor of {MOTION_SPAN:g} that the gap and the current's "
-                "level allow: a unit or scale slip of the probes (sensors[].scale: mm for m is "
-                "1000) or of the scan's response; the inertia is off by as much"]
+    gross = _sign_or_slip(head, phase, size)
+    if gross:
+        return gross
     sigma = float(coords.q_std[k]) / max(abs(complex(q[0])), 1e-300)
     limit = max(PHASE_SIGMAS * sigma, PHASE_TOLERANCE)
     if abs(np.angle(rho)) > limit:
@@ -163,6 +158,12 @@ def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarra
     head = (f"{what}: the probes {probes} move {size:#.3g} times the scan's motion per unit of "
             f"the coil current, at {phase:+.3g} degrees to it ({np.count_nonzero(lines)} "
             f"lines, {f[lines].min():.4g}-{f[lines].max():.4g} Hz)")
+    return _sign_or_slip(head, phase, size)
+
+
+def _sign_or_slip(head: str, phase: float, size: float) -> list[str]:
+    """The note on a motion per unit of drive ``size`` times the scan's at ``phase`` degrees
+    to it: against it (the probes' sign), or beyond :data:`MOTION_SPAN` (a unit slip)."""
     if abs(phase) > 90:
         return [f"{head}: they move against the scan's motion, so the probes' sign is likely "
                 "flipped (sensors[].scale), or the scan's response; the inertia is taken "
