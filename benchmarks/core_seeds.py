@@ -37,8 +37,9 @@ still counts) and for every step's K(f) / K and lag:
   calibration's;
 - which model each seed chose, and why.
 
-N: 10 by default, about 5 minutes on 2 cores (the physics about 3 s per preset, a seed's
-calibration about 13 s): the ratio's sampling uncertainty is then about 0.24 of it.
+N: 10 by default, about 4 minutes on 2 cores (the physics 2-5 s per preset, a seed's
+calibration 9-13 s; 20 seeds take about 8 minutes): the ratio's sampling uncertainty is then
+about 0.24 of it.
 
 Run:  .venv/bin/python benchmarks/core_seeds.py [--seeds 10] [--presets solid laminated]
           [--check]
@@ -194,6 +195,7 @@ def seed_row(seed: int, law: FrequencyLaw, tr: dict) -> dict:
         steps.append({"frequency": s.frequency, "gain": s.gain, "gain_u": s.gain_std,
                       "lag": s.lag_deg, "lag_u": s.lag_deg_std})
     return {"seed": seed, "chosen": law.model, "reason": law.reason,
+            "covariance_scale": law.covariance_scale, "chi2": law.chi2, "dof": law.dof,
             "models": _model_params(law), "steps": steps}
 
 
@@ -229,8 +231,10 @@ def summarise(name: str, rows: list[dict], tr: dict) -> dict:
     for r in rows:
         counts[r["chosen"]] = counts.get(r["chosen"], 0) + 1
     model = max(counts, key=lambda m: (counts[m], m == calibration.CORES[name]))
+    scales = np.array([r["covariance_scale"] for r in rows])
     out: dict = {"expected": calibration.CORES[name], "model": model, "chosen_counts": counts,
-                 "reasons": sorted({r["reason"] for r in rows})}
+                 "reasons": sorted({r["reason"] for r in rows}),
+                 "covariance_scale": {"min": float(scales.min()), "max": float(scales.max())}}
 
     def param_rows(m: str) -> list[dict]:
         fits = [r["models"][m] for r in rows if m in r["models"]]
@@ -262,6 +266,10 @@ def print_table(name: str, res: dict) -> None:
           f"{res['seconds_calibration']:.0f} s")
     print(f"  model chosen: {counts} (expected {res['expected']}); statistics of the "
           f"{res['model']} fit")
+    c = res["covariance_scale"]
+    how = ("below 1: weighted by the residual scatter, the runs' force uncertainty not given "
+           "for every harmonic" if c["max"] < 1 else "the runs' force uncertainty")
+    print(f"  covariance scale c {c['min']:.3g} to {c['max']:.3g} ({how})")
     head = (f"  {'quantity':<20}{'unit':>15}{'truth':>12}{'mean':>12}{'scatter':>10}"
             f"{'stated u':>10}{'scatter/u':>15}{'(mean-truth)/u':>16}")
     print(head)
