@@ -421,9 +421,10 @@ class _Saturating(Law):
     """``f = K x^2 / (1 + (|x| / x_s)^q)^(2/q)``, ``x = i / (s + s_fe)``: ``k_i2_sfe2`` whose flux
     density is limited softly as the iron saturates.
 
-    ``x`` is the flux density without saturation in units of ``2 B / (mu0 N)``; the flux density
-    bends over near ``x_s`` (the iron's knee), with the sharpness ``q``, towards a force that no
-    longer grows with the current. For ``x`` well below ``x_s`` it is ``k_i2_sfe2``.
+    ``x`` is the flux density the current would give without saturation, up to a constant
+    (``B = mu0 N x / 2`` on a U-core of two poles); the flux density bends over near ``x_s``
+    (the iron's knee), with the sharpness ``q``, towards a force that no longer grows with the
+    current. For ``x`` well below ``x_s`` it is ``k_i2_sfe2``.
     """
 
     def _value_and_jacobian(

@@ -339,19 +339,18 @@ def _taken(first: list[Any], jobs: _Ahead) -> Iterator[Any]:
 
 
 _READERS = 1
-"""Threads of the client reading jobs ahead (a campaign's records: parsing, much of it outside
-the interpreter's lock)."""
+"""Threads of the client reading jobs ahead. Two, on 16 workers of a 16-core machine, competed
+with the workers for the cores: the jobs computed slower (0.78 s a job against 0.25) and the
+workers waited as long (0.97 s a job against 0.93)."""
 
 
 class _Ahead:
     """The jobs of a sequence taken in order (:meth:`take`), up to ``ahead`` of them taken
-    beforehand by reader threads: from the moment the block opens, so that the client reads the
-    first jobs' inputs while the cluster starts, and the next while the workers compute
-    (``ahead``: the cluster's window, :func:`_window`, once it is known). A job that fails to be
-    taken raises when it is its turn; leaving the block cancels what is not yet read.
-
-    On 16 workers and 48 campaigns the workers waited 0.93 s per job for the client, which
-    read each campaign (0.1 s) only after the cluster had started and as it submitted it."""
+    beforehand by a reader thread (:data:`_READERS`) from the moment the block opens: the client
+    reads the first jobs' inputs while the cluster starts (1.6 s on 2 cores, 4.4 s on 16), and
+    the next while the workers compute (``ahead``: the cluster's window, :func:`_window`, once
+    it is known). A job that fails to be taken raises when it is its turn; leaving the block
+    cancels what is not yet read."""
 
     def __init__(self, jobs: Sequence[Any], ahead: int) -> None:
         self.jobs, self.ahead, self.next = jobs, max(1, ahead), 0

@@ -381,8 +381,8 @@ def _size(cause: _Cause, problem: _Problem, pick: Callable[[np.ndarray], np.ndar
 
 def _cause_text(name: str, unit: str, size: _Size) -> str:
     if isinstance(size, tuple):
-        return f"{name}, off by " + ", ".join(f"{size:+.3g} {unit} on '{part}'"
-                                              for part, size in size)
+        return f"{name}, off by " + ", ".join(f"{x:+.3g} {unit} on '{part}'"
+                                              for part, x in size)
     return name if math.isnan(size) else f"{name} off by {size:+.3g} {unit}"
 
 
