@@ -387,3 +387,15 @@ def test_a_saturating_magnet_takes_the_saturating_law():
     fit = selection.best.fit
     predicted = SATURATING.per_pole(fit.params, i.ravel(), gaps).sum(axis=1)
     assert np.abs(predicted / truth - 1).max() < 0.008
+
+
+def test_a_knee_the_data_do_not_show_is_refused_ac_only_too():
+    from forcecal.actuator import ACOnlyLaw
+
+    data = campaign(K_I2_SFE2, TRUTH["k_i2_sfe2"], np.random.default_rng(4), NOISE)
+    hi = SATURATING.bounds(data)[1]
+    for law in (SATURATING, ACOnlyLaw.wrap(SATURATING, 10)):
+        law.check_fitted(np.array([K_TRUE, 0.2e-3, 0.5 * hi[2], 4.0]), data)     # a knee
+        for beyond in ([K_TRUE, 0.2e-3, hi[2], 4.0], [K_TRUE, 0.2e-3, 0.5 * hi[2], hi[3]]):
+            with pytest.raises(FitError, match="the data show no saturation"):
+                law.check_fitted(np.array(beyond), data)

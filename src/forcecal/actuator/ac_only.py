@@ -181,6 +181,17 @@ class ACOnlyLaw(Law):
         """
         return self.base.bounds(data)
 
+    def check_fitted(self, params: np.ndarray, data: CalibrationData) -> None:
+        """The base law's refusal of parameters the data do not determine (see
+        :meth:`forcecal.actuator.Law.check_fitted`).
+
+        Raises
+        ------
+        FitError
+            As the base law raises it.
+        """
+        self.base.check_fitted(params, data)
+
     def typical(self, params: np.ndarray, data: CalibrationData) -> np.ndarray:
         """The base law's typical magnitudes (see :meth:`forcecal.actuator.Law.typical`).
 
