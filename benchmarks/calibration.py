@@ -334,13 +334,22 @@ def saturation_campaign(tmp: Path) -> dict:
     magnet's own (its B-H curve solved in the magnetic circuit), and what ``predict`` says
     at :data:`OUTSIDE_POINTS`."""
     import forcecal.simulate.presets as presets
-    from forcecal.actuator.laws import LAWS
 
     base = get_preset("saturation")
     linear = dataclasses.replace(base, name="saturation-off", magnets=tuple(
         dataclasses.replace(m, saturation=0.0) for m in base.magnets), runs=tuple(
         r for r in base.runs if r.drives[0].dc <= 0.7))     # unsaturated, 1.2 A pulls in
     presets.PRESETS["saturation-off"] = lambda: linear
+    try:
+        return _saturation_rows(tmp, base, linear)
+    finally:
+        del presets.PRESETS["saturation-off"]
+
+
+def _saturation_rows(tmp: Path, base, linear) -> dict:
+    """:func:`saturation_campaign`'s rows, the unsaturated preset registered."""
+    from forcecal.actuator.laws import LAWS
+
     out = {}
     for name, preset in (("saturation", base), ("saturation-off", linear)):
         folder = tmp / name
@@ -389,7 +398,6 @@ def saturation_campaign(tmp: Path) -> dict:
                      "pull_lost_at_points": [1 - truth(i, g) / (
                          2 * dataclasses.replace(magnet, saturation=0.0).static_force(i, g))
                          for i, g in SATURATION_POINTS]}
-    del presets.PRESETS["saturation-off"]
     return out
 
 

@@ -45,6 +45,11 @@ MOTION_SPAN = 20.0
 without a mistake: the law's K(s) ~ 1 / s^2 over a campaign's gaps and the magnetic stiffness
 (a factor of 0.65 to 2.3 over the ``campaign`` preset); a unit slip (1000 for mm as m, 25.4
 for inches as mm) lies beyond it."""
+BIAS = 2.0
+"""Under any drive, the current's DC must be at least this many times its standard deviation:
+the pull, ~ i^2, is then mostly 2 I_0 i, linear in the current as the scan's shapes per ampere
+are (its square's lines at most a quarter of that in RMS); a drive without bias is not
+checked."""
 DRIVE_SHARE = 0.1
 """Under any drive, the lines compared carry at least this share of the current's largest line
 in the band."""
@@ -112,10 +117,12 @@ def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarra
     current, ``a``, between its lines. Over the lines of the model's band that carry the drive
     (:data:`DRIVE_SHARE`) and lie clear of the mains' harmonics, rho = sum Q (I a)^* /
     sum |I a|^2, the motion per unit of current against the scan's: near 1 under the scan's own
-    bias and gap, real and positive whatever they are. Its phase beyond 90 degrees is the
-    probes' sign; its size beyond :data:`MOTION_SPAN` either way a unit or scale slip. A delay
-    is not judged: the lines' phases move with the load near a resonance by more than a skew
-    of a few samples does.
+    bias and gap, real and positive under any bias of the scan's sign (the pull's part linear in
+    the current is 2 I_0 i); a drive whose DC is under :data:`BIAS` standard deviations is not
+    checked. Its phase beyond 90 degrees is the probes' sign (or a bias of the other sign);
+    its size beyond :data:`MOTION_SPAN` either way a unit or scale slip. A delay is not judged:
+    the lines' phases move with the load near a resonance by more than a skew of a few samples
+    does.
 
     Parameters
     ----------
@@ -136,6 +143,8 @@ def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarra
     list of str
     """
     n = len(coordinate)
+    if not abs(float(np.mean(current))) >= BIAS * float(np.std(current)):
+        return []
     window = np.hanning(n)
     q = np.fft.rfft((coordinate - np.mean(coordinate)) * window)
     i = np.fft.rfft((current - np.mean(current)) * window)
@@ -157,7 +166,9 @@ def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarra
     phase, size = math.degrees(np.angle(rho)), abs(rho)
     head = (f"{what}: the probes {probes} move {size:#.3g} times the scan's motion per unit of "
             f"the coil current, at {phase:+.3g} degrees to it ({np.count_nonzero(lines)} "
-            f"lines, {f[lines].min():.4g}-{f[lines].max():.4g} Hz)")
+            f"lines, {f[lines].min():.4g}-{f[lines].max():.4g} Hz, the current's bias "
+            f"{float(np.mean(current)):+.3g} A: one of the other sign than the scan's turns it "
+            "too)")
     return _sign_or_slip(head, phase, size)
 
 
