@@ -542,6 +542,92 @@ def test_predict_refuses_absurd_inputs(tmp_path, capsys, current, gap, option):
     assert_refused(code, capsys, tmp_path / "none", option)
 
 
+def _flux_calibration(tmp_path: Path) -> Path:
+    from forcecal.actuator import Calibration
+
+    cal = Calibration(law="flux", params=np.array([8e-4]), covariance=np.array([[1e-18]]),
+                      n_poles=2, current_range=(0.2, 1.5), gap_range=(0.0006, 0.0012),
+                      flux_range=(1.6e-5, 1.8e-4))
+    return cal.save(tmp_path / "calibration.json")
+
+
+def test_predict_follows_the_flux_law_from_the_flux(tmp_path, capsys):
+    pytest.importorskip("forcecal.campaign")
+    from forcecal.actuator import predict_flux
+    from forcecal.campaign import load_calibration
+
+    path = _flux_calibration(tmp_path)
+    assert cli("predict", path, "--flux", "1e-4", "--json") == 0
+    out = json.loads(capsys.readouterr().out)
+    want = predict_flux(load_calibration(path), 1e-4)
+    assert out["law"] == "flux" and out["total_n"] == pytest.approx(float(want.total), rel=1e-12)
+    assert out["total_n"] == pytest.approx(2 * 1e-8 / (forcecal.actuator.MU0 * 8e-4), rel=1e-12)
+    for argv, named in ((("--current", "1", "--gap", "1e-3"), "--flux"),
+                        (("--flux", "1e-4", "--current", "1"), "without --current"),
+                        (("--flux", "1e-4", "--frequency", "50"), "--frequency")):
+        assert_refused(cli("predict", path, *argv), capsys, tmp_path / "none", named, "flux")
+
+
+def test_predict_of_a_current_law_asks_for_current_and_gap(tmp_path, capsys):
+    from forcecal.actuator import Calibration
+
+    cal = Calibration(law="k_i2_s2", params=np.array([9e-6]), covariance=np.array([[1e-18]]),
+                      n_poles=2, current_range=(0.8, 1.2), gap_range=(0.0008, 0.001))
+    path = cal.save(tmp_path / "calibration.json")
+    for argv in (("--current", "1"), ("--gap", "1e-3"), ("--current", "1", "--gap", "1e-3",
+                                                        "--flux", "1e-4")):
+        assert_refused(cli("predict", path, *argv), capsys, tmp_path / "none",
+                       "--current A and --gap M", "k_i2_s2")
+
+
+def test_calibrate_laws_are_checked_and_reach_the_calibration(lab, model_json, tmp_path, capsys,
+                                                             monkeypatch):
+    import forcecal.campaign
+
+    out = tmp_path / "out"
+    code = cli("calibrate", lab / "rig.toml", model_json, "--manifest", lab / "m.csv", "-o", out,
+               "--laws", "k_i2_sfe2", "fluxx")
+    assert "known: k_i2_s2" in assert_refused(code, capsys, out, "--laws", "'fluxx'")
+    no_flux = edited_rig(lab, tmp_path, lambda d: d["actuator"].pop("flux", None))
+    code = cli("calibrate", no_flux, model_json, "--manifest", lab / "m.csv", "-o", out,
+               "--laws", "flux")
+    assert_refused(code, capsys, out, "--laws", "flux channel", str(no_flux))
+    asked: list[object] = []
+
+    def calibrate_campaign(*args, laws=None, **kwargs):
+        asked.append(laws)
+        raise forcecal.errors.InputError("stopped here")
+
+    monkeypatch.setattr(forcecal.campaign, "calibrate_campaign", calibrate_campaign)
+    code = cli("calibrate", lab / "rig.toml", model_json, "--manifest", lab / "m.csv", "-o", out,
+               "--laws", "flux", "k_i2_sfe2", "flux")
+    assert_refused(code, capsys, out, "stopped here")
+    assert [[law.name for law in laws] for laws in asked] == [["flux", "k_i2_sfe2"]]
+
+
+@pytest.mark.parametrize(("law", "flux", "hinted"), [
+    ("k_i2_sfe2_sat", np.ones(3), True), ("k_i2_sfe2_sat", None, False),
+    ("k_i2_sfe2", np.ones(3), False)])
+def test_a_saturating_law_with_the_runs_flux_points_to_the_flux_law(law, flux, hinted, tmp_path):
+    from types import SimpleNamespace
+
+    from forcecal.actuator.laws import get_law
+    from forcecal.cli.main import _calibration_summary
+
+    fitted = [SimpleNamespace(name=n) for n in ("k_i2_sfe2", "k_i2_sfe2_sat")]
+    result = SimpleNamespace(
+        calibration=SimpleNamespace(law=law, law_object=get_law(law), params=np.array([1e-5]),
+                                    stderr=np.array([1e-9])),
+        uncertainty=None, runs=[SimpleNamespace(samples=SimpleNamespace(flux=flux))] * 2,
+        selection=SimpleNamespace(candidates=fitted, skipped=(("power", "why"),),
+                                  best=SimpleNamespace(held_out=SimpleNamespace(rms=0.015))))
+    lines = _calibration_summary(result, tmp_path, certificate=False)
+    hint = [line for line in lines if "--laws flux" in line]
+    assert hint == ([] if not hinted else [
+        "  the iron saturates and the runs carry the flux: add the flux law, f = phi^2 / "
+        "(mu0 A_eff), to the candidates with --laws flux k_i2_sfe2 k_i2_sfe2_sat power"])
+
+
 def test_a_failed_command_leaves_the_old_outputs_and_no_staging(lab, model_json, short_run,
                                                                 tmp_path, capsys):
     out = tmp_path / "out"

@@ -58,8 +58,8 @@ def moved(campaign_dir, tmp_path_factory):
 
 def test_a_job_holds_its_records_and_no_path(moved):
     jobs, _, _ = moved
-    rig, model, campaign, ac_only = jobs[0]
-    assert isinstance(campaign, CampaignInputs) and ac_only is False
+    rig, model, campaign, ac_only, laws = jobs[0]
+    assert isinstance(campaign, CampaignInputs) and ac_only is False and laws is None
     assert sorted(Path(p).name for p in campaign.records) == [
         "g0800_dc06_ac02.csv", "g1000_dc06_ac02.csv", "g1200_dc06_ac02.csv", "tare.csv"]
     assert jobs[1][0] is rig and jobs[1][1] is model          # shared, to be sent once

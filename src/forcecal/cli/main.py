@@ -296,22 +296,44 @@ def _workers(args, n_jobs: int) -> int:
     return max(1, min(n_jobs, os.cpu_count() or 1))
 
 
+def _laws(args) -> tuple[str, ...] | None:
+    """``calibrate --laws``: the names, each a known law (else an argument error listing them),
+    or None for the default candidates."""
+    from ..actuator.laws import LAWS
+
+    if args.laws is None:
+        return None
+    unknown = [n for n in args.laws if n not in LAWS]
+    if unknown:
+        raise _ArgumentError(f"{PROG} calibrate: argument --laws: unknown law '{unknown[0]}'; "
+                             f"known: {', '.join(LAWS)}")
+    return tuple(dict.fromkeys(args.laws))
+
+
 def _cmd_calibrate(args) -> int:
+    from ..actuator.laws import get_law
     from ..campaign import calibrate_campaign, report_text, write_calibration
     from ..cluster.jobs import calibrate_job, calibrate_jobs, campaign_folders
     from ..io.staging import staged_folder
 
+    laws = _laws(args)
     rig = _load_rig(args)
+    if laws is not None and "flux" in laws and not rig.actuator.flux:
+        raise _ArgumentError(f"{PROG} calibrate: argument --laws: the law 'flux' needs the "
+                             f"runs' flux, and rig '{args.rig}' names no [actuator] flux "
+                             "channel")
     model = _model_for(args, rig)
     manifests = [str(m) for m in args.manifest]
     if len(manifests) == 1:
         result = calibrate_campaign(rig, model, manifests[0], progress=_progress,
                                     ac_only=args.ac_coupled,
-                                    workers=None if args.workers is None else args.workers)
+                                    workers=None if args.workers is None else args.workers,
+                                    laws=None if laws is None else [get_law(n) for n in laws])
         results, folders = [result], [Path(args.output)]
     else:
         folders = campaign_folders(args.output, manifests)
-        results = run_jobs(calibrate_job, calibrate_jobs(rig, model, manifests, args.ac_coupled),
+        results = run_jobs(calibrate_job,
+                           calibrate_jobs(rig, model, manifests, args.ac_coupled, laws),
                            names=[f.name for f in folders],
                            workers=_workers(args, len(manifests)),
                            scheduler=args.scheduler, progress=_progress)
@@ -352,7 +374,7 @@ def _calibration_summary(result, folder: Path, certificate: bool) -> list[str]:
     k = COVERAGE_FACTOR if result.uncertainty is None else result.uncertainty.coverage_factor
     n = len(result.selection.candidates)
     return [f"{folder}: law {cal.law}, {law.formula} (chosen of {n} candidate law"
-            f"{'s' if n > 1 else ''})",
+            f"{'s' if n > 1 else ''})", *_flux_hint(result),
             f"  {name} = {value(gain, k * u)} ± {unc(k * u)} {unit} (expanded "
             f"uncertainty U, k = {k:g}; standard u = {unc(u)})",
             f"  held-out error {100 * result.selection.best.held_out.rms:.3g} % (RMS relative "
@@ -361,27 +383,60 @@ def _calibration_summary(result, folder: Path, certificate: bool) -> list[str]:
             "  no certificate (--no-report)"]
 
 
-def _cmd_predict(args) -> int:
-    from ..actuator import predict
-    from ..actuator.prediction import check_current_and_gaps
-    from ..campaign import load_calibration
+def _flux_hint(result) -> list[str]:
+    """Where the saturating law was chosen and the runs carry the flux, the line that points to
+    the flux law, which holds where the iron saturates (none otherwise)."""
+    if result.calibration.law != "k_i2_sfe2_sat" or any(r.samples.flux is None
+                                                         for r in result.runs):
+        return []
+    names = [c.name for c in result.selection.candidates] + [
+        name for name, _ in result.selection.skipped]
+    return ["  the iron saturates and the runs carry the flux: add the flux law, f = phi^2 / "
+            f"(mu0 A_eff), to the candidates with --laws flux {' '.join(names)}"]
 
-    cal = load_calibration(args.calibration)
-    try:        # the API's checks (the same limits and wording), naming the options
+
+def _predict_inputs(args, cal) -> str:
+    """What ``predict`` is given, checked against what the calibration's law predicts from (the
+    API's checks: the same limits and wording, naming the options); said in messages."""
+    from ..actuator.prediction import check_current_and_gaps
+
+    where = f"{PROG} predict: calibration '{args.calibration}' (law '{cal.law}')"
+    if cal.law_object.needs_flux:
+        if args.flux is None or args.current is not None or args.gap is not None:
+            raise _ArgumentError(f"{where} predicts from the flux through one pole: give "
+                                 "--flux WB alone, without --current or --gap")
+        if args.frequency is not None:
+            raise _ArgumentError(f"{where}: argument --frequency: the force follows the flux "
+                                 "at any frequency; give --flux alone")
+        return f"{args.flux:g} Wb"
+    if args.flux is not None or args.current is None or args.gap is None:
+        raise _ArgumentError(f"{where} predicts from current and gap: give --current A and "
+                             "--gap M (--flux is for a calibration of the flux law)")
+    try:
         check_current_and_gaps(cal, args.current, args.gap,
                                names=("argument --current:", "argument --gap:"))
     except InputError as exc:
         raise _ArgumentError(f"{PROG} predict: {exc}") from None
+    return f"{args.current:g} A and {args.gap:g} m"
+
+
+def _cmd_predict(args) -> int:
+    from ..actuator import predict, predict_flux
+    from ..campaign import load_calibration
+
+    cal = load_calibration(args.calibration)
+    given = _predict_inputs(args, cal)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         try:
-            pred = predict(cal, args.current, args.gap, frequency=args.frequency)  # floats
+            pred = (predict_flux(cal, args.flux) if cal.law_object.needs_flux else
+                    predict(cal, args.current, args.gap, frequency=args.frequency))  # floats
         except ForcecalError as exc:
             raise InputError(f"calibration '{args.calibration}': {exc}") from None
     values = [float(pred.total), float(pred.std), *map(float, pred.per_pole)]
     if not all(np.isfinite(values)):
         raise InputError(f"calibration '{args.calibration}': its law gives no finite force at "
-                         f"{args.current:g} A and {args.gap:g} m")
+                         f"{given}")
     for w in caught:
         _say(f"{PROG}: warning: {w.message}")
     if args.json:

@@ -132,6 +132,11 @@ def _calibrate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
     p.add_argument("-o", "--output", required=True, help="output folder")
     p.add_argument("--ac-coupled", action="store_true",
                    help="fit the law on the harmonics alone (gauges without DC)")
+    p.add_argument("--laws", nargs="+", metavar="LAW", default=None,
+                   help="the candidate laws, chosen among by held-out error (default: every "
+                        "law of current and gap: k_i2_s2 k_i2_sfe2 k_i0_sfe2 power "
+                        "k_i2_sfe2_sat); 'flux' needs the runs' flux channel and predicts "
+                        "from it (predict --flux)")
     p.add_argument("--no-report", action="store_true", help="skip the figures and HTML")
     _model_options(p)
 
@@ -141,8 +146,12 @@ def _predict_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
                        epilog="example:\n  forcecal predict calibration/calibration.json "
                               "--current 0.6 --gap 0.001")
     p.add_argument("calibration")
-    p.add_argument("--current", type=float, required=True, help="coil current, A")
-    p.add_argument("--gap", type=float, required=True, help="air gap at every pole, m")
+    p.add_argument("--current", type=float, default=None,
+                   help="coil current, A (a law of current and gap)")
+    p.add_argument("--gap", type=float, default=None,
+                   help="air gap at every pole, m (a law of current and gap)")
+    p.add_argument("--flux", type=float, default=None,
+                   help="flux through one pole, Wb (the flux law, calibrate --laws flux)")
     p.add_argument("--frequency", type=float, default=None,
                    help="Hz: the force at this frequency (K(f) and its lag, from a calibration "
                         "over frequency)")

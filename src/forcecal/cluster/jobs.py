@@ -17,6 +17,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any, overload
 
+from ..actuator.laws import get_law
 from ..campaign import CampaignResult, calibrate_campaign
 from ..campaign.runs import load_campaign
 from ..drives import drive_of
@@ -39,10 +40,12 @@ def reconstruct_job(job: tuple[Any, ...]) -> Estimate:
 
 
 def calibrate_job(job: tuple[Any, ...]) -> CampaignResult:
-    """One campaign's calibration: ``job`` is ``(rig, model, campaign, ac_only)``, the campaign
-    read (:class:`forcecal.campaign.runs.CampaignInputs`): no file is opened."""
-    rig, model, campaign, ac_only = job
-    return calibrate_campaign(rig, model, campaign, workers=1, ac_only=ac_only)
+    """One campaign's calibration: ``job`` is ``(rig, model, campaign, ac_only, laws)``, the
+    campaign read (:class:`forcecal.campaign.runs.CampaignInputs`): no file is opened; ``laws``
+    the candidate laws' names, or None for the default candidates."""
+    rig, model, campaign, ac_only, laws = job
+    return calibrate_campaign(rig, model, campaign, workers=1, ac_only=ac_only,
+                              laws=None if laws is None else [get_law(n) for n in laws])
 
 
 class CalibrateJobs(Sequence[tuple[Any, ...]]):
@@ -50,8 +53,10 @@ class CalibrateJobs(Sequence[tuple[Any, ...]]):
     records read in this process when its job is taken (``jobs[k]``)."""
 
     def __init__(self, rig: Rig, model: SpatialModel | BroadbandModel,
-                 manifests: list[str], ac_only: bool) -> None:
+                 manifests: list[str], ac_only: bool,
+                 laws: tuple[str, ...] | None = None) -> None:
         self.rig, self.model, self.manifests, self.ac_only = rig, model, manifests, ac_only
+        self.laws = laws
 
     def __len__(self) -> int:
         return len(self.manifests)
@@ -65,12 +70,13 @@ class CalibrateJobs(Sequence[tuple[Any, ...]]):
     def __getitem__(self, k: int | slice) -> tuple[Any, ...] | list[tuple[Any, ...]]:
         if isinstance(k, slice):
             return [self[j] for j in range(len(self))[k]]
-        return (self.rig, self.model, load_campaign(self.manifests[k], self.rig), self.ac_only)
+        return (self.rig, self.model, load_campaign(self.manifests[k], self.rig), self.ac_only,
+                self.laws)
 
 
 def calibrate_jobs(rig: Rig, model: SpatialModel | BroadbandModel, manifests: list[str],
-                   ac_only: bool) -> CalibrateJobs:
-    """The :func:`calibrate_job` of each manifest: ``(rig, model, campaign, ac_only)``, the
+                   ac_only: bool, laws: tuple[str, ...] | None = None) -> CalibrateJobs:
+    """The :func:`calibrate_job` of each manifest: ``(rig, model, campaign, ac_only, laws)``, the
     campaign's manifest and records read in this process (a worker needs none of its files).
 
     Each campaign is read when its job is taken (:class:`CalibrateJobs`), so that
@@ -86,7 +92,7 @@ def calibrate_jobs(rig: Rig, model: SpatialModel | BroadbandModel, manifests: li
     """
     for m in manifests:
         read_manifest(m)
-    return CalibrateJobs(rig, model, manifests, ac_only)
+    return CalibrateJobs(rig, model, manifests, ac_only, laws)
 
 
 def campaign_folders(output: str | Path, manifests: list[str]) -> list[Path]:

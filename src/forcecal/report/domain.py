@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..actuator.prediction import EXTRAPOLATION, FREQUENCY_EXTRAPOLATION
+from ..actuator.prediction import EXTRAPOLATION, FREQUENCY_EXTRAPOLATION, MAX_FLUX_WB
 from ..actuator.selection import HELD_OUT_ABS_TOL, HELD_OUT_REL_TOL
 from ..campaign.samples import calibration_data
 from .cells import NONE, Grid, lab_unit, num, pct
@@ -76,10 +76,12 @@ def _ranges(result: CampaignResult) -> Grid:
     beyond = {
         "i": f"warns; refuses beyond {EXTRAPOLATION:g} × the largest |i|",
         "f": f"warns; refuses above {FREQUENCY_EXTRAPOLATION:g} × the highest",
-        "φ": "warns",
+        "φ": f"warns; refuses beyond {MAX_FLUX_WB:g} Wb",
     }
     gap_rule = (f"warns; refuses below 1/{EXTRAPOLATION:g} of the smallest or above "
                 f"{EXTRAPOLATION:g} × the largest")
+    if cal.law_object.needs_flux:               # the current and gaps are not the law's inputs
+        beyond["i"] = gap_rule = "not an input: the law predicts from the flux φ"
     rows = []
     for label, symbol, values, factor, unit in _axes(result):
         lo, hi = float(np.min(values)), float(np.max(values))
@@ -186,11 +188,13 @@ def validity_domain(result: CampaignResult) -> dict[str, Any]:
     dict
         ``ranges`` and ``edges`` (:class:`~forcecal.report.cells.Grid`), ``rejected`` (a Grid,
         None when no candidate was set aside), ``edge_share`` (the edges' share of the samples,
-        in %) and ``law`` (the chosen law's name).
+        in %), ``law`` (the chosen law's name) and ``inputs`` (what it predicts from).
     """
     rows = [*_rejected_laws(result.selection), *_rejected_models(result.calibration.frequency_law)]
     rejected = None if not rows else Grid(
         caption="Candidates not chosen, and why",
         header=("candidate", "parameters", "held-out error", "why not chosen"), rows=tuple(rows))
     return {"ranges": _ranges(result), "edges": _edges(result), "rejected": rejected,
-            "edge_share": f"{100 * EDGE_FRACTION:g}", "law": result.law}
+            "edge_share": f"{100 * EDGE_FRACTION:g}", "law": result.law,
+            "inputs": ("flux" if result.calibration.law_object.needs_flux
+                       else "current and gaps")}

@@ -445,7 +445,7 @@ def calibration_report(rig: Rig, model: SpatialModel, result: CampaignResult,
         figure["caption"] = ("Fig. 1 (after the paper's fig. 9): each run's mean force and the "
                              "amplitude of its fundamental against the DC current, one colour "
                              "per static gap and one marker per AC amplitude; the law predicts "
-                             "from flux and is not drawn against current.")
+                             "from flux and is drawn at each run's own measured flux.")
     page = calibration_certificate(
         rig, result, prov, model=model, figure=figure,
         calibration_file=((written.name, file_digest(written)) if written.is_file() else None))

@@ -15,7 +15,8 @@ from typing import Any
 import numpy as np
 from matplotlib.axes import Axes
 
-from ...actuator import Calibration, ExtrapolationWarning, predict
+from ...actuator import Calibration, ExtrapolationWarning, predict, predict_flux
+from ...actuator.prediction import Prediction
 from ...errors import DimensionError, InputError
 from ...forces.steady import ForceEstimate, channels_si
 from ...records import Run
@@ -191,13 +192,14 @@ def check_run(run: Run, estimate: ForceEstimate) -> None:
 
 
 def law_harmonics(calibration: Calibration, current: np.ndarray, gaps: np.ndarray, fs: float,
-                  f0: float, t0: float = 0.0) -> tuple[float, float]:
+                  f0: float, t0: float = 0.0,
+                  flux: np.ndarray | None = None) -> tuple[float, float]:
     """The law's mean and fundamental amplitude of the total force over one run.
 
     Parameters
     ----------
     calibration : Calibration
-        A (current, gap) law.
+        A (current, gap) law, or the flux law (then ``flux`` is needed).
     current : numpy.ndarray
         ``(n_samples,)`` [A] the run's coil current.
     gaps : numpy.ndarray
@@ -208,23 +210,35 @@ def law_harmonics(calibration: Calibration, current: np.ndarray, gaps: np.ndarra
         [Hz] the run's fundamental.
     t0 : float
         [s] time of the first sample.
+    flux : numpy.ndarray or None
+        ``(n_samples,)`` [Wb] the flux through one pole, for the flux law.
 
     Returns
     -------
     tuple of (float, float)
-        (F_0, |F_1|) [N] of :func:`forcecal.actuator.predict`'s total force, by a harmonic fit.
+        (F_0, |F_1|) [N] of the law's total force (:func:`forcecal.actuator.predict`, or
+        :func:`forcecal.actuator.predict_flux` for the flux law), by a harmonic fit.
     """
-    current = np.asarray(current, dtype=float)
-    gaps = np.asarray(gaps, dtype=float)
-    if gaps.ndim == 1:
-        gaps = gaps[:, None]
-    with warnings.catch_warnings():
-        # the runs the law was fitted to: samples left out of the fit may reach a little past
-        # the calibrated range, which is no extrapolation worth a warning
-        warnings.simplefilter("ignore", ExtrapolationWarning)
-        total = predict(calibration, current, gaps).total
+    total = law_at(calibration, current, gaps, flux).total
     fit = fit_harmonics(total, fs, f0, 1, t0=t0)
     return float(fit.phasors[0].real), float(abs(fit.phasors[1]))
+
+
+def law_at(calibration: Calibration, current: np.ndarray, gaps: np.ndarray,
+           flux: np.ndarray | None = None) -> Prediction:
+    """The law's Prediction at samples the law was fitted to: from the flux for the flux law,
+    else from the current and gaps (``(n,)`` or ``(n, n_poles)``); no extrapolation warning
+    (samples left out of the fit may reach a little past the calibrated range)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ExtrapolationWarning)
+        if calibration.law_object.needs_flux:
+            if flux is None:
+                raise InputError(f"calibration law '{calibration.law}' predicts from flux; the "
+                                 "runs carry none")
+            return predict_flux(calibration, np.asarray(flux, dtype=float))
+        gaps = np.asarray(gaps, dtype=float)
+        return predict(calibration, np.asarray(current, dtype=float),
+                       gaps[:, None] if gaps.ndim == 1 else gaps)
 
 
 def law_cycle(cal: Calibration, dc: np.ndarray, ac: float, gap: float,

@@ -27,7 +27,15 @@ from ...records import Run
 from ...rig import Rig
 from ...signals.harmonics import fit_harmonics
 from ..cells import lab_unit, plus_minus
-from ._common import MARKERS, law_cycle, law_harmonics, math_unit, panel_title, running_max
+from ._common import (
+    MARKERS,
+    law_at,
+    law_cycle,
+    law_harmonics,
+    math_unit,
+    panel_title,
+    running_max,
+)
 
 if TYPE_CHECKING:
     from ...campaign import CampaignResult
@@ -59,6 +67,8 @@ class CampaignSamples:
         ``(n,)`` int: the run (index into the points) of every sample.
     static_label : str
         The legend of the reactions-only samples.
+    flux : numpy.ndarray or None
+        ``(n,)`` [Wb] the flux through one pole, where the runs carry it (for the flux law).
     """
 
     current: np.ndarray
@@ -67,6 +77,7 @@ class CampaignSamples:
     static_force: np.ndarray
     run: np.ndarray
     static_label: str = "reactions only (inertia ignored)"
+    flux: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -164,7 +175,7 @@ class CalibrationPoints:
             dc.append(current[0].real)
             ac.append(abs(current[1]))
             a, b = law_harmonics(result.calibration, smp.current, smp.gaps, fs, f0,
-                                 t0=smp.time[0])
+                                 t0=smp.time[0], flux=smp.flux)
             law_dc.append(a)
             law_ac.append(b)
         est = [r.estimate for r in result.runs]
@@ -177,7 +188,9 @@ class CalibrationPoints:
             force=np.concatenate([r.samples.force for r in result.runs]),
             static_force=np.concatenate([r.samples.static_force for r in result.runs]),
             run=np.concatenate([np.full(r.samples.n, k) for k, r in enumerate(result.runs)]),
-            static_label=label)
+            static_label=label,
+            flux=(np.concatenate([r.samples.flux for r in result.runs])
+                  if all(r.samples.flux is not None for r in result.runs) else None))
         return cls(
             gap=np.array([r.samples.static_gap for r in result.runs]), dc=np.array(dc),
             ac=np.array(ac), force_dc=np.array([e.total[0].real for e in est]),
@@ -259,11 +272,14 @@ class _Law:
 
 
 def _drawn_law(cal: Calibration | None, pts: CalibrationPoints) -> _Law | None:
-    """The law drawn against current, or None (no law, or a law that predicts from flux)."""
-    if cal is None or cal.law_object.needs_flux:
+    """The law drawn against current, or None (no law; a law that predicts from flux without
+    its values at the runs' own flux)."""
+    if cal is None:
         return None
     if pts.law_dc is not None and pts.law_ac is not None:
         return _Law(cal, pts.law_dc, pts.law_ac, at_runs=True)
+    if cal.law_object.needs_flux:
+        return None
     dc, ac = np.empty(pts.n_runs), np.empty(pts.n_runs)
     for k in range(pts.n_runs):
         mean, fund = law_cycle(cal, pts.dc[k:k + 1], float(pts.ac[k]), float(pts.gap[k]))
@@ -438,7 +454,7 @@ def _label_runs(ax0: Axes, ax1: Axes, cal: Calibration | None, law: _Law | None)
     if cal is not None and law is None:
         ax0.text(0.02, 0.98, f"law '{cal.law}' predicts from flux:\nno curve against current",
                  transform=ax0.transAxes, va="top", fontsize="small")
-    where = ("" if law is None else " (law: at each run's own current and gaps)"
+    where = ("" if law is None else f" (law: at each run's own {_inputs(law.cal)})"
              if law.at_runs else " (law: at the static gap, motion neglected)")
     ax0.set_ylabel("mean force $F_0$ [N]")
     panel_title(ax0, "Mean total force vs DC current" + where)
@@ -467,7 +483,7 @@ def _legend_handles(pts: CalibrationPoints, gap_id: np.ndarray, ac_id: np.ndarra
     if law is None:
         return handles
     handles.append(Line2D([], [], color="0.3", marker="o" if law.at_runs else "none", ms=3.5,
-                          lw=0.9, label="law at each run's own current and gaps" if law.at_runs
+                          lw=0.9, label=f"law at each run's own {_inputs(law.cal)}" if law.at_runs
                           else "law at the static gap (the structure's motion neglected)"))
     handles.append(Line2D([], [], color="k", lw=1.2, label="law (measured = law)"))
     handles.append(Patch(color="0.5", alpha=0.3, label="law ±2σ (its parameters' uncertainty)"))
@@ -532,18 +548,25 @@ class _Collapse:
     run: np.ndarray
     samples: bool
     own: bool
+    inputs: str = "current and gaps"
+
+
+def _inputs(cal: Calibration) -> str:
+    """What the law predicts from, for the labels."""
+    return "flux" if cal.law_object.needs_flux else "current and gaps"
 
 
 def _collapse(pts: CalibrationPoints, law: _Law) -> _Collapse:
     """The collapse's points: the campaign's samples, else each run's F_0."""
+    if pts.samples is not None and (pts.samples.flux is not None
+                                    or not law.cal.law_object.needs_flux):
+        smp = pts.samples
+        pred = law_at(law.cal, smp.current, smp.gaps, smp.flux)
+        return _Collapse(pred.total, pred.std, smp.force, smp.static_force, smp.run,
+                         samples=True, own=True, inputs=_inputs(law.cal))
     with warnings.catch_warnings():
         # the samples the law was fitted to may reach a little past the calibrated range
         warnings.simplefilter("ignore", ExtrapolationWarning)
-        if pts.samples is not None:
-            smp = pts.samples
-            pred = predict(law.cal, smp.current, smp.gaps)
-            return _Collapse(pred.total, pred.std, smp.force, smp.static_force, smp.run,
-                             samples=True, own=True)
         theta = 2 * np.pi * np.arange(64) / 64
         std = np.array([np.mean(predict(law.cal, pts.dc[k] + pts.ac[k] * np.cos(theta),
                                         float(pts.gap[k])).std) for k in range(pts.n_runs)])
@@ -581,8 +604,8 @@ def _draw_collapse(ax: Axes, col: _Collapse, gap_id: np.ndarray, ac_id: np.ndarr
 def _law_axis(col: _Collapse) -> str:
     """The label of the law's axis: where the law is evaluated."""
     if col.samples:
-        return "law at each sample's own current and gaps [N]"
-    return ("law's $F_0$ at each run's " + ("own current and gaps" if col.own
+        return f"law at each sample's own {col.inputs} [N]"
+    return ("law's $F_0$ at each run's " + (f"own {col.inputs}" if col.own
                                             else "static gap (motion neglected)") + " [N]")
 
 
