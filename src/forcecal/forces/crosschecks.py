@@ -1,5 +1,6 @@
 """The estimate against the data's own redundancy: each pole's force against the Maxwell force of
-its flux (:func:`flux_notes`), and without one, the poles of one core against each other
+its flux (:func:`flux_notes`), the flux channels of one core against each other
+(:func:`flux_pair_notes`), and without a flux, the poles of one core against each other
 (:func:`pole_notes`) (METHOD.md section 6; docs/method.md section 7).
 
 A pole face of area A carrying the flux Phi pulls with Maxwell's stress Phi^2 / (2 mu0 A), to
@@ -422,13 +423,15 @@ def _compared(kept: np.ndarray, sigma: np.ndarray) -> tuple[np.ndarray, np.ndarr
 
 def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]:
     """A note when the forces contradict their poles' Maxwell forces (see the module
-    docstring), naming the causes that explain it.
+    docstring), naming the causes that explain it; first, a core's own flux channels against
+    each other (:func:`flux_pair_notes`), which the Maxwell check then leaves aside.
 
     Parameters
     ----------
     rig : Rig
         With ``actuator.pole_area`` and a flux channel (``forces[].flux`` or
-        ``actuator.flux``); without them the check is not made.
+        ``actuator.flux``); without them the check is not made (without the area, the flux
+        channels of one core are still compared).
     run : Run
     terms : EstimateTerms
     what : str
@@ -440,12 +443,15 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     """
     fluxes = pole_fluxes(rig, run)
     area = rig.actuator.pole_area
-    if not fluxes or area is None:
+    if not fluxes:
         return []
+    if area is None:
+        return flux_pair_notes(rig, run, terms, what)
     notes = [f"{what}: force '{f.name}': its flux channel '{f.flux}' (forces[{k}].flux) is not "
              "in the run; its force is not checked against Maxwell's stress"
              for k, f in enumerate(rig.forces) if f.flux is not None and k not in fluxes]
     poles = sorted(fluxes)
+    notes += flux_pair_notes(rig, run, terms, what)
     skipped = _unusable(rig, run, terms, fluxes)
     if skipped:
         return [*notes, f"{what}: {skipped}: the forces are not checked against Maxwell's "
@@ -463,10 +469,130 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
     return [*notes, *_judged(rig, terms, _Problem(m[sel], w, ()), pick, head)]
 
 
+def _own_channels(rig: Rig, run: Run) -> dict[str, dict[int, str]]:
+    """Each core whose poles read two or more flux channels of their own in the run: the
+    first pole on each channel and its channel."""
+    channels = _flux_channels(rig, run)
+    out = {}
+    for core, poles in rig.cores.items():
+        own: dict[int, str] = {}
+        for k in poles:
+            if k in channels and channels[k] not in own.values():
+                own[k] = channels[k]
+        if len(own) > 1:
+            out[core] = own
+    return out
+
+
+def _flux_misfit(a: tuple[np.ndarray, np.ndarray], b: tuple[np.ndarray, np.ndarray],
+                 kept: np.ndarray) -> tuple[float, int, float, float]:
+    """(chi-square, its degrees of freedom, the chi-square of b - r a with r free, r) of two
+    fluxes that must be one, each (phasors, standard uncertainties) over the kept columns: b
+    = r a with r held to 1 within the fringing (the leakage between the poles: one ratio at
+    every harmonic), the rest noise (for lines, whose noise is not stated, a thousandth of the
+    largest)."""
+    (pa, sa), (pb, sb) = a, b
+    floor = (1e-3 if not np.any(sa) else 1e-6) * float(np.abs(pa[kept]).max())
+    sel, w = _compared(kept, np.sqrt(sa**2 + sb**2 + floor**2)[None, :] + 1e-300)
+    x, y = pa[None, :][sel], pb[None, :][sel]
+    xs, ys = np.concatenate([x.real, x.imag]) * w, np.concatenate([y.real, y.imag]) * w
+    free = float(xs @ ys / max(float(xs @ xs), 1e-300))
+    held = float((xs @ ys + 1 / FRINGING**2) / (xs @ xs + 1 / FRINGING**2))
+    chi2 = float(np.sum((ys - held * xs) ** 2)) + ((held - 1) / FRINGING) ** 2
+    return chi2, int(np.count_nonzero(w)), float(np.sum((ys - free * xs) ** 2)), free
+
+
+def flux_pair_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]:
+    """A note per core whose poles' own flux channels disagree: poles in series on one coil
+    carry one flux, so a channel's scale, sign or unit is off: the whole misfit with their
+    ratio held to 1 within the fringing (:data:`FRINGING`), or the gain of freeing the ratio,
+    beyond chance (each at half of :data:`FALSE_ALARM`); the ratio is named, and with the pole area the channel whose pole's force departs further from its
+    Maxwell force is named first.
+
+    Parameters
+    ----------
+    rig : Rig
+        Poles of one core (``forces[].core``) with their own ``forces[].flux``.
+    run : Run
+    terms : EstimateTerms
+    what : str
+        The run, at the start of the note.
+
+    Returns
+    -------
+    list of str
+    """
+    notes = []
+    for core, c0, c, (chi2, dof, scaled, r), look in _pair_misfits(rig, run, terms):
+        notes.append(
+            f"{what}: the flux channels '{c0}' and '{c}' of core '{core}' (forces[].flux) "
+            f"disagree, though poles of one core carry one flux: '{c}' reads {r:+.4g} times "
+            f"'{c0}' (chi-square {chi2:.3g} for {dof} degrees of freedom with the ratio held "
+            f"to 1 within the fringing ({FRINGING:.0%}), {scaled:.3g} with the ratio free; "
+            f"chance exceeds {_limit(dof, FALSE_ALARM / 2):.3g} and a gain of "
+            f"{_limit(1, FALSE_ALARM / 2):.3g}); look at {look}"
+            + ("" if scaled <= _limit(dof - 1) else "; or a delay, or another channel"))
+    return notes
+
+
+def _pair_misfits(rig: Rig, run: Run, terms: EstimateTerms
+                  ) -> list[tuple[str, str, str, tuple[float, int, float, float], str]]:
+    """(core, reference channel, channel, :func:`_flux_misfit`, where to look) of every pair
+    of one core's flux channels that disagree."""
+    out = []
+    for core, own in _own_channels(rig, run).items():
+        (k0, c0), *rest = own.items()
+        ref = terms.phasors(rig.actuator.flux_scale * run.channel(c0), run)
+        for k, c in rest:
+            misfit = _flux_misfit(ref, terms.phasors(rig.actuator.flux_scale * run.channel(c),
+                                                     run), terms.kept)
+            chi2, dof, scaled, _ = misfit
+            if chi2 <= _limit(dof, FALSE_ALARM / 2) and chi2 - scaled <= _limit(
+                    1, FALSE_ALARM / 2):
+                continue                  # neither the whole misfit nor the ratio's gain
+            if _sign_only(misfit[3]):
+                look = ("both: a sign (the force follows Phi^2, so neither force tells which; "
+                        "the Maxwell check stands)")
+            elif rig.actuator.pole_area is None:
+                look = "both: a scale (actuator.flux_scale), sign or unit"
+            else:
+                off = {c0: _maxwell_departure(rig, run, terms, k0),
+                       c: _maxwell_departure(rig, run, terms, k)}
+                look = (f"'{max(off, key=off.__getitem__)}' first (its pole's force departs "
+                        "further from its Maxwell force): a scale (actuator.flux_scale), sign "
+                        "or unit")
+            out.append((core, c0, c, misfit, look))
+    return out
+
+
+def _sign_only(ratio: float) -> bool:
+    """Whether a ratio of two fluxes that must be one is -1 to within the fringing (3 of its
+    standard deviations)."""
+    return abs(ratio + 1) <= 3 * FRINGING
+
+
+def _maxwell_departure(rig: Rig, run: Run, terms: EstimateTerms, pole: int) -> float:
+    """How far a pole's force is from its Maxwell force over the kept columns (|g - 1|, g the
+    fitted ratio), 0 without the pole area."""
+    area = rig.actuator.pole_area
+    channel = _flux_channels(rig, run).get(pole)
+    if area is None or channel is None:
+        return 0.0
+    m, _ = _maxwell(rig.actuator.flux_scale * run.channel(channel), area, run, terms)
+    f = terms.force[pole]
+    keep = terms.kept
+    g = float(np.real(np.vdot(m[keep], f[keep])) / max(float(np.vdot(m[keep], m[keep]).real),
+                                                         1e-300))
+    return abs(g - 1.0)
+
+
 def _unusable(rig: Rig, run: Run, terms: EstimateTerms,
               fluxes: dict[int, np.ndarray]) -> str | None:
     """Why the poles' flux channels cannot be weighed against their forces (a constant
-    channel, or one that lost the DC a drive's bias gives it), or None."""
+    channel, one that lost the DC a drive's bias gives it, or a core's channels that
+    disagree), or None."""
+    if any(not _sign_only(m[3][3]) for m in _pair_misfits(rig, run, terms)):
+        return "the flux channels of one core disagree (the note on them)"
     poles = sorted(fluxes)
     dc = max(abs(float(np.mean(fluxes[k]))) for k in poles)
     ac = max(float(np.std(fluxes[k])) for k in poles)
