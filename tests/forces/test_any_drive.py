@@ -395,3 +395,29 @@ def test_the_probes_are_checked_against_the_scan_under_any_drive(beam, bb_model,
     unbiased = dataclasses.replace(flipped, channels={
         **flipped.channels, rig.actuator.current: (u - u.mean()) / 10})
     assert notes(rig, unbiased) == []
+
+
+def test_a_scan_bias_kept_tells_a_reversed_bias_from_flipped_probes(beam, bb_model, random_run):
+    """With the scan's bias (+0.6 A) in the model, a run biased -0.6 A, whose pull's linear part
+    2 I_0 i and so its motion per ampere turn, is no mistake; its probes flipped are (the note
+    says the biases' ratio was taken out), as are a run's at +0.6 A. Without the scan's bias the
+    reversed run is taken for flipped probes."""
+    run, u, _ = random_run
+    rig = beam[3]
+    ac = (u - u.mean()) / 10
+    kept = dataclasses.replace(bb_model, reference=(0.6, float(np.std(ac))))
+
+    def notes(model, bias, sign):
+        r = dataclasses.replace(run, channels={
+            **run.channels, rig.actuator.current: bias + ac,
+            **{s: sign * np.sign(bias) * run.channels[s] for s in rig.sensor_names}})
+        return [s for s in reconstruct_any(rig, model, r).notes if "scan's motion" in s]
+
+    assert notes(kept, -0.6, 1) == []
+    for bias in (0.6, -0.6):
+        said = notes(kept, bias, -1)
+        assert len(said) == 1 and "against the scan's motion" in said[0], said
+        assert "against the scan's +0.6 A, their ratio taken out" in said[0], said
+    said = notes(bb_model, -0.6, 1)
+    assert len(said) == 1 and "one of the other sign than the scan's" in said[0], said
+    assert kept.reference == type(kept).from_json(kept.to_json()).reference

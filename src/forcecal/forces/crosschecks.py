@@ -506,8 +506,9 @@ def flux_pair_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list
     """A note per core whose poles' own flux channels disagree: poles in series on one coil
     carry one flux, so a channel's scale, sign or unit is off: the whole misfit with their
     ratio held to 1 within the fringing (:data:`FRINGING`), or the gain of freeing the ratio,
-    beyond chance (each at half of :data:`FALSE_ALARM`); the ratio is named, and with the pole area the channel whose pole's force departs further from its
-    Maxwell force is named first.
+    beyond chance (each at half of :data:`FALSE_ALARM`); the ratio is named, and with the pole
+    area the channel whose pole's force departs further from its Maxwell force is named
+    first (both for a sign, which Phi^2 hides).
 
     Parameters
     ----------

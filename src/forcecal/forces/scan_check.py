@@ -118,8 +118,11 @@ def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarra
     (:data:`DRIVE_SHARE`) and lie clear of the mains' harmonics, rho = sum Q (I a)^* /
     sum |I a|^2, the motion per unit of current against the scan's: near 1 under the scan's own
     bias and gap, real and positive under any bias of the scan's sign (the pull's part linear in
-    the current is 2 I_0 i); a drive whose DC is under :data:`BIAS` standard deviations is not
-    checked. Its phase beyond 90 degrees is the probes' sign (or a bias of the other sign);
+    the current is 2 I_0 i); where the model kept the scan's bias (from time records), rho is
+    taken per unit of that part, times the scan's bias over the run's, and a run biased the
+    other way is told from flipped probes. A drive whose DC is under :data:`BIAS` standard
+    deviations is not checked. Its phase beyond 90 degrees is the probes' sign (or, without
+    the scan's bias, a bias of the other sign);
     its size beyond :data:`MOTION_SPAN` either way a unit or scale slip. A delay is not judged:
     the lines' phases move with the load near a resonance by more than a skew of a few samples
     does.
@@ -162,14 +165,27 @@ def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarra
     if np.count_nonzero(lines) < 3 or not np.sum(np.abs(ia) ** 2) > 0:
         return []
     rho = complex(np.sum(q[lines] * np.conj(ia)) / np.sum(np.abs(ia) ** 2))
+    bias, scan_bias = float(np.mean(current)), _scan_bias(model)
+    if scan_bias is not None:
+        rho *= scan_bias / bias               # per unit of 2 I_0 i: the biases' ratio out
     probes = ", ".join(sensor_names)
     phase, size = math.degrees(np.angle(rho)), abs(rho)
     head = (f"{what}: the probes {probes} move {size:#.3g} times the scan's motion per unit of "
             f"the coil current, at {phase:+.3g} degrees to it ({np.count_nonzero(lines)} "
             f"lines, {f[lines].min():.4g}-{f[lines].max():.4g} Hz, the current's bias "
-            f"{float(np.mean(current)):+.3g} A: one of the other sign than the scan's turns it "
-            "too)")
+            + (f"{bias:+.3g} A: one of the other sign than the scan's turns it too)"
+               if scan_bias is None else
+               f"{bias:+.3g} A against the scan's {scan_bias:+.3g} A, their ratio taken out)"))
     return _sign_or_slip(head, phase, size)
+
+
+def _scan_bias(model: BroadbandModel) -> float | None:
+    """[A] the scan's current bias, where its records kept one beyond :data:`BIAS` standard
+    deviations (the shapes per ampere then scale with it), else None."""
+    if model.reference is None:
+        return None
+    dc, ac = model.reference
+    return dc if abs(dc) >= BIAS * ac and dc != 0 else None
 
 
 def _sign_or_slip(head: str, phase: float, size: float) -> list[str]:

@@ -157,6 +157,10 @@ class BroadbandModel:
         Their standard uncertainty, of Re and of Im each (:func:`smooth_ratios`).
     ratio_choice : RatioChoice
         Whether the ratios are the splines' or the modal model's, and why.
+    reference : (float, float) or None [A]
+        The scan's reference (coil current) mean and standard deviation about it (medians
+        over its time records): the bias the shapes were measured under; None from spectra or
+        FRFs, which hold no DC.
     file : str
         The MODEL.json the model was read from (:func:`load_any_model`); empty for a model
         built here. Refusals name the model by it (:attr:`origin`).
@@ -179,6 +183,7 @@ class BroadbandModel:
     ratio_std: np.ndarray | None = None
     file: str = ""
     ratio_choice: RatioChoice = field(default_factory=RatioChoice)
+    reference: tuple[float, float] | None = None
 
     @property
     def origin(self) -> str:
@@ -282,7 +287,9 @@ class BroadbandModel:
                 **({} if self.ratios is None else {"ratios": {
                     "re": self.ratios.real.tolist(), "im": self.ratios.imag.tolist()}}),
                 **({} if self.ratio_std is None else {"ratio_std": self.ratio_std.tolist()}),
-                "ratio_model": self.ratio_choice.to_json()}
+                "ratio_model": self.ratio_choice.to_json(),
+                **({} if self.reference is None else {"reference_dc_a": self.reference[0],
+                                                      "reference_ac_a": self.reference[1]})}
 
     @classmethod
     def from_json(cls, doc: dict[str, Any], source: str = "<model>") -> BroadbandModel:
@@ -311,7 +318,9 @@ class BroadbandModel:
                    gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
                    source=str(doc["source"]), notes=tuple(doc["notes"]),
                    rig=dict(doc["rig"]), ratios=ratios, ratio_std=ratio_std,
-                   ratio_choice=choice)
+                   ratio_choice=choice, reference=(
+                       None if doc.get("reference_dc_a") is None
+                       else (float(doc["reference_dc_a"]), float(doc.get("reference_ac_a", 0)))))
 
     def save(self, path: str | Path) -> Path:
         """Write the model as JSON (atomically)."""
@@ -383,7 +392,17 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
                           singular_values=sv[:min(len(sv), 12)], chi2=chi2, line_snr=line_snr,
                           gauge_names=tuple(rig.gauge_names), n_points=len(points),
                           source=scan.source, notes=tuple(notes), rig=rig_keys(rig),
-                          ratios=ratios, ratio_std=ratio_std, ratio_choice=choice)
+                          ratios=ratios, ratio_std=ratio_std, ratio_choice=choice,
+                          reference=_reference_level(scan))
+
+
+def _reference_level(scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float] | None:
+    """The scan's reference mean and standard deviation [A], medians over its time records
+    (None for spectra or FRFs)."""
+    if not isinstance(scan, Scan):
+        return None
+    ref = scan.reference
+    return float(np.median(ref.mean(axis=1))), float(np.median(ref.std(axis=1)))
 
 
 def _broadband_band(rig: Rig, scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float]:

@@ -102,6 +102,11 @@ class BroadbandFile(Table):
     ratio_model: RatioModel | None = None
     """Whether the ratios are the splines' or the modal model's, and the scores that chose
     (absent from a model written before the choice: the splines')."""
+    reference_dc_a: Annotated[float, Field(allow_inf_nan=False)] | None = None
+    """The scan's reference (the coil current) mean over its records [A]: the bias the
+    shapes were measured under (absent where the scan's records gave none: spectra, FRFs)."""
+    reference_ac_a: Annotated[float, Field(ge=0, allow_inf_nan=False)] | None = None
+    """Its standard deviation about that mean, the median over the records [A]."""
     provenance: Provenance | None = None
     """Where the model comes from."""
 
