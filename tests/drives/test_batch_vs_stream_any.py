@@ -132,3 +132,38 @@ def test_the_api_refuses_them_too(random_rig):
     for options in ({"ac_coupled": True}, {"monte_carlo": 10}, {"n_harmonics": 4}):
         with pytest.raises(forcecal.InputError, match=re.escape("acquisition.drive = 'any'")):
             forcecal.reconstruct(rig, None, run, **options)     # refused before the model
+
+
+def test_the_stream_checks_the_probes_against_the_scan(random_dir, random_rig, tmp_path,
+                                                       capsys, monkeypatch):
+    """``forcecal stream`` gathers the run against the scan over segments as it goes (1 s each
+    here, four in the record) and says at the end what the batch says: both probes flipped
+    move against the scan (the stream 1.01 times it at +169 degrees, the batch 0.959 at
+    +162; test: the note, and the sizes within 10 %); the clean run draws no such note, nor
+    does the API's stream."""
+    from forcecal.cli.main import main
+
+    rig, _, _, _, live = random_rig
+    assert not [n for n in live.notes if "scan's motion" in n]
+    monkeypatch.setattr("forcecal.realtime.any_drive.SEGMENT", 1.0)
+    table = pd.read_csv(random_dir / "runs" / "random.csv")
+    for s in rig.sensor_names:
+        table[s] = -table[s]
+    flipped = tmp_path / "flipped.csv"
+    table.to_csv(flipped, index=False)
+    said = {}
+    for name, path in (("clean", random_dir / "runs" / "random.csv"), ("flipped", flipped)):
+        assert main(["stream", str(random_dir / "rig.toml"), str(random_dir / "scan.uff"),
+                     str(path), "-o", str(tmp_path / f"{name}.stream.csv")]) == 0
+        said[name] = [n for n in capsys.readouterr().err.splitlines() if "scan's motion" in n]
+    assert said["clean"] == [], said
+    assert len(said["flipped"]) == 1 and "against the scan's motion" in said["flipped"][0]
+    batch = [n for n in forcecal.reconstruct(rig, _model(random_dir, rig),
+                                             forcecal.read_run(flipped)).notes
+             if "scan's motion" in n]
+    size = [float(n.split(" move ")[1].split()[0]) for n in (*said["flipped"], *batch)]
+    assert len(size) == 2 and size[0] == pytest.approx(size[1], rel=0.1), (said, batch)
+
+
+def _model(folder, rig):
+    return forcecal.build_spatial_model(rig, forcecal.read_scan(folder / "scan.uff", rig=rig))

@@ -27,11 +27,13 @@ import numpy as np
 
 from ..model.broadband import BroadbandModel
 from ..model.spatial import SpatialModel
+from ..records import Run
+from ..rig import Rig
 from ..signals.fourier_sums import square_phasors
 from ..signals.mains import near_mains
 from .coordinates import Coordinates
 
-__all__ = ["scan_notes"]
+__all__ = ["LineRatio", "run_line_notes", "scan_notes"]
 
 PHASE_TOLERANCE = math.radians(1.0)
 """[rad] how far the phase of the motion per unit of i^2 may move between scan and run without
@@ -53,6 +55,9 @@ checked."""
 DRIVE_SHARE = 0.1
 """Under any drive, the lines compared carry at least this share of the current's largest line
 in the band."""
+SEGMENT = 4.0
+"""[s] A stream's segments for the run against the scan under any drive (lines 0.25 Hz apart;
+the scan's coordinate is interpolated between its own lines)."""
 MIN_SHARE = 0.05
 """The fundamental of i^2 must hold at least this share of its AC, in the scan and in the run
 (a drive without DC bias pulls at 2 w0 only)."""
@@ -107,25 +112,21 @@ def scan_notes(model: SpatialModel, coords: Coordinates, current: np.ndarray,
     return []
 
 
+def run_line_notes(rig: Rig, model: BroadbandModel, run: Run, coordinate: np.ndarray,
+                   what: str) -> list[str]:
+    """:func:`line_notes` of a run held whole, where it has the coil current."""
+    act = rig.actuator
+    if act.current not in run.channels:
+        return []
+    return line_notes(model, coordinate, act.current_scale * run.channel(act.current), run.fs,
+                      rig.mains, list(rig.sensor_names), what)
+
+
 def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarray, fs: float,
                mains: float | None, sensor_names: list[str], what: str) -> list[str]:
     """Under any drive, a note when the probes' motion per unit of coil current contradicts the
-    broadband scan's in sign or in size (see the module docstring).
-
-    The run's first coordinate and its current, each through a Hann window, give per line of
-    the record ``Q`` and ``I``; the scan's first coordinate per unit of its reference, the
-    current, ``a``, between its lines. Over the lines of the model's band that carry the drive
-    (:data:`DRIVE_SHARE`) and lie clear of the mains' harmonics, rho = sum Q (I a)^* /
-    sum |I a|^2, the motion per unit of current against the scan's: near 1 under the scan's own
-    bias and gap, real and positive under any bias of the scan's sign (the pull's part linear in
-    the current is 2 I_0 i); where the model kept the scan's bias (from time records), rho is
-    taken per unit of that part, times the scan's bias over the run's, and a run biased the
-    other way is told from flipped probes. A drive whose DC is under :data:`BIAS` standard
-    deviations is not checked. Its phase beyond 90 degrees is the probes' sign (or, without
-    the scan's bias, a bias of the other sign);
-    its size beyond :data:`MOTION_SPAN` either way a unit or scale slip. A delay is not judged:
-    the lines' phases move with the load near a resonance by more than a skew of a few samples
-    does.
+    broadband scan's in sign or in size (see the module docstring), over the whole record at
+    once (:class:`LineRatio`, one segment).
 
     Parameters
     ----------
@@ -145,38 +146,107 @@ def line_notes(model: BroadbandModel, coordinate: np.ndarray, current: np.ndarra
     -------
     list of str
     """
-    n = len(coordinate)
-    if not abs(float(np.mean(current))) >= BIAS * float(np.std(current)):
-        return []
-    window = np.hanning(n)
-    q = np.fft.rfft((coordinate - np.mean(coordinate)) * window)
-    i = np.fft.rfft((current - np.mean(current)) * window)
-    f = np.fft.rfftfreq(n, 1.0 / fs)
-    lo = max(model.band[0], float(model.frequencies.min()))
-    hi = min(model.band[1], float(model.frequencies.max()))
-    band = (f >= lo) & (f <= hi) & ~near_mains(f, mains, 3 * fs / n)
-    if np.count_nonzero(band) < 3:
-        return []
-    lines = band & (np.abs(i) >= DRIVE_SHARE * np.abs(i[band]).max())
-    scan = model.coordinates[0]
-    a = (np.interp(f[lines], model.frequencies, scan.real)
-         + 1j * np.interp(f[lines], model.frequencies, scan.imag))
-    ia = i[lines] * a
-    if np.count_nonzero(lines) < 3 or not np.sum(np.abs(ia) ** 2) > 0:
-        return []
-    rho = complex(np.sum(q[lines] * np.conj(ia)) / np.sum(np.abs(ia) ** 2))
-    bias, scan_bias = float(np.mean(current)), _scan_bias(model)
-    if scan_bias is not None:
-        rho *= scan_bias / bias               # per unit of 2 I_0 i: the biases' ratio out
-    probes = ", ".join(sensor_names)
-    phase, size = math.degrees(np.angle(rho)), abs(rho)
-    head = (f"{what}: the probes {probes} move {size:#.3g} times the scan's motion per unit of "
-            f"the coil current, at {phase:+.3g} degrees to it ({np.count_nonzero(lines)} "
-            f"lines, {f[lines].min():.4g}-{f[lines].max():.4g} Hz, the current's bias "
-            + (f"{bias:+.3g} A: one of the other sign than the scan's turns it too)"
-               if scan_bias is None else
-               f"{bias:+.3g} A against the scan's {scan_bias:+.3g} A, their ratio taken out)"))
-    return _sign_or_slip(head, phase, size)
+    ratio = LineRatio(model, fs, mains)
+    ratio.add(coordinate, current)
+    return ratio.notes(sensor_names, what)
+
+
+class LineRatio:
+    """The run's motion per unit of coil current against the broadband scan's, gathered over
+    segments of a record as it comes (a stream's memory stays flat) or over the whole record.
+
+    The run's first coordinate and its current, each through a Hann window over a segment,
+    give per line ``Q`` and ``I``; the scan's first coordinate per unit of its reference, the
+    current, ``a``, between its lines. Over the lines of the model's band that carry the drive
+    (:data:`DRIVE_SHARE` of the segment's largest) and lie clear of the mains' harmonics,
+    rho = sum Q (I a)^* / sum |I a|^2 over every segment: near 1 under the scan's own bias and
+    gap, real and positive under any bias of the scan's sign (the pull's part linear in the
+    current is 2 I_0 i); where the model kept the scan's bias (from time records), rho is
+    taken per unit of that part, times the scan's bias over the run's, and a run biased the
+    other way is told from flipped probes. A drive whose DC is under :data:`BIAS` standard
+    deviations is not checked. Its phase beyond 90 degrees is the probes' sign (or, without
+    the scan's bias, a bias of the other sign); its size beyond :data:`MOTION_SPAN` either way
+    a unit or scale slip. A delay is not judged: the lines' phases move with the load near a
+    resonance by more than a skew of a few samples does.
+
+    Parameters
+    ----------
+    model : BroadbandModel
+    fs : float [Hz]
+    mains : float or None [Hz]
+    segment : int or None
+        Samples per segment; None: the whole record is one (:meth:`add` once).
+    """
+
+    def __init__(self, model: BroadbandModel, fs: float, mains: float | None,
+                 segment: int | None = None) -> None:
+        self.model, self.fs, self.mains, self.segment = model, float(fs), mains, segment
+        self._held: list[np.ndarray] = []           # (2, m) blocks not yet a segment
+        self._sums = np.zeros(3)                    # samples, sum i, sum i^2
+        self._num, self._den, self._lines = 0j, 0.0, 0
+        self._span = (math.inf, -math.inf)
+
+    def add(self, coordinate: np.ndarray, current: np.ndarray) -> None:
+        """The next samples of the run's first coordinate and of its current [A]."""
+        pair = np.vstack([np.asarray(coordinate, float), np.asarray(current, float)])
+        self._sums += (pair.shape[1], float(pair[1].sum()), float(np.square(pair[1]).sum()))
+        if self.segment is None:
+            self._segment(pair)
+            return
+        self._held.append(pair)
+        held = np.hstack(self._held)
+        while held.shape[1] >= self.segment:
+            self._segment(held[:, :self.segment])
+            held = held[:, self.segment:]
+        self._held = [held]
+
+    def _segment(self, pair: np.ndarray) -> None:
+        """Gather one segment's lines."""
+        n = pair.shape[1]
+        window = np.hanning(n)
+        q, i = np.fft.rfft((pair - pair.mean(axis=1, keepdims=True)) * window, axis=1)
+        f = np.fft.rfftfreq(n, 1.0 / self.fs)
+        model = self.model
+        lo = max(model.band[0], float(model.frequencies.min()))
+        hi = min(model.band[1], float(model.frequencies.max()))
+        band = (f >= lo) & (f <= hi) & ~near_mains(f, self.mains, 3 * self.fs / n)
+        if np.count_nonzero(band) < 3:
+            return
+        lines = band & (np.abs(i) >= DRIVE_SHARE * np.abs(i[band]).max())
+        scan = model.coordinates[0]
+        ia = i[lines] * (np.interp(f[lines], model.frequencies, scan.real)
+                         + 1j * np.interp(f[lines], model.frequencies, scan.imag))
+        self._num += complex(np.sum(q[lines] * np.conj(ia)))
+        self._den += float(np.sum(np.abs(ia) ** 2))
+        self._lines += int(np.count_nonzero(lines))
+        if np.any(lines):
+            self._span = (min(self._span[0], float(f[lines].min())),
+                          max(self._span[1], float(f[lines].max())))
+
+    def notes(self, sensor_names: list[str], what: str) -> list[str]:
+        """The note, if any (see the class), once the record is in; a stream's last samples
+        short of a segment count when they span at least a tenth of one."""
+        if self.segment is not None and self._held and self._held[0].shape[1] >= max(
+                16, self.segment // 10):
+            self._segment(self._held[0])
+            self._held = []
+        count, total, squares = self._sums
+        bias = total / max(count, 1.0)
+        std = math.sqrt(max(squares / max(count, 1.0) - bias**2, 0.0))
+        if not abs(bias) >= BIAS * std or self._lines < 3 or not self._den > 0:
+            return []
+        rho = self._num / self._den
+        scan_bias = _scan_bias(self.model)
+        if scan_bias is not None:
+            rho *= scan_bias / bias               # per unit of 2 I_0 i: the biases' ratio out
+        phase, size = math.degrees(np.angle(rho)), abs(rho)
+        head = (f"{what}: the probes {', '.join(sensor_names)} move {size:#.3g} times the "
+                f"scan's motion per unit of the coil current, at {phase:+.3g} degrees to it "
+                f"({self._lines} lines, {self._span[0]:.4g}-{self._span[1]:.4g} Hz, the "
+                f"current's bias {bias:+.3g} A"
+                + (": one of the other sign than the scan's turns it too)" if scan_bias is None
+                   else f" against the scan's {scan_bias:+.3g} A, their ratio taken out)"))
+        return _sign_or_slip(head, phase, size)
 
 
 def _scan_bias(model: BroadbandModel) -> float | None:

@@ -34,6 +34,7 @@ import numpy as np
 from ..errors import InputError
 from ..forces.budget import type_b_notes
 from ..forces.inertia_errors import ScanNoiseShare
+from ..forces.scan_check import SEGMENT, LineRatio, run_line_notes
 from ..forces.transient import (
     TRANSFER_MISFIT,
     AnyDriveSetup,
@@ -333,10 +334,13 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     names = list(rig.force_names)
     above = AboveBand(blocks.fs, model.band, blocks.t0)
     current = rig.actuator.current
+    scan = LineRatio(model, blocks.fs, rig.mains, int(round(SEGMENT * blocks.fs)))
+    pending: list[np.ndarray] = []        # the current's samples not yet given out: a latency
 
     def channels() -> Iterator[np.ndarray]:
         for block in blocks.blocks([*stream.channel_names, current], read):
-            above.add(block[-1] * rig.actuator.current_scale)
+            pending.append(block[-1] * rig.actuator.current_scale)
+            above.add(pending[-1])
             yield block[:-1]
 
     with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
@@ -347,8 +351,13 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
                 check(c.time, dict(zip(names, est.force, strict=True)),
                       dict(zip(names, est.static, strict=True)))
             out.write(c.time, stream_rows(est.force, est.static, c.std))
+            held = np.concatenate(pending)
+            scan.add(est.coordinate, held[:len(c.time)])
+            pending[:] = [held[len(c.time):]]
         rows = out.rows
     if note is not None:
+        for text in scan.notes(list(rig.sensor_names), f"run '{blocks.source}'"):
+            note(text)
         transfer = stream.setup.transfer if stream.setup is not None else None
         if transfer is None or transfer.chi2 > TRANSFER_MISFIT:
             note(transfer_note(transfer, blocks.source))
@@ -379,4 +388,5 @@ def stream_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = Non
     gauges, probes, zero, above = run_inputs(rig, model, run, tare)
     live = stream_arrays(rig, model, gauges, probes, run.fs, run.t0, run.name,
                          tare=zero, tare_fs=None if tare is None else tare.fs)
-    return dataclasses.replace(live, notes=live.notes + above)
+    scan = run_line_notes(rig, model, run, live.coordinates[0], f"run '{run.source}'")
+    return dataclasses.replace(live, notes=(*scan, *live.notes, *above))
