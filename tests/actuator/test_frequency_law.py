@@ -344,6 +344,59 @@ def test_records_from_calibration_samples():
     assert bare.force_std is None and bare.harmonics == 3
 
 
+def test_harmonics_the_estimate_does_not_hold_are_left_out_not_a_reason_to_fall_back():
+    """A reconstruction sets the harmonics it holds no estimate of (above the scan's band, no
+    reaction above the gauges' noise) to zero with no noise stated: the record weights the
+    others by their noise and leaves those out (``inf``), instead of dropping every weight."""
+    i, g, force = run(1.0e-3, 25.0)
+    f0, t0 = 25.0, 3.7
+    gauge = np.full(H + 1, 0.1)
+    gauge[4:] = 0.0                                  # 100 Hz and above: not estimated
+    coord = CoordinateNoise(harmonic=1, force=np.array([0.3 + 0.4j]), motion=np.zeros((2, 1)),
+                            cov=np.array([[1.0]]))
+    estimated = np.arange(H + 1) < 4
+    noise = RunNoise(force_std={"gauge noise": gauge}, current_std=np.zeros(H + 1),
+                     coordinates=(coord,), dc_shape=np.zeros(2), dc_std=0.0,
+                     estimated=estimated)
+    smp = CalibrationSamples(time=t0 + np.arange(N) / (N * f0), current=i, gaps=g, force=force,
+                             static_force=force, flux=None, motion=None, noise=noise)
+    rec = SteadyRecord.from_samples(smp)
+    expected = np.array([0.1, np.sqrt(0.1**2 + 0.25), 0.1, 0.1, np.inf, np.inf, np.inf])
+    np.testing.assert_allclose(rec.force_std, expected)
+    # without saying which it holds, a harmonic without noise leaves the level to the scatter
+    bare = dataclasses.replace(noise, estimated=None)
+    assert SteadyRecord.from_samples(dataclasses.replace(smp, noise=bare)).force_std is None
+
+
+def test_a_harmonic_not_measured_does_not_enter_the_fit():
+    """Harmonics 4..6 of the runs at 46 Hz and above set to zero, as a reconstruction leaves
+    them above a 200 Hz band, with an infinite uncertainty: the same law, to round-off, as the
+    runs with those harmonics cut off, and the degrees of freedom count only what is
+    measured."""
+    recs = records(7)
+    cut, zeroed = [], []
+    for r in recs:
+        if r.f0 < 40.0:
+            cut.append(r)
+            zeroed.append(r)
+            continue
+        spectrum = np.fft.rfft(r.force)
+        spectrum[4:] = 0.0
+        force = np.fft.irfft(spectrum, n=r.n)
+        std = np.r_[np.full(4, SIGMA), np.full(H - 3, np.inf)]
+        zeroed.append(dataclasses.replace(r, force=force, force_std=std))
+        cut.append(dataclasses.replace(r, force=force, force_std=np.full(4, SIGMA),
+                                       n_harmonics=3))
+    a = fit_frequency_law(zeroed, models=FIRST)
+    b = fit_frequency_law(cut, models=FIRST)
+    np.testing.assert_allclose(a.params, b.params, rtol=1e-7)
+    np.testing.assert_allclose(a.covariance, b.covariance, rtol=1e-5)
+    assert a.dof == b.dof == sum(2 * (3 if r.f0 > 40.0 else H) + 1 for r in recs) - 3
+    for sa, sb in zip(a.steps, b.steps, strict=True):
+        assert sa.gain == pytest.approx(sb.gain, rel=1e-7)
+        assert sa.gain_std == pytest.approx(sb.gain_std, rel=1e-5)
+
+
 def test_fit_refuses_campaigns_that_cannot_separate_the_parameters():
     with pytest.raises(FitError, match="2 or more static gaps"):
         fit_frequency_law(records(1, gaps=(1.0e-3,)))
@@ -369,6 +422,8 @@ def test_record_refuses_bad_input():
     with pytest.raises(InputError, match="force_std must hold 7"):
         SteadyRecord(f0=20.0, current=i, gaps=g, force=force, force_std=[1.0, 0.0],
                      n_harmonics=6)
+    with pytest.raises(InputError, match="force_std must hold 3"):
+        SteadyRecord(f0=20.0, current=i, gaps=g, force=force, force_std=[np.inf] * 3)
 
 
 # --------------------------------------------------------------------------------------------

@@ -118,7 +118,8 @@ def test_the_dc_deflection_takes_the_scans_quasi_static_shape(beam, bb_model):
 def test_a_scans_quasi_static_shape_is_not_moved_by_the_fundamentals_errors(beam, bb_model):
     """The campaign's scan-shape errors move a run's DC deflection through the fundamental's
     shape when that shape stands in for the quasi-static one; a broadband model's own
-    quasi-static shape is not the fundamental's, so none of them moves the DC."""
+    quasi-static shape is not the fundamental's, so the fundamental's own errors do not move
+    the DC: the quasi-static shape's error does, as errors of their own."""
     from forcecal.campaign.noise import run_noise
     from forcecal.forces.steady import reconstruct
 
@@ -127,13 +128,17 @@ def test_a_scans_quasi_static_shape_is_not_moved_by_the_fundamentals_errors(beam
                      "steady")                                     # 6 N + 1.5 N at 36 Hz a pole
     rig = dataclasses.replace(beam[3], frequency=36.0, drive="steady")
     own = steady_model(bb_model, rig, 36.0, 4)
-    moved = {}
+    moved, static = {}, {}
     for label, sm in (("own", own), ("fundamental's", dataclasses.replace(own, static_shape=None))):
         est = reconstruct(rig, sm, run)
         shapes = [e for e in run_noise(rig, sm, run, est, None).shared if e.source == "scan shapes"]
-        assert shapes
-        moved[label] = max(float(np.max(np.abs(e.motion[:, 0]))) for e in shapes)
+        harmonic = [e for e in shapes if e.name.startswith("shape n=")]
+        assert harmonic
+        moved[label] = max(float(np.max(np.abs(e.motion[:, 0]))) for e in harmonic)
+        static[label] = [float(np.max(np.abs(e.motion[:, 0]))) for e in shapes
+                         if e.name.startswith("quasi-static shape")]
     assert moved["own"] == 0.0 and moved["fundamental's"] > 0.0, moved
+    assert static["fundamental's"] == [] and static["own"] and min(static["own"]) > 0, static
 
 
 def test_the_ratios_stated_uncertainty_covers_their_error(beam, bb_model):

@@ -58,7 +58,9 @@ class SteadyRecord:
         Standard uncertainty of the force's phasors F_0..F_H (Re and Im each; the DC real).
         A scalar is the same for every harmonic; its length sets H. White noise of standard
         deviation sigma on each of the ``n`` instants gives ``sigma sqrt(2 / n)``
-        (``sigma / sqrt(n)`` for the DC). None: the scatter of the fit sets the level.
+        (``sigma / sqrt(n)`` for the DC). ``inf``: the harmonic is not measured (the
+        reconstruction holds none there) and does not enter the fit. None: the scatter of the
+        fit sets the level.
     n_harmonics : int or None
         H, the force harmonics fitted; None takes ``len(force_std) - 1``, else the highest
         harmonic of the force or the current above round-off (a Fourier series of H harmonics
@@ -110,9 +112,11 @@ class SteadyRecord:
         if std is not None:
             if std.size == 1:
                 std = np.full(h + 1, float(std[0]))
-            if std.shape != (h + 1,) or not np.all(np.isfinite(std)) or np.any(std <= 0):
-                raise InputError(f"{what}: force_std must hold {h + 1} positive finite values "
-                                 f"(harmonics 0..{h}), found {std.shape}")
+            if (std.shape != (h + 1,) or np.any(np.isnan(std)) or np.any(std <= 0)
+                    or not np.any(np.isfinite(std))):
+                raise InputError(f"{what}: force_std must hold {h + 1} positive values, finite "
+                                 f"or inf where a harmonic is not measured (harmonics 0..{h}), "
+                                 f"found {std.shape}")
         shared = []
         for label, df, dg in self.shared:
             df, dg = np.asarray(df, dtype=float), np.asarray(dg, dtype=float)
@@ -142,7 +146,8 @@ class SteadyRecord:
         force_std : float, (H+1,) array or None [N]
             The force phasors' uncertainty; None takes the run's independent force noise
             (``samples.noise``: the estimate's budget and the probes' noise through the
-            coordinates, their effect on the force) when described. The errors the run
+            coordinates, their effect on the force; ``inf`` at the harmonics the estimate
+            does not hold) when described. The errors the run
             shares with others (the tare's, the scan shapes', the rig's type-B) come from
             ``samples.noise`` too.
         name : str
@@ -196,7 +201,9 @@ def _highest_harmonic(*signals: np.ndarray) -> int:
 
 
 def _noise_std(noise: Any) -> np.ndarray | None:
-    """(H+1,) [N]: a run's independent noise of the total force's phasors (RunNoise)."""
+    """(H+1,) [N]: a run's independent noise of the total force's phasors (RunNoise), ``inf``
+    at the harmonics its estimate does not hold (``noise.estimated``: set to zero, not
+    measured); None when a harmonic it holds has no noise stated."""
     parts = [np.asarray(s, dtype=float) for s in noise.force_std.values()]
     if not parts:
         return None
@@ -204,7 +211,11 @@ def _noise_std(noise: Any) -> np.ndarray | None:
     for c in getattr(noise, "coordinates", ()):
         if int(c.harmonic) < var.size:
             var[int(c.harmonic)] += float(np.real(np.conj(c.force) @ c.cov @ c.force))
-    return np.sqrt(var) if np.all(var > 0) else None
+    held = getattr(noise, "estimated", None)
+    held = np.ones(var.size, dtype=bool) if held is None else np.asarray(held, dtype=bool)
+    if not np.all(var[held] > 0):
+        return None
+    return np.where(held, np.sqrt(var), np.inf)
 
 
 # --------------------------------------------------------------------------------------------

@@ -52,7 +52,7 @@ class _Stack:
     current: np.ndarray   # (R, n//2 + 1) complex: rfft of the current
     gaps: np.ndarray      # (R, n, n_poles) [m]
     force: np.ndarray     # (R, H+1) complex [N]: the measured phasors
-    weight: np.ndarray    # (R, H+1) [1/N]: 1 / std, 0 beyond a run's own H
+    weight: np.ndarray    # (R, H+1) [1/N]: 1 / std, 0 beyond a run's own H or not measured
 
     @property
     def bins(self) -> np.ndarray:
@@ -96,6 +96,15 @@ def _lag_filter(st: _Stack, model: FrequencyModel, tau: float
                 ) -> tuple[np.ndarray, np.ndarray]:
     """The core's response at every bin and its derivative with respect to tau."""
     return model.response(st.bins, tau)
+
+
+def _n_values(records: Sequence[SteadyRecord], weighted: bool) -> int:
+    """The harmonic values the records give the fit: the DC and Re and Im of every harmonic
+    1..H, each where measured (``force_std`` finite) when weighted."""
+    if not weighted:
+        return sum(2 * r.harmonics + 1 for r in records)
+    measured = [np.isfinite(np.asarray(r.force_std, dtype=float)) for r in records]
+    return sum(int(m[0]) + 2 * int(np.sum(m[1:])) for m in measured)
 
 
 def _stacks(records: Sequence[SteadyRecord], weighted: bool) -> list[_Stack]:
@@ -364,7 +373,7 @@ def _held_out(recs: list[SteadyRecord], steps: np.ndarray, model: FrequencyModel
         sts = _stacks(train, weighted)
         scale, lo = _bounds(train, x, model)
         fit = _solve(lambda p, sts=sts: _global_residuals(sts, model, p), x, scale, lo,
-                     weighted, sum(2 * r.harmonics + 1 for r in train),
+                     weighted, _n_values(train, weighted),
                      f"frequency law ({model.name}) without the step at {test[0].f0:.4g} Hz")
         err = total = 0.0
         for st in _stacks(test, weighted):
@@ -451,7 +460,9 @@ def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLER
     *Uncertainty.* Runs are independent; the harmonics of one run are taken as independent of
     one another (Re and Im of each alike). The covariance is ``c (J^T J)^-1`` with ``J`` the
     Jacobian of the weighted residuals and ``c = max(1, chi2 / dof)``: a misfit of the model
-    inflates it, never shrinks it; ``dof`` counts harmonic values, not instants. Without
+    inflates it, never shrinks it; ``dof`` counts harmonic values, not instants. A harmonic
+    a record does not measure (``force_std`` infinite: the reconstruction holds none there,
+    as above the scan's band) is left out of the fit and of ``dof``. Without
     ``force_std`` the harmonics are weighted as white noise on the instants would weight them
     (the DC twice, in variance, as precise as Re or Im of a harmonic) and ``c = chi2 / dof``:
     the scatter sets the level. The current and the gaps are taken as exact but for the errors
@@ -484,7 +495,7 @@ def fit_frequency_law(records: Iterable[Any], step_tolerance: float = STEP_TOLER
     _check_campaign(recs, steps)
     weighted = recs[0].force_std is not None
     stacks = _stacks(recs, weighted)
-    n_obs = sum(2 * r.harmonics + 1 for r in recs)
+    n_obs = _n_values(recs, weighted)
     fits, scores, skipped = _candidates(stacks, recs, steps, names, weighted, n_obs)
     chosen, reason = choose_model(scores) if len(names) > 1 else (names[0], "")
     glob = fits[chosen]

@@ -17,6 +17,7 @@ Shapes: ``H+1`` harmonics 0..H, ``n_poles`` force points of the actuator. SI uni
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -114,6 +115,11 @@ class RunNoise:
         means, the scan's shape coefficients.
     type_b : tuple of SharedEffect
         The rig's type-B parameters with a non-zero standard uncertainty.
+    estimated : (H+1,) bool array or None
+        The harmonics of the total force the estimate holds (its ``kept`` harmonics; the DC
+        where the gauges measure it). The estimate sets the others to zero: they are not
+        measured (a harmonic above the scan's band with no reaction above the gauges' noise),
+        so their zero noise above says nothing of their error. None: every harmonic.
     """
 
     force_std: dict[str, np.ndarray]
@@ -123,6 +129,7 @@ class RunNoise:
     dc_std: float
     shared: tuple[SharedEffect, ...] = field(default=())
     type_b: tuple[SharedEffect, ...] = field(default=())
+    estimated: np.ndarray | None = None
 
 
 def _total_gain(rig: Rig) -> np.ndarray:
@@ -259,12 +266,15 @@ def _moved(rig: Rig, model: SpatialModel, p: Parameter, d: float, dc: np.ndarray
     return total, pole_phasors(rig_p, model, inputs_p, dc_p, dc_var)
 
 
-def _rotor(model: SpatialModel, rig: Rig, n1: int) -> complex:
+def _rotor(model: SpatialModel, rig: Rig, values: Callable[[np.ndarray], np.ndarray]
+           ) -> complex:
     """The unit rotor of :func:`forcecal.actuator.gaps.quasi_static_shape` (its shape is
-    ``Re(phi_n1 rotor)``), recovered by least squares at the probes and the poles."""
+    ``Re(values rotor)``, ``values`` the shape it stands on at structure coordinates: the
+    lowest harmonic's, or the model's quasi-static shape), recovered by least squares at the
+    probes and the poles."""
     shape = quasi_static_shape(model, rig)
     points = np.concatenate([rig.sensor_points, rig.force_points])
-    phi = model.shape_values(n1, rig.structure.coordinates(points))
+    phi = values(rig.structure.coordinates(points))
     a = np.column_stack([phi.real, -phi.imag])
     (c, s), *_ = np.linalg.lstsq(a, shape(points), rcond=None)
     return complex(c, s)
@@ -289,6 +299,19 @@ class _ShapeRun:
     dc_probes: np.ndarray
     dc_poles: np.ndarray
     ops: ShapeOperators
+
+
+def _dc_moved(run: _ShapeRun, at_probes: np.ndarray, at_poles: np.ndarray, rotor: complex
+              ) -> np.ndarray:
+    """(n_poles,) [m]: the DC deflection at the poles with the quasi-static shape moved by
+    ``at_probes`` and ``at_poles`` (the change of the shape it stands on, before its rotor):
+    its amplitude fitted to the probes' DC again, as
+    :func:`forcecal.actuator.gaps.pole_motion` fits it."""
+    shape_probes = run.dc_probes + (at_probes * rotor).real
+    w = 1.0 / np.maximum(run.dc_var, np.finfo(float).tiny)
+    amplitude = float(np.sum(w * shape_probes * run.dc) / np.sum(w * shape_probes**2))
+    out: np.ndarray = amplitude * (run.dc_poles + (at_poles * rotor).real)
+    return out
 
 
 def _shape_change(run: _ShapeRun, k: int, member: int, at_poles: np.ndarray, delta: np.ndarray
@@ -318,11 +341,69 @@ def _shape_change(run: _ShapeRun, k: int, member: int, at_poles: np.ndarray, del
         total[n] = run.a_total @ inertia_term(m, q, n * inputs.w0)
     motion[:, n] = phi_p @ q
     if n == run.n1 and member == 0:
-        shape_probes = run.dc_probes + (at_probes * run.rotor).real
-        w = 1.0 / np.maximum(run.dc_var, np.finfo(float).tiny)
-        amplitude = float(np.sum(w * shape_probes * run.dc) / np.sum(w * shape_probes**2))
-        motion[:, 0] = amplitude * (run.dc_poles + (at_poles @ delta * run.rotor).real)
+        motion[:, 0] = _dc_moved(run, at_probes, at_poles @ delta, run.rotor)
     return total, motion
+
+
+def _static_covariance(model: SpatialModel) -> np.ndarray | None:
+    """The covariance [m^2] of the coefficients of the model's own quasi-static shape (a
+    broadband scan's, :func:`forcecal.model.broadband.steady_model`), None without one."""
+    cov = getattr(model.static_shape, "coefficient_covariance", None)
+    return None if cov is None else np.asarray(cov, dtype=float)
+
+
+def _holds(cov: np.ndarray, part: np.ndarray) -> bool:
+    """Whether a coefficient covariance holds ``part`` (of the same basis; what is left is a
+    covariance, to round-off): a broadband model builds its quasi-static shape and every
+    harmonic's on the span's first shape, ``phi_1 + sum_k phi_k a_k / a_1`` with real
+    ``phi_k``, and the first shape's error is theirs alike."""
+    if cov.shape != part.shape:
+        return False
+    scale = float(np.max(np.diag(cov), initial=0.0))
+    return bool(np.linalg.eigvalsh(cov - part).min() >= -1e-9 * max(scale, 1e-300))
+
+
+def _directions(cov: np.ndarray, scale: float) -> list[np.ndarray]:
+    """The principal directions of a coefficient covariance, each scaled by its standard
+    deviation, those above round-off of ``scale`` (the largest variance it is part of)."""
+    lam, vec = np.linalg.eigh(cov)
+    keep = np.flatnonzero(lam > 1e-12 * max(scale, 1e-300))
+    return [np.sqrt(lam[d]) * vec[:, d] for d in keep]
+
+
+def _static_effects(run: _ShapeRun, cov: np.ndarray) -> tuple[SharedEffect, ...]:
+    """The error of the model's own quasi-static shape (:func:`_static_covariance`): along each
+    principal direction of its covariance (real, as the span's shapes are), its signed change
+    of the DC deflection and, with it, of every harmonic's shape that holds the same error
+    (:func:`_holds`), and so of the total force and of the pole displacement (central
+    differences). Every run of the model shares it, whatever its frequency."""
+    model, rig = run.model, run.rig
+    static = model.static_shape
+    assert static is not None, "a model with a quasi-static shape of its own"
+    xs = rig.structure.coordinates(rig.sensor_points)
+    xp = rig.structure.coordinates(rig.force_points)
+    at_probes, at_poles = static.basis.evaluate(xs), static.basis.evaluate(xp)
+    rotor = _rotor(model, rig, static.evaluate)
+    h = run.inputs.sensors.shape[1] - 1
+    harmonics = [(k, model.shapes[k].basis.evaluate(xp)) for k, n in enumerate(model.harmonics)
+                 if 1 <= int(n) <= h and _holds(np.asarray(
+                     getattr(model.shapes[k], "coefficient_covariance", np.zeros(0)),
+                     dtype=float), cov)]
+    out = []
+    for d, step in enumerate(_directions(cov, float(np.max(np.diag(cov), initial=0.0)))):
+        ends = []
+        for delta in (step, -step):
+            total = np.zeros(h + 1, dtype=complex)
+            motion = np.zeros((len(rig.forces), h + 1), dtype=complex)
+            for k, basis_poles in harmonics:
+                t, m = _shape_change(run, k, 0, basis_poles, delta)
+                total, motion = total + t, motion + m
+            motion[:, 0] = _dc_moved(run, at_probes @ delta, at_poles @ delta, rotor)
+            ends.append((total, motion))
+        out.append(SharedEffect(name=f"quasi-static shape direction {d}",
+                                source="scan shapes", total=0.5 * (ends[0][0] - ends[1][0]),
+                                motion=0.5 * (ends[0][1] - ends[1][1])))
+    return tuple(out)
 
 
 def _shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
@@ -330,9 +411,12 @@ def _shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
     coefficients' covariance (Re and Im), its signed change of the total force and of the pole
     displacement (central differences). Each is named with its harmonic's frequency: runs share
     it when their model's shape at that frequency is one (a steady scan's at its fundamental; a
-    broadband model's differs from one frequency to the next)."""
-    out = []
+    broadband model's differs from one frequency to the next). A model's own quasi-static
+    shape has its error too, which moves the DC deflection of every run and the harmonics'
+    shapes that hold it (:func:`_static_effects`); those keep the rest of their covariance."""
     model = run.model
+    static = _static_covariance(model)
+    out = list(_static_effects(run, static)) if static is not None else []
     xp = run.rig.structure.coordinates(run.rig.force_points)
     for k, n in enumerate(model.harmonics):
         if int(n) > run.inputs.sensors.shape[1] - 1 or int(n) == 0:
@@ -341,13 +425,15 @@ def _shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
             cov = getattr(fit, "coefficient_covariance", None)
             if cov is None:
                 continue
+            cov = np.asarray(cov, dtype=float)
+            scale = float(np.max(np.diag(cov), initial=0.0))
+            if member == 0 and static is not None and _holds(cov, static):
+                cov = cov - static
             at_poles = fit.basis.evaluate(xp)
-            lam, vec = np.linalg.eigh(np.asarray(cov, dtype=float))
-            for d in np.flatnonzero(lam > 1e-12 * max(float(lam.max()), 1e-300)):
+            for d, step in enumerate(_directions(cov, scale)):
                 for part, unit in (("re", 1.0), ("im", 1j)):
-                    step = unit * np.sqrt(lam[d]) * vec[:, d]
-                    plus = _shape_change(run, k, member, at_poles, step)
-                    minus = _shape_change(run, k, member, at_poles, -step)
+                    plus = _shape_change(run, k, member, at_poles, unit * step)
+                    minus = _shape_change(run, k, member, at_poles, -unit * step)
                     out.append(SharedEffect(
                         name=f"shape n={int(n)} ({int(n) * model.f0:.4g} Hz) member "
                              f"{member} direction {d} {part}",
@@ -427,6 +513,8 @@ def run_noise(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
       signed change of the total force's phasors and of the pole displacement per standard
       uncertainty, with the estimate's own force solve and the displacement computed as
       :func:`forcecal.actuator.gaps.pole_motion` does.
+    - which harmonics the estimate holds at all (``estimated``): the others are zero in the
+      samples, not measured, and their noise is not stated.
     """
     h = int(estimate.harmonics[-1])
     row = estimate.combination_names.index("total")
@@ -448,7 +536,7 @@ def run_noise(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
     rotor = 1.0 + 0.0j
     if model.static_shape is None:           # the fundamental's shape stands in for it
         n1 = 1 if 1 in model.harmonics else int(np.min(model.harmonics))
-        rotor = _rotor(model, rig, n1)
+        rotor = _rotor(model, rig, lambda at: model.shape_values(n1, at))
     shapes = _ShapeRun(rig=rig, model=model, inputs=inputs, a_total=_total_gain(rig), dc=dc,
                        dc_var=var_run + var_tare, n1=n1, rotor=rotor,
                        dc_probes=base(rig.sensor_points), dc_poles=base(rig.force_points),
@@ -465,4 +553,6 @@ def run_noise(rig: Rig, model: SpatialModel, run: Run, estimate: ForceEstimate,
         dc_std=float(np.sqrt(np.sum(dc_gain**2 * var_run))),
         shared=shared,
         type_b=_type_b_effects(rig, model, inputs, dc, var_run + var_tare, row),
+        estimated=np.asarray(estimate.kept, dtype=bool)
+        & np.r_[bool(estimate.dc_observed), np.ones(h, dtype=bool)],
     )

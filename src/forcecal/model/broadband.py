@@ -750,8 +750,11 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
     # their coefficients
     mac = np.array([[shape_similarity(p.coefficients, q.coefficients) for q in shapes]
                     for p in shapes])
-    static = dataclasses.replace(first, coefficients=coefs @ model.mixing(
-        model.frequencies[:1])[:, 0])
+    lowest = model.frequencies[:1]          # the quasi-static shape, with its ratios' error
+    static = dataclasses.replace(
+        first, coefficients=coefs @ model.mixing(lowest)[:, 0],
+        coefficient_covariance=first.coefficient_covariance
+        + (real * model.mixing_std(lowest)[:, 0] ** 2) @ real.T)
     return SpatialModel(
         f0=f0, harmonics=kept, shapes=shapes, couplings=couplings, similarity=mac,
         snr=snr, gauge_names=model.gauge_names, dropped=dict(sorted(dropped.items())),
