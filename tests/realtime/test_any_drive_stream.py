@@ -11,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from fe_beam import FS, band_noise, record_run
 
 from forcecal.forces.transient import reconstruct_any
@@ -87,8 +88,9 @@ def test_cli_streams_a_run_under_any_drive(beam, bb_scan, random_run, tmp_path, 
     d = streamed["total"].to_numpy() - batch["total"].to_numpy()
     assert np.sqrt(np.mean(d**2)) < 0.15 * batch["total_std"].mean()
     assert "note:" not in capsys.readouterr().err         # a current of nothing: no note
-    # a current over 5-150 Hz puts i^2 above the 200 Hz scan: the stream says so at the end,
-    # in the words and figures of the batch's note
+    # a current over 5-150 Hz puts i^2 above the 200 Hz scan, and the probes do not follow
+    # it as the scan's motion per ampere: the stream says both at the end, in the words and
+    # figures of the batch's notes
     drive = 2.0 + 1.0 * band_noise(np.random.default_rng(9), run.n_samples, 5.0, 150.0)
     write_run_csv(dataclasses.replace(run, channels={**run.channels, "i": drive}),
                   tmp_path / "wide.csv")
@@ -97,7 +99,14 @@ def test_cli_streams_a_run_under_any_drive(beam, bb_scan, random_run, tmp_path, 
     said = [line for line in capsys.readouterr().err.splitlines() if line.startswith("note:")]
     batch_notes = reconstruct_any(rig, load_any_model(model),
                                   read_run(tmp_path / "wide.csv", rig)).notes
-    assert len(said) == 1 and said[0][len("note: "):] in batch_notes, (said, batch_notes)
+    above = [n[len("note: "):] for n in said if "above the scan's band" in n]
+    moved = [n for n in said if "scan's motion" in n]
+    assert len(said) == 2 and len(above) == 1 and above[0] in batch_notes, (said, batch_notes)
+    # the probes against the scan: on the stream's own coordinate, the batch's size (here a
+    # slip: probes that do not follow this current) and phase to 0.1 degree (achieved)
+    size = [float(n.split(" move ")[1].split()[0]) for n in (*moved, *batch_notes)
+            if "scan's motion" in n]
+    assert len(moved) == 1 and len(size) == 2 and size[0] == pytest.approx(size[1], rel=0.01)
     for option in (["--memory", "5"], ["--steady"]):
         assert main(["stream", *args, "-o", str(tmp_path / "x.csv"), *option]) == 2
         err = capsys.readouterr().err.strip()

@@ -460,7 +460,8 @@ def type_b_moves(rig: Rig, model: BroadbandModel) -> TypeBMoves | None:
 def series_type_b_variance(moves: TypeBMoves | None, model: BroadbandModel,
                            probe_shapes: np.ndarray, coordinate_map: np.ndarray, pinv: np.ndarray,
                            acceleration: np.ndarray, inertia: np.ndarray, reactions: np.ndarray,
-                           fs: float) -> np.ndarray:
+                           fs: float, absorbed: Callable[[np.ndarray], float] | None = None
+                           ) -> np.ndarray:
     """(n_forces + 1, N) [N^2]: each force's and the total's variance from the declared type-B
     uncertainties, sample by sample.
 
@@ -477,12 +478,18 @@ def series_type_b_variance(moves: TypeBMoves | None, model: BroadbandModel,
     inertia, reactions : (n_gauges, N) arrays [N]
         The estimate's J and smoothed R.
     fs : float [Hz]
+    absorbed : callable, optional
+        Where the inertia's scale is calibrated in situ: the relative change of that scale a
+        change of the total (N,) makes (:func:`forcecal.forces.inertia_scale.scale_shift`);
+        each parameter's change then keeps only what the scale does not absorb.
     """
     n = inertia.shape[-1]
     if moves is None:
         return np.zeros((len(pinv) + 1, n))
     var = np.zeros((len(pinv) + 1, n))
     static = inertia - reactions
+    by_inertia = (None if absorbed is None
+                  else np.vstack([pinv @ inertia, (pinv @ inertia).sum(axis=0)]))
     for k in range(len(moves.names)):                           # one at a time: memory
 
         def response(f: np.ndarray, k: int = k) -> np.ndarray:   # q''_1 -> dJ, (n_g, n_f)
@@ -495,7 +502,10 @@ def series_type_b_variance(moves: TypeBMoves | None, model: BroadbandModel,
         if moves.gauge[k] >= 0:
             d_inertia[moves.gauge[k]] -= moves.scale[k] * reactions[moves.gauge[k]]
         d_force = moves.pinv[k] @ static + pinv @ d_inertia
-        var += np.vstack([d_force, d_force.sum(axis=0)]) ** 2
+        d_all = np.vstack([d_force, d_force.sum(axis=0)])
+        if absorbed is not None and by_inertia is not None:
+            d_all += absorbed(d_all[-1]) * by_inertia
+        var += d_all**2
     return var
 
 

@@ -33,7 +33,7 @@ from ..signals.fourier_sums import square_phasors
 from ..signals.mains import near_mains
 from .coordinates import Coordinates
 
-__all__ = ["LineRatio", "run_line_notes", "scan_notes"]
+__all__ = ["LineRatio", "scan_notes"]
 
 PHASE_TOLERANCE = math.radians(1.0)
 """[rad] how far the phase of the motion per unit of i^2 may move between scan and run without

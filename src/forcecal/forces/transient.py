@@ -50,8 +50,15 @@ from .budget import TypeBMoves, series_type_b_variance, type_b_moves, type_b_not
 from .crosschecks import flux_notes, line_terms, pole_notes
 from .estimate import inertia_share_of, series_summary
 from .inertia_errors import ScanNoiseShare, inertia_error_weights
+from .inertia_scale import (
+    InertiaScale,
+    estimate_inertia_scale,
+    plausible_deviation,
+    scale_shift,
+    scale_variance,
+)
 from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
-from .scan_check import line_notes
+from .scan_check import run_line_notes
 from .solve import force_solve, reactions_only
 from .steady import channels_si
 from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
@@ -155,6 +162,10 @@ class AnyDriveSetup:
         (:func:`forcecal.signals.mains.hum_tones`); the Wiener gains take them for noise (a
         probe's hum is no motion, yet the inertia takes it for one: 0.6 um at 50 Hz on both
         probes of the beam moves the total by 0.06 N).
+    scale_shift : callable or None
+        Where the inertia's scale was calibrated in situ, how it absorbs a change of the total
+        (:func:`forcecal.forces.inertia_scale.scale_shift`): the type-B parameters' changes
+        keep only what it does not absorb.
     """
 
     band: tuple[float, float]
@@ -176,6 +187,7 @@ class AnyDriveSetup:
     unseen: UnseenMotion | None = None
     type_b: TypeBMoves | None = None
     hum: tuple[tuple[int, float, float], ...] = ()
+    scale_shift: Callable[[np.ndarray], float] | None = None
     _weights: dict[int, tuple[np.ndarray, np.ndarray]] = dataclasses.field(
         default_factory=dict, compare=False, repr=False)
 
@@ -353,6 +365,9 @@ class TransientEstimate:
         True for the batch estimate, False for the real-time one (``stream``: each sample
         from the samples up to a fixed latency after it).
     notes : tuple of str
+    inertia_scale : InertiaScale or None
+        The inertia term's scale calibrated in situ (:mod:`.inertia_scale`), applied to
+        ``inertia`` and the forces where ``applied``; None where it was not asked for.
     """
 
     run_name: str
@@ -370,6 +385,7 @@ class TransientEstimate:
     smoothed: bool = True
     notes: tuple[str, ...] = ()
     provenance: dict | None = None
+    inertia_scale: InertiaScale | None = None
 
     @classmethod
     def from_window(cls, rig: Rig, run_name: str, t0: float, fs: float,
@@ -543,9 +559,11 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     scan = short_time_variance(acc, np.vstack([setup.error_weights(model, frame),
                                                setup.noise_weights(model, frame)[-1:]]),
                                fs, frame)                 # and the total's by its noise alone
+    shift = setup.scale_shift
     var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2 + scan[:-1]
                     + series_type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv,
-                                      acc, inertia, reactions, fs)) + edge**2
+                                             acc, inertia, reactions, fs, None if shift is None
+                                             else lambda d: shift(ext.inner(d)))) + edge**2
     inner = ext.inner
     return WindowEstimate(force=inner(sw.values[:-1]),
                           force_std=np.sqrt(inner(sw.std[:-1] ** 2) + var[:-1]),
@@ -756,19 +774,33 @@ def run_inputs(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None
     return gauges, probes, zero, reach.notes(run.source)
 
 
-def _scan_notes(rig: Rig, model: BroadbandModel, run: Run, coordinate: np.ndarray,
-                what: str) -> list[str]:
-    """The probes against the scan (:func:`.scan_check.line_notes`), where the run has the
-    coil current."""
-    act = rig.actuator
-    if act.current not in run.channels:
-        return []
-    return line_notes(model, coordinate, act.current_scale * run.channel(act.current), run.fs,
-                      rig.mains, list(rig.sensor_names), what)
+def _calibrated_inertia(rig: Rig, run: Run, model: BroadbandModel, setup: AnyDriveSetup,
+                        est: WindowEstimate, gauges: np.ndarray, probes: np.ndarray, frame: int
+                        ) -> tuple[WindowEstimate, InertiaScale]:
+    """The estimate with its inertia term scaled in situ (:mod:`.inertia_scale`): s from the
+    run's own reactions, inertia and flux channels; where it is applied, the forces again with
+    every gauge's coupling (and its basis functions') times s, and s's uncertainty through the
+    scaled inertia in every force's and the total's."""
+    names = [c for c in rig.flux_channels if c in run.channels]
+    flux = np.stack([run.channel(c) for c in names]) if names else None
+    total = np.ones(len(setup.pinv)) @ setup.pinv
+    scale = estimate_inertia_scale(total @ est.inertia, total @ est.reactions, flux, setup.fs,
+                                   model.band, plausible_deviation(rig.type_b), run.source)
+    if not scale.applied or flux is None:
+        return est, scale
+    scaled = dataclasses.replace(setup, couplings=scale.scale * setup.couplings,
+                                 basis_couplings=scale.scale * setup.basis_couplings,
+                                 _weights={}, scale_shift=scale_shift(
+                                     total @ est.inertia, flux, setup.fs, model.band,
+                                     scale.scale))
+    est = window_forces(scaled, model, gauges, probes, frame, run.source)
+    var = scale_variance(setup.pinv, est.inertia, scale.std / scale.scale)
+    return dataclasses.replace(est, force_std=np.sqrt(est.force_std**2 + var[:-1]),
+                               total_std=np.sqrt(est.total_std**2 + var[-1])), scale
 
 
-def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None
-                    ) -> TransientEstimate:
+def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,
+                    inertia_scale: bool = True) -> TransientEstimate:
     """The forces of a run under any drive, sample by sample.
 
     Parameters
@@ -782,6 +814,9 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     tare : Run, optional
         A zero-current record: its mean gauge and probe values are the zero, and with
         ``acquisition.mains`` its gauges' hum tones enter the uncertainty.
+    inertia_scale : bool
+        Calibrate the inertia term's scale in situ (:mod:`.inertia_scale`; a note says what
+        was found and whether it was applied); False keeps the scan's and the probes' scale.
 
     Returns
     -------
@@ -804,18 +839,22 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
                         run.t0, run.source)
     frame = stft_frame(fs, n)
     est = window_forces(setup, model, gauges, probes, frame, run.source)
+    scale = None
+    if inertia_scale:
+        est, scale = _calibrated_inertia(rig, run, model, setup, est, gauges, probes, frame)
     scan = ScanNoiseShare(fs, run.t0)
     scan.add(np.vstack([est.scan_noise, est.total_std**2]))
     terms = line_terms(est.force_std, est.reactions, est.inertia, setup.pinv, fs, run.t0,
                        model.band, rig.mains)
     what = f"run '{run.source}'"
     notes = (*flux_notes(rig, run, terms, what), *pole_notes(rig, run, terms, what),
-             *_scan_notes(rig, model, run, est.coordinate, what),
+             *run_line_notes(rig, model, run, est.coordinate, what),
              f"short-time Wiener gains ({frame} samples a frame) let through "
              f"{100 * float(np.max(est.passed)):.3g} % of the smoothed noise at most",
              transfer_note(setup.transfer, run.source),
              *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),
              *type_b_notes(rig, run.source), *hum_notes(rig, tare, run.source),
-             *scan.notes(run.source), *above)
-    return TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True,
-                                         notes)
+             *scan.notes(run.source), *above, *(() if scale is None else (scale.note,)))
+    return dataclasses.replace(
+        TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True, notes),
+        inertia_scale=scale)

@@ -17,7 +17,7 @@ from ..records import Scan, ScanFRF, ScanSpectra
 from ..rig import Rig
 from ..structures.base import ranges_text
 
-__all__ = ["COVERAGE_MARGIN", "check_scan_coverage", "check_scan_on_rig"]
+__all__ = ["check_scan_coverage", "check_scan_on_rig"]
 
 COVERAGE_MARGIN = 0.05
 """How far a rig point may lie beyond the scanned extent, as a fraction of the structure's

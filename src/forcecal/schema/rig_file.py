@@ -25,7 +25,6 @@ from .keys import Keys, Number, field_unit, is_array, nearest_key, submodels, va
 
 __all__ = [
     "SCHEMA_FILE",
-    "RigFile",
     "check_rig_document",
     "key_table",
     "rig_json_schema_text",

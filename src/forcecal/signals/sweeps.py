@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["Sweep", "swept_drive"]
+__all__ = ["swept_drive"]
 
 MIN_RATIO = 1.25
 """Top over bottom of the frequencies a tone visits beyond which it sweeps (less is a drift)."""
