@@ -26,7 +26,8 @@ compares:
 - the ``lab`` rig (seeds 0 and 1): the same runs with coloured noise, mains hum, sensitivities
   drawn from the declared type-B uncertainties, gravity preload and offsets (the tare given):
   windows, each force's and the total's error over its stated uncertainty, and on the sweep
-  rig the stepped sines.
+  rig the stepped sines; the inertia's scale calibrated in situ (s, its uncertainty, the
+  truth's s) and the windows without and with it.
 
 Run:  .venv/bin/python benchmarks/any_drive.py [--only sweep|random] [--ratios auto|spline|modal]
 Writes benchmarks/results/any_drive.json (with --only or --ratios spline,
@@ -35,6 +36,8 @@ worst windows of seeds 1-2; the sweep's stepped sines at seed 0) without the ste
 other seeds and the lab rig; ``--ratios spline`` keeps the splines' ratios whatever the
 criterion says (:func:`forcecal.model.broadband.choose_ratios`), the estimate before the
 modal model, and ``--ratios modal`` takes the modal model's wherever one is identified.
+``--lab SEEDS`` runs the lab rig's drive runs alone at seeds 0..SEEDS-1
+(any_drive_lab.json).
 """
 
 from __future__ import annotations
@@ -256,7 +259,7 @@ def _lab(tmp: Path, preset: str, seed: int) -> dict:
         err = (est[name] - truth[name]).to_numpy()[inner]
         z[name] = float(np.sqrt(np.mean((err / est[f"{name}_std"].to_numpy()[inner]) ** 2)))
     out = {"seed": seed, "windows": r["windows"], "windows_static": r["windows_static"],
-           "error_to_stated": z}
+           "error_to_stated": z, "inertia_scale": _inertia_scale(folder, preset, truth)}
     if preset == "sweep":
         c = _campaign(folder)
         out["stepped_sines"] = {
@@ -266,9 +269,41 @@ def _lab(tmp: Path, preset: str, seed: int) -> dict:
     return out
 
 
-def run(seeds: int = 4, drive_seeds: int = 3, only: str | None = None) -> dict:
+def _inertia_scale(folder: Path, preset: str, truth: pd.DataFrame) -> dict:
+    """The inertia's scale calibrated in situ (:mod:`forcecal.forces.inertia_scale`, on by
+    default): s with its uncertainty and whether it was applied, the truth's s (the scale that
+    takes the estimate's inertia to the simulator's, inside the record), and the windows
+    without it (``reconstruct_any(..., inertia_scale=False)``) and with it."""
+    from forcecal.forces.transient import reconstruct_any
+
+    rig = load_rig(folder / "rig.toml")
+    model = load_any_model(folder / "model.json")
+    record = read_run(folder / "runs" / f"{preset}.csv", rig)
+    tare = read_run(folder / "runs" / "tare.csv", rig)
+    after = reconstruct_any(rig, model, record, tare)
+    before = reconstruct_any(rig, model, record, tare, inertia_scale=False)
+    sc = after.inertia_scale
+    assert sc is not None
+    total = np.ones(len(rig.force_names)) @ np.linalg.pinv(force_matrix(rig))
+    seen = total @ before.inertia
+    true = np.load(folder / "truth" / f"{preset}.npz")["inertia"].sum(axis=0)
+    inner = slice(int(0.5 * record.fs), -int(0.5 * record.fs))
+    s_true = float(np.dot(seen[inner], true[inner]) / np.dot(seen[inner], seen[inner]))
+    frame = pd.DataFrame
+    return {"s": sc.estimate, "s_std": sc.estimate_std, "applied": sc.applied,
+            "misfit": sc.misfit, "s_true": s_true, "note": sc.note,
+            "windows_before": _windows(frame({"total": before.total}), truth, "total", 0.5),
+            "windows_after": _windows(frame({"total": after.total}), truth, "total", 0.5)}
+
+
+def run(seeds: int = 4, drive_seeds: int = 3, only: str | None = None,
+        lab_seeds: int | None = None) -> dict:
     results: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
+        if lab_seeds is not None:                 # the lab rig's drive runs alone
+            results["lab"] = [_lab(Path(tmp), preset, seed) for preset in ("sweep", "random")
+                              for seed in range(lab_seeds)]
+            return results
         for preset, run_name in (("sweep", "sweep"), ("random", "random")):
             if only not in (None, preset):
                 continue
@@ -330,6 +365,8 @@ def report(res: dict) -> None:
             print(f"  seed {o['seed']}: worst window {o['worst']:.2%} (as claimed "
                   f"{o['worst_claimed']:.2%}, stream {o['worst_stream']:.2%}), observed / "
                   f"stated {o['observed_to_stated']:.2f}")
+    if "lab" in res:
+        _report_lab(res["lab"])
     if "stepped_sines" not in res:
         return
     c = res["stepped_sines"]
@@ -353,9 +390,11 @@ def report(res: dict) -> None:
               f"{math.sqrt(np.mean(np.square(z))):.2f}")
 
 
+
+def _report_lab(lab: list[dict]) -> None:
     print("the lab rig (coloured noise, hum, drawn sensitivities, preload; the tare given): "
           "windows against the truth, and error / stated inside the record")
-    for o in res["lab"]:
+    for o in lab:
         name = "sweep" if "stepped_sines" in o else "random"
         print(f"  {name} seed {o['seed']}: windows " + " ".join(f"{w:6.2%}" for w in o["windows"])
               + f"; reactions only up to {max(o['windows_static']):.0%}")
@@ -365,6 +404,13 @@ def report(res: dict) -> None:
             c = o["stepped_sines"]
             print(f"    stepped sines: K(f) {c['gain_error']:.2%}, lag {c['lag_error_deg']:.3f}°, "
                   f"tau {c['tau'] * 1e3:.4f} +/- {c['tau_std'] * 1e3:.4f} ms")
+        s = o["inertia_scale"]
+        print(f"    inertia's scale s {s['s']:.5f} +/- {s['s_std']:.2g} (the true inertia's "
+              f"{s['s_true']:.5f}, "
+              f"{'applied' if s['applied'] else 'not applied'}; the flux leaves "
+              f"{s['misfit']:.1%})")
+        print("    without it " + " ".join(f"{w:6.2%}" for w in s["windows_before"]))
+        print("    with it    " + " ".join(f"{w:6.2%}" for w in s["windows_after"]))
 
 
 def _keep_splines(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
@@ -392,13 +438,17 @@ if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--only", choices=("sweep", "random"))
     parser.add_argument("--ratios", choices=("auto", "spline", "modal"), default="auto")
+    parser.add_argument("--lab", type=int, metavar="SEEDS",
+                        help="only the lab rig's drive runs, seeds 0..SEEDS-1")
     args = parser.parse_args()
     if args.ratios != "auto":                     # the build looks it up when it runs
         broadband.choose_ratios = {"spline": _keep_splines, "modal": _take_modal}[args.ratios]
-    res = run(only=args.only)
+    res = run(only=args.only, lab_seeds=args.lab)
     report(res)
     RESULTS.mkdir(exist_ok=True)
     name = ("any_drive.json" if args.only is None and args.ratios == "auto"
             else f"any_drive_{args.only or 'all'}_{args.ratios}.json")
+    if args.lab is not None:
+        name = "any_drive_lab.json"
     (RESULTS / name).write_text(json.dumps(res, indent=1))
     sys.exit(0)

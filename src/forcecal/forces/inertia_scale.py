@@ -174,9 +174,10 @@ def estimate_inertia_scale(inertia: np.ndarray, reactions: np.ndarray, flux: np.
     elif not u <= MAX_STD:
         why = f"the run determines it only to {100 * u:.2g} %"
     elif abs(s - 1.0) > allowed:
-        why = (f"its estimate {s:.4f} lies farther from 1 than the rig's sensitivities and "
-               f"masses allow ({100 * allowed:.3g} %): the force itself resonates, or is not "
-               "the flux's alone")
+        why = (f"its estimate {s:.4f} lies farther from 1 than the rig's declared "
+               f"sensitivities and masses allow ({100 * allowed:.3g} %): a probe's scale "
+               "(sensors[].scale) or a mass off by more than declared, or a force that itself "
+               "resonates or is not the flux's alone")
     if why:
         return InertiaScale(1.0, 0.0, s, u, misfit, False,
                             f"{what} is not taken from the run: {why}")
