@@ -358,6 +358,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     if note is not None:
         for text in scan.notes(list(rig.sensor_names), f"run '{blocks.source}'"):
             note(text)
+        if any(c in blocks.channel_names for c in rig.flux_channels):
+            note(_UNSCALED.format(blocks.source))
         transfer = stream.setup.transfer if stream.setup is not None else None
         if transfer is None or transfer.chi2 > TRANSFER_MISFIT:
             note(transfer_note(transfer, blocks.source))
@@ -371,6 +373,11 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         for text in above.notes(blocks.source):
             note(text)
     return rows
+
+
+_UNSCALED = ("run '{}': the stream keeps the inertia's scale as the scan and the probes give it; "
+             "reconstruct calibrates it from the run's flux (forces near a resonance then differ "
+             "by as much as a probe's sensitivity, times the inertia over the force)")
 
 
 def stream_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None
@@ -389,4 +396,6 @@ def stream_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = Non
     live = stream_arrays(rig, model, gauges, probes, run.fs, run.t0, run.name,
                          tare=zero, tare_fs=None if tare is None else tare.fs)
     scan = run_line_notes(rig, model, run, live.coordinates[0], f"run '{run.source}'")
-    return dataclasses.replace(live, notes=(*scan, *live.notes, *above))
+    unscaled = ((_UNSCALED.format(run.source),)
+                if any(c in run.channels for c in rig.flux_channels) else ())
+    return dataclasses.replace(live, notes=(*scan, *live.notes, *above, *unscaled))
