@@ -581,3 +581,23 @@ def test_cli_predict_at_a_frequency(law, tmp_path, capsys):
         assert main(["predict", args[0], "--current", "1.0", "--gap", "1e-3", *args[1:]]) == 2
         err = capsys.readouterr().err
         assert what in err and len(err.strip().splitlines()) == 1
+
+
+def test_predict_warns_where_the_law_does_not_match_its_steps(law, solid_law):
+    """A solid core's campaign forced to first order misses its steps (beyond chance at 1e-3):
+    predict warns near each, with the departure; the laws that match (each core's own model)
+    have no departure and predict silently."""
+    assert law.departures() == [] and solid_law.departures() == []
+    first = fit_frequency_law(records(11, tau=TAU_D, response=slab), models=("first-order",))
+    off = first.departures()
+    assert off, "a first-order law on a diffusing core matches every step"
+    st, dg, dl, chi2 = max(off, key=lambda o: o[3])
+    assert chi2 > 13.8 and abs(dg) + abs(dl) > 0
+    cal = calibration(first)
+    with pytest.warns(ExtrapolationWarning, match=rf"frequency {st.frequency:.4g} Hz: the "
+                      r"first-order law departs from the step measured there by .* in K\(f\) "
+                      r"and .* degrees in lag"):
+        predict(cal, 1.0, 1.0e-3, frequency=st.frequency)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        predict(calibration(solid_law), 1.0, 1.0e-3, frequency=st.frequency)

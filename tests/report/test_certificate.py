@@ -396,6 +396,32 @@ def test_validity_domain_with_a_frequency_law_states_its_band_and_models(certifi
     assert why["frequency model 'half-order'"][3].startswith("held-out error above the best's "
                                                              "(1.000 %)")
     assert why["frequency model 'lumped'"][3] == "not fitted: too few steps"
+    assert "Frequency steps the" not in page                   # no step: nothing unmatched
+
+
+def test_validity_domain_names_the_frequency_steps_the_law_misses(certified):
+    """A step 5 % below the first-order law's K(f) at 40 Hz (0.1 % uncertainty), another on it:
+    the first is named with its departure, the second not."""
+    from forcecal.actuator.frequency import FrequencyStep
+
+    result = certified.result
+    cal = result.calibration
+    fl = FrequencyLaw(k=1e-5, s_fe=5e-5, tau=1e-3, covariance=np.eye(3) * 1e-14,
+                      n_poles=cal.n_poles, frequency_range=(10.0, 40.0),
+                      current_range=cal.current_range, gap_range=cal.gap_range)
+    steps = []
+    for f, off in ((10.0, 0.0), (40.0, -0.05)):
+        g, lag = float(fl.gain(f)[0]), float(fl.lag_deg(f)[0])
+        steps.append(FrequencyStep(frequency=f, n_runs=3, gain=g + off, gain_std=1e-3,
+                                   k=1e-5 * (g + off), k_std=1e-8, lag_deg=lag,
+                                   lag_deg_std=0.05))
+    fl = dataclasses.replace(fl, steps=tuple(steps))
+    page = calibration_certificate(
+        certified.rig, dataclasses.replace(result, calibration=cal.with_frequency_law(fl)),
+        provenance([]))
+    missed = _by_first(_table(page, "Frequency steps the first-order law does not match"))
+    assert list(missed) == ["40 Hz"], missed
+    assert missed["40 Hz"][1] == f"{100 * 0.05 / steps[1].gain:+.3f} %"
 
 
 def test_provenance_gives_the_sha256_of_every_input(certified):

@@ -38,6 +38,9 @@ FREQUENCY_PARAM_NAMES = ("K", "s_fe", "tau")
 """The parameters of a :class:`FrequencyLaw`, in the order of its covariance."""
 FREQUENCY_PARAM_UNITS = ("N m^2/A^2", "m", "s")
 _TWO_PI = 2.0 * math.pi
+MATCHED = 13.8
+"""The chi-square of a step's gain and lag against the law (2 degrees of freedom) beyond which
+the law does not match that step: chance exceeds it at a 1e-3 rate."""
 
 
 @dataclass(frozen=True)
@@ -397,6 +400,22 @@ class FrequencyLaw:
         h, dh = FREQUENCY_MODELS[self.model].response(_TWO_PI * _as_array(frequency), self.tau)
         std = np.abs((dh / np.where(h == 0, 1.0, h)).imag) * self.stderr[2]
         return -np.degrees(np.angle(h)), np.degrees(std)
+
+    def departures(self) -> list[tuple[FrequencyStep, float, float, float]]:
+        """Every step the law does not match within their uncertainties: (step, the law's
+        K(f) / K less the step's [-], its lag less the step's [deg], the chi-square of both
+        against :data:`MATCHED`), each difference over the step's and the law's uncertainty
+        added (the law's from tau's, which the steps do not share)."""
+        out = []
+        for st in self.steps:
+            g, g_std = self.gain(st.frequency)
+            lag, lag_std = self.lag_deg(st.frequency)
+            dg, dl = float(g) - st.gain, float(lag) - st.lag_deg
+            chi2 = (dg**2 / (st.gain_std**2 + float(g_std) ** 2 + 1e-300)
+                    + dl**2 / (st.lag_deg_std**2 + float(lag_std) ** 2 + 1e-300))
+            if chi2 > MATCHED:
+                out.append((st, dg, dl, chi2))
+        return out
 
     def forces(self, current: np.ndarray, gaps: np.ndarray, frequency: np.ndarray
                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

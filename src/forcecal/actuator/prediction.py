@@ -25,7 +25,7 @@ from .._atomic import write_text_atomic
 from ..errors import DimensionError, InputError
 from ..schema.calibration_file import check_calibration_document
 from ..schema.json_files import MAX_DOCUMENT_BYTES, object_pairs, reject_constant
-from .frequency import FrequencyLaw
+from .frequency import MATCHED, FrequencyLaw
 from .laws import Law, get_law
 
 if TYPE_CHECKING:
@@ -421,6 +421,26 @@ def _is_scalar(current: Any, gaps: Any, frequency: Any = None) -> bool:
             and (frequency is None or np.ndim(frequency) == 0))
 
 
+def _warn_unmatched(fl: FrequencyLaw, frequency: np.ndarray) -> None:
+    """Warn (ExtrapolationWarning) where a frequency's nearest step (in log frequency) is one
+    the law does not match within their uncertainties (:meth:`FrequencyLaw.departures`),
+    stating the departure there."""
+    off = fl.departures()
+    if not off or not fl.steps:
+        return
+    steps = np.array([st.frequency for st in fl.steps])
+    nearest = steps[np.argmin(np.abs(np.log(np.maximum(frequency[:, None], 1e-9))
+                                     - np.log(steps[None, :])), axis=1)]
+    for st, dg, dl, chi2 in off:
+        if np.any(nearest == st.frequency):
+            warnings.warn(
+                f"frequency {st.frequency:.4g} Hz: the {fl.model} law departs from the step "
+                f"measured there by {100 * dg / st.gain:+.3g} % in K(f) and {dl:+.3g} degrees "
+                f"in lag (chi-square {chi2:.3g}, chance exceeds {MATCHED:g} at a 1e-3 rate): "
+                "outside the domain where the law matched the data",
+                ExtrapolationWarning, stacklevel=3)
+
+
 def _warn_outside(
     values: np.ndarray, bounds: tuple[float, float], what: str, unit: str, factor: float
 ) -> None:
@@ -589,6 +609,7 @@ def predict(calibration: Calibration, current: Any, gaps: Any,
         _warn_outside(i, fl.current_range, "current", "A", 1.0)
         _warn_outside(s, fl.gap_range, "gap", "mm", 1e3)
         _warn_outside(f, fl.frequency_range, "frequency", "Hz", 1.0)
+        _warn_unmatched(fl, f)
         with np.errstate(all="ignore"):
             total, per_pole, std = fl.forces(i, s, f)
         k, k_std = fl.k_at(f)

@@ -15,6 +15,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..actuator.frequency import MATCHED
 from ..actuator.prediction import EXTRAPOLATION, FREQUENCY_EXTRAPOLATION, MAX_FLUX_WB
 from ..actuator.selection import HELD_OUT_ABS_TOL, HELD_OUT_REL_TOL
 from ..campaign.samples import calibration_data
@@ -187,14 +188,24 @@ def validity_domain(result: CampaignResult) -> dict[str, Any]:
     -------
     dict
         ``ranges`` and ``edges`` (:class:`~forcecal.report.cells.Grid`), ``rejected`` (a Grid,
-        None when no candidate was set aside), ``edge_share`` (the edges' share of the samples,
-        in %), ``law`` (the chosen law's name) and ``inputs`` (what it predicts from).
+        None when no candidate was set aside), ``unmatched`` (a Grid of the frequency steps
+        the law over frequency does not match, None when it matches them all; ``matched`` its
+        limit), ``edge_share`` (the edges' share of the samples, in %), ``law`` (the chosen
+        law's name) and ``inputs`` (what it predicts from).
     """
     rows = [*_rejected_laws(result.selection), *_rejected_models(result.calibration.frequency_law)]
     rejected = None if not rows else Grid(
         caption="Candidates not chosen, and why",
         header=("candidate", "parameters", "held-out error", "why not chosen"), rows=tuple(rows))
+    fl = result.calibration.frequency_law
+    off = [] if fl is None else fl.departures()
+    unmatched = None if fl is None or not off else Grid(
+        caption=f"Frequency steps the {fl.model} law does not match within their uncertainties",
+        header=("step", "K(f) / K: law less step", "lag: law less step", "chi-square"),
+        rows=tuple((f"{st.frequency:.4g} Hz", pct(dg / st.gain, 3, sign=True),
+                    f"{dl:+.3g}°", f"{chi2:.3g}") for st, dg, dl, chi2 in off))
     return {"ranges": _ranges(result), "edges": _edges(result), "rejected": rejected,
+            "unmatched": unmatched, "matched": f"{MATCHED:g}",
             "edge_share": f"{100 * EDGE_FRACTION:g}", "law": result.law,
             "inputs": ("flux" if result.calibration.law_object.needs_flux
                        else "current and gaps")}
