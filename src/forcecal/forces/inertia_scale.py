@@ -14,7 +14,8 @@ Its uncertainty: the residual is coloured and not stationary, so the score x e (
 projection on the basis) is summed over blocks of a period of the band's bottom and their
 spread taken (a sandwich estimate), with the change a basis one order higher makes. s is not
 applied, and stays 1 with a note saying why, without a flux channel, where the basis leaves
-more than :data:`MAX_MISFIT` of the force, where u(s) exceeds :data:`MAX_STD`, or where s is
+more than :data:`MAX_MISFIT` of the force (naming a skew between the probes' and the gauges'
+records where one explains much of it), where u(s) exceeds :data:`MAX_STD`, or where s is
 farther from 1 than the rig's declared sensitivities and masses allow (a force that itself
 resonates, or one that is not the flux's alone).
 """
@@ -102,12 +103,13 @@ def flux_basis(flux: np.ndarray, fs: float, order: int = 2) -> np.ndarray:
     return out
 
 
-def _regress(inertia: np.ndarray, reactions: np.ndarray, basis: np.ndarray, block: int
-             ) -> tuple[float, float, float]:
+def _regress(inertia: np.ndarray, reactions: np.ndarray, basis: np.ndarray, block: int,
+             q: np.ndarray | None = None) -> tuple[float, float, float]:
     """s, its sandwich standard uncertainty over blocks of ``block`` samples, and the misfit:
     reactions = s inertia - basis c + e by least squares (Frisch-Waugh: both less their
-    projections on the basis)."""
-    q, _ = np.linalg.qr(basis)
+    projections on the basis; ``q``, the basis orthonormalised, where it is at hand)."""
+    if q is None:
+        q, _ = np.linalg.qr(basis)
     x = inertia - q @ (q.T @ inertia)
     y = reactions - q @ (q.T @ reactions)
     xx = float(x @ x)
@@ -119,6 +121,37 @@ def _regress(inertia: np.ndarray, reactions: np.ndarray, basis: np.ndarray, bloc
     force = s * inertia - reactions
     misfit = float(np.std(e) / (np.std(force) or np.inf))
     return s, float(np.sqrt(np.sum(sums**2)) / xx), misfit
+
+
+def _probe_delay(inertia: np.ndarray, reactions: np.ndarray, basis: np.ndarray, fs: float,
+                 band: tuple[float, float], block: int) -> tuple[float, float]:
+    """(tau [s], misfit then): the delay of the inertia term against the reactions, whole
+    samples within a quarter period of the band's top, that lets the flux's basis explain the
+    estimate best (the inertia taken tau later: the probes' records tau late against the
+    gauges', or the gauges' early); 0 where the best lies at the search's edge."""
+    q, _ = np.linalg.qr(basis)
+    w = 2 * np.pi * np.fft.rfftfreq(inertia.size, 1.0 / fs)
+    spec = np.fft.rfft(inertia)
+    reach = max(2, int(np.ceil(fs / band[1] / 4)))
+    misfits = [_regress(np.fft.irfft(spec * np.exp(1j * w * d / fs), inertia.size),  # J(t + d/fs)
+                        reactions, basis, block, q)[2] for d in range(-reach, reach + 1)]
+    k = int(np.argmin(misfits))
+    return (0.0 if k in (0, 2 * reach) else (k - reach) / fs), float(misfits[k])
+
+
+def _delay_said(inertia: np.ndarray, reactions: np.ndarray, basis: np.ndarray, fs: float,
+                band: tuple[float, float], block: int, misfit: float) -> str:
+    """Where a delay between the probes' and the gauges' records explains much of what the
+    flux does not (a sharp minimum of the misfit over the delay, at most half of it as
+    recorded), the words naming it."""
+    tau, then = _probe_delay(inertia, reactions, basis, fs, band, block)
+    if tau == 0.0 or not then <= misfit / 2:
+        return ""
+    late, early = ("probes", "gauges") if tau > 0 else ("gauges", "probes")
+    return (f"; with the probes' and the gauges' records {1e3 * abs(tau):.3g} ms apart it "
+            f"explains it to {100 * then:.3g} %: the {late} recorded about "
+            f"{1e3 * abs(tau):.3g} ms late against the {early} (DAQ skew between modules, or "
+            "a filter's delay)")
 
 
 def plausible_deviation(type_b: TypeB) -> float:
@@ -170,7 +203,8 @@ def estimate_inertia_scale(inertia: np.ndarray, reactions: np.ndarray, flux: np.
     why = ""
     if not misfit <= MAX_MISFIT:
         why = (f"the flux explains the force estimate only to {100 * misfit:.3g} % of its RMS "
-               f"(a force that is not the flux's alone, or an estimate off for another reason)")
+               f"(a force that is not the flux's alone, or an estimate off for another reason)"
+               + _delay_said(j, r, flux_basis(phi, fs), fs, band, edge, misfit))
     elif not u <= MAX_STD:
         why = f"the run determines it only to {100 * u:.2g} %"
     elif abs(s - 1.0) > allowed:
@@ -184,10 +218,10 @@ def estimate_inertia_scale(inertia: np.ndarray, reactions: np.ndarray, flux: np.
     note = (f"{what}, calibrated in situ (the force estimate explained by the flux, to "
             f"{100 * misfit:.2g} % of its RMS): s = {s:.5f} +/- {u:.2g}, applied")
     if abs(s - 1.0) > 3.0 * u:
-        note += (f"; it differs from 1 by {abs(s - 1.0) / u:.3g} standard uncertainties: a "
-                 f"probe's sensitivity or the rig's masses are off by about "
-                 f"{100 * abs(s - 1.0):.2g} % (check the probes' calibration and the "
-                 "declared masses)")
+        note += (f"; it differs from 1 by {abs(s - 1.0) / u:.3g} standard uncertainties: the "
+                 f"probes' sensitivities or the rig's masses differ from their nominal values by "
+                 f"about {100 * abs(s - 1.0):.2g} %, within what the rig declares, and the run "
+                 "calibrates it")
     return InertiaScale(s, u, s, u, misfit, True, note)
 
 
