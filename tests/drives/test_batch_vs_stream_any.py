@@ -145,7 +145,8 @@ def test_the_stream_checks_the_probes_against_the_scan(random_dir, random_rig, t
 
     rig, _, _, _, live = random_rig
     assert not [n for n in live.notes if "scan's motion" in n]
-    assert [n for n in live.notes if "keeps the inertia's scale" in n]    # the run has a flux
+    # the run has a flux: the stream reads the inertia's scale from its first seconds
+    assert [n for n in live.notes if "the stream reads it from its first 2 s" in n]
     monkeypatch.setattr("forcecal.realtime.any_drive.SEGMENT", 1.0)
     table = pd.read_csv(random_dir / "runs" / "random.csv")
     for s in rig.sensor_names:

@@ -774,29 +774,47 @@ def run_inputs(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None
     return gauges, probes, zero, reach.notes(run.source)
 
 
+def inertia_scaled(rig: Rig, model: BroadbandModel, setup: AnyDriveSetup, est: WindowEstimate,
+                   flux: np.ndarray | None, source: str
+                   ) -> tuple[AnyDriveSetup, InertiaScale]:
+    """The inertia's scale s read from an estimate and the run's flux channels
+    (:func:`.inertia_scale.estimate_inertia_scale`), and the setup with every gauge's coupling
+    (and its basis functions') times s where it is applied (else the setup as it was)."""
+    total = np.ones(len(setup.pinv)) @ setup.pinv
+    scale = estimate_inertia_scale(total @ est.inertia, total @ est.reactions, flux, setup.fs,
+                                   model.band, plausible_deviation(rig.type_b), source)
+    if not scale.applied:
+        return setup, scale
+    return dataclasses.replace(setup, couplings=scale.scale * setup.couplings,
+                               basis_couplings=scale.scale * setup.basis_couplings,
+                               _weights={}), scale
+
+
+def with_scale_std(est: WindowEstimate, pinv: np.ndarray, scale: InertiaScale
+                   ) -> WindowEstimate:
+    """The estimate with the scale's uncertainty through its (scaled) inertia term in every
+    force's and the total's."""
+    var = scale_variance(pinv, est.inertia, scale.std / scale.scale)
+    return dataclasses.replace(est, force_std=np.sqrt(est.force_std**2 + var[:-1]),
+                               total_std=np.sqrt(est.total_std**2 + var[-1]))
+
+
 def _calibrated_inertia(rig: Rig, run: Run, model: BroadbandModel, setup: AnyDriveSetup,
                         est: WindowEstimate, gauges: np.ndarray, probes: np.ndarray, frame: int
                         ) -> tuple[WindowEstimate, InertiaScale]:
-    """The estimate with its inertia term scaled in situ (:mod:`.inertia_scale`): s from the
-    run's own reactions, inertia and flux channels; where it is applied, the forces again with
-    every gauge's coupling (and its basis functions') times s, and s's uncertainty through the
-    scaled inertia in every force's and the total's."""
+    """The estimate with its inertia term scaled in situ (:func:`inertia_scaled`, from the
+    run's flux channels): where applied, the forces again with the scaled couplings, the
+    type-B changes less what the scale absorbs, and s's uncertainty in every force's."""
     names = [c for c in rig.flux_channels if c in run.channels]
     flux = np.stack([run.channel(c) for c in names]) if names else None
-    total = np.ones(len(setup.pinv)) @ setup.pinv
-    scale = estimate_inertia_scale(total @ est.inertia, total @ est.reactions, flux, setup.fs,
-                                   model.band, plausible_deviation(rig.type_b), run.source)
+    scaled, scale = inertia_scaled(rig, model, setup, est, flux, run.source)
     if not scale.applied or flux is None:
         return est, scale
-    scaled = dataclasses.replace(setup, couplings=scale.scale * setup.couplings,
-                                 basis_couplings=scale.scale * setup.basis_couplings,
-                                 _weights={}, scale_shift=scale_shift(
-                                     total @ est.inertia, flux, setup.fs, model.band,
-                                     scale.scale))
+    total = np.ones(len(setup.pinv)) @ setup.pinv
+    scaled = dataclasses.replace(scaled, scale_shift=scale_shift(
+        total @ est.inertia, flux, setup.fs, model.band, scale.scale))
     est = window_forces(scaled, model, gauges, probes, frame, run.source)
-    var = scale_variance(setup.pinv, est.inertia, scale.std / scale.scale)
-    return dataclasses.replace(est, force_std=np.sqrt(est.force_std**2 + var[:-1]),
-                               total_std=np.sqrt(est.total_std**2 + var[-1])), scale
+    return with_scale_std(est, setup.pinv, scale), scale
 
 
 def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None,

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO
@@ -34,6 +34,7 @@ import numpy as np
 from ..errors import InputError
 from ..forces.budget import type_b_notes
 from ..forces.inertia_errors import ScanNoiseShare
+from ..forces.inertia_scale import InertiaScale
 from ..forces.scan_check import SEGMENT, LineRatio, run_line_notes
 from ..forces.transient import (
     TRANSFER_MISFIT,
@@ -43,11 +44,13 @@ from ..forces.transient import (
     any_drive_setup,
     check_length,
     hum_notes,
+    inertia_scaled,
     run_channels,
     run_inputs,
     transfer_note,
     window_forces,
     with_reaction_priors,
+    with_scale_std,
 )
 from ..forces.unseen_motion import unseen_notes
 from ..io.blocks import RunBlocks
@@ -107,12 +110,19 @@ class AnyDriveStream:
     tare, tare_fs : (n_gauges + n_probes, n) array [N and m] and float [Hz], optional
         A zero-current record's gauges, then its probes: with ``acquisition.mains``, their hum
         tones join the noise (:func:`forcecal.forces.transient.any_drive_setup`).
+    flux : sequence of str
+        The run's flux channels, fed after the probes: the inertia's scale is calibrated in
+        situ from the first ``warmup`` seconds (:mod:`forcecal.forces.inertia_scale`, as
+        ``reconstruct`` does over the whole record) and applied from then on where they
+        determine it.
 
     Attributes
     ----------
     scan_share : ScanNoiseShare
         The share of the total's stated variance the scan's noise makes, over the samples
         given so far (:class:`forcecal.forces.inertia_errors.ScanNoiseShare`).
+    inertia_scale : InertiaScale or None
+        The scale read from the warm-up (None without flux channels, or before it).
 
     Raises
     ------
@@ -127,7 +137,7 @@ class AnyDriveStream:
                  setup: AnyDriveSetup | None = None, latency: float = LATENCY,
                  history: float = HISTORY, warmup: float = WARMUP, step: float = STEP,
                  source: str = "<stream>", tare: np.ndarray | None = None,
-                 tare_fs: float | None = None):
+                 tare_fs: float | None = None, flux: Sequence[str] = ()):
         check_rig_keys(model.rig, model.origin, rig)
         self.rig, self.model, self.fs, self.t0 = rig, model, float(fs), float(t0)
         self.source = source
@@ -141,8 +151,12 @@ class AnyDriveStream:
         self._latency = max(int(math.ceil(latency * fs)), 2 * frame)
         self._history = max(int(math.ceil(history * fs)), 2 * frame)
         self._step = max(int(math.ceil(step * fs)), 1)
-        self._scale = np.array([g.scale for g in rig.gauges] + [s.scale for s in rig.sensors])
+        self._flux = tuple(flux)
+        self.inertia_scale: InertiaScale | None = None
+        self._scale = np.array([g.scale for g in rig.gauges] + [s.scale for s in rig.sensors]
+                               + [1.0] * len(self._flux))
         self._n_g = len(rig.gauges)
+        self._n_p = len(rig.sensors)
         self._buffer = np.empty((len(self._scale), 0))
         self._start = 0          # absolute index of the buffer's first sample
         self._received = 0
@@ -152,8 +166,8 @@ class AnyDriveStream:
 
     @property
     def channel_names(self) -> list[str]:
-        """The channels a block holds, in order: the gauges', then the probes'."""
-        return [*self.rig.gauge_names, *self.rig.sensor_names]
+        """The channels a block holds, in order: the gauges', the probes', the flux's."""
+        return [*self.rig.gauge_names, *self.rig.sensor_names, *self._flux]
 
     @property
     def latency(self) -> float:
@@ -188,9 +202,16 @@ class AnyDriveStream:
             if not self._received or (self._received < self._warmup and not final):
                 return out
             first = self._buffer[:, :self._warmup]     # the first seconds, whatever the blocks
-            g, p = first[:self._n_g], first[self._n_g:]
+            g, p = first[:self._n_g], first[self._n_g:self._n_g + self._n_p]
             self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs, self.source,
                                           self._tare, self._tare_fs)
+            if self._flux and self._own_setup:     # the inertia's scale from the warm-up
+                n = self._n_g + self._n_p
+                est = window_forces(self._setup, self.model, g, p,
+                                    stft_frame(self.fs, first.shape[1]), self.source,
+                                    (True, False))
+                self._setup, self.inertia_scale = inertia_scaled(
+                    self.rig, self.model, self._setup, est, first[n:], self.source)
         self._check()
         end = self._received if final else self._received - self._latency
         if end - self._given < (1 if final else self._step):
@@ -201,9 +222,12 @@ class AnyDriveStream:
         setup = self._setup
         if self._own_setup:            # its smoothers follow the drive, from the window's gauges
             setup = with_reaction_priors(setup, window[:self._n_g], self.rig.mains)
-        est = window_forces(setup, self.model, window[:self._n_g], window[self._n_g:],
+        est = window_forces(setup, self.model, window[:self._n_g],
+                            window[self._n_g:self._n_g + self._n_p],
                             stft_frame(self.fs, window.shape[1]), self.source,
                             (start == 0, final))
+        if self.inertia_scale is not None and self.inertia_scale.applied:
+            est = with_scale_std(est, setup.pinv, self.inertia_scale)
         given = est.part(slice(self._given - start, end - start))
         self.scan_share.add(np.vstack([given.scan_noise, given.total_std**2]))
         out.append(StreamChunk(time=self.t0 + np.arange(self._given, end) / self.fs,
@@ -225,7 +249,8 @@ class AnyDriveStream:
         if n:
             part = self._buffer[:, self._checked - self._start:self._checked - self._start + n]
             setup = self._setup
-            check_channel_noise(part[:self._n_g], part[self._n_g:], self.channel_names,
+            check_channel_noise(part[:self._n_g], part[self._n_g:self._n_g + self._n_p],
+                                [*self.rig.gauge_names, *self.rig.sensor_names],
                                 self.fs, setup.band, self.t0 + self._checked / self.fs,
                                 self.source, np.r_[setup.var_g, 1.0 / setup.probe_weights])
             self._checked += n
@@ -240,8 +265,8 @@ def _chunks(stream: AnyDriveStream, blocks: Iterator[np.ndarray]) -> Iterator[St
 def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: np.ndarray,
                   fs: float, t0: float = 0.0, name: str = "<run>",
                   setup: AnyDriveSetup | None = None, block: int = 1 << 14,
-                  tare: np.ndarray | None = None, tare_fs: float | None = None
-                  ) -> TransientEstimate:
+                  tare: np.ndarray | None = None, tare_fs: float | None = None,
+                  flux: Mapping[str, np.ndarray] | None = None) -> TransientEstimate:
     """A run held in memory through :class:`AnyDriveStream`, in blocks of ``block`` samples.
 
     Parameters
@@ -261,6 +286,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
         Samples per block.
     tare, tare_fs : array and float, optional
         As :class:`AnyDriveStream`.
+    flux : mapping of str to (N,) array, optional
+        The run's flux channels: the inertia's scale from the warm-up (:class:`AnyDriveStream`).
 
     Returns
     -------
@@ -270,23 +297,23 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     unit = dataclasses.replace(
         rig, gauges=tuple(dataclasses.replace(g, scale=1.0) for g in rig.gauges),
         sensors=tuple(dataclasses.replace(s, scale=1.0) for s in rig.sensors))
+    flux = dict(flux or {})
     stream = AnyDriveStream(unit, model, fs, t0, setup=setup, source=name, tare=tare,
-                            tare_fs=tare_fs)
-    data = np.vstack([gauges, probes])
+                            tare_fs=tare_fs, flux=tuple(flux))
+    data = np.vstack([gauges, probes, *flux.values()])
     chunks = list(_chunks(stream, (data[:, k:k + block]
                                    for k in range(0, data.shape[1], block))))
     note = (f"real time: every sample given {stream.latency:.3g} s after it, from a window of "
             f"the samples up to then; noise and band models from the first {WARMUP:g} s")
     assert stream.setup is not None
-    return TransientEstimate.from_window(rig, name, t0, fs,
-                                         WindowEstimate.join([c.estimate for c in chunks]),
-                                         model.band, False,
-                                         (note, transfer_note(stream.setup.transfer, name),
-                                          *unseen_notes(stream.setup.unseen,
-                                                        tuple(rig.sensor_names), name),
-                                          *type_b_notes(rig, name),
-                                          *hum_notes(rig, tare, name),
-                                          *stream.scan_share.notes(name)))
+    notes = (note, transfer_note(stream.setup.transfer, name),
+             *unseen_notes(stream.setup.unseen, tuple(rig.sensor_names), name),
+             *type_b_notes(rig, name), *hum_notes(rig, tare, name),
+             *stream.scan_share.notes(name), *_scale_notes(stream, name))
+    est = TransientEstimate.from_window(rig, name, t0, fs,
+                                        WindowEstimate.join([c.estimate for c in chunks]),
+                                        model.band, False, notes)
+    return dataclasses.replace(est, inertia_scale=stream.inertia_scale)
 
 
 def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target: str | Path,
@@ -330,7 +357,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     stream = AnyDriveStream(rig, model, blocks.fs, blocks.t0, source=blocks.source,
                             tare=None if tare is None
                             else np.vstack(run_channels(rig, tare)[:2]),
-                            tare_fs=None if tare is None else tare.fs)
+                            tare_fs=None if tare is None else tare.fs,
+                            flux=[c for c in rig.flux_channels if c in blocks.channel_names])
     names = list(rig.force_names)
     above = AboveBand(blocks.fs, model.band, blocks.t0)
     current = rig.actuator.current
@@ -358,8 +386,8 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     if note is not None:
         for text in scan.notes(list(rig.sensor_names), f"run '{blocks.source}'"):
             note(text)
-        if any(c in blocks.channel_names for c in rig.flux_channels):
-            note(_UNSCALED.format(blocks.source))
+        for text in _scale_notes(stream, blocks.source):
+            note(text)
         transfer = stream.setup.transfer if stream.setup is not None else None
         if transfer is None or transfer.chi2 > TRANSFER_MISFIT:
             note(transfer_note(transfer, blocks.source))
@@ -375,9 +403,14 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     return rows
 
 
-_UNSCALED = ("run '{}': the stream keeps the inertia's scale as the scan and the probes give it; "
-             "reconstruct calibrates it from the run's flux (forces near a resonance then differ "
-             "by as much as a probe's sensitivity, times the inertia over the force)")
+def _scale_notes(stream: AnyDriveStream, source: str) -> tuple[str, ...]:
+    """What the stream did with the inertia's scale (read from its first seconds, as
+    ``reconstruct`` reads it from the whole record); nothing without flux channels."""
+    sc = stream.inertia_scale
+    if sc is None:
+        return ()
+    return (f"{sc.note} (the stream reads it from its first {WARMUP:g} s; reconstruct from the "
+            "whole record)",)
 
 
 def stream_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = None
@@ -394,8 +427,8 @@ def stream_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = Non
     """
     gauges, probes, zero, above = run_inputs(rig, model, run, tare)
     live = stream_arrays(rig, model, gauges, probes, run.fs, run.t0, run.name,
-                         tare=zero, tare_fs=None if tare is None else tare.fs)
+                         tare=zero, tare_fs=None if tare is None else tare.fs,
+                         flux={c: run.channel(c) for c in rig.flux_channels
+                               if c in run.channels})
     scan = run_line_notes(rig, model, run, live.coordinates[0], f"run '{run.source}'")
-    unscaled = ((_UNSCALED.format(run.source),)
-                if any(c in run.channels for c in rig.flux_channels) else ())
-    return dataclasses.replace(live, notes=(*scan, *live.notes, *above, *unscaled))
+    return dataclasses.replace(live, notes=(*scan, *live.notes, *above))
