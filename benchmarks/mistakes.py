@@ -72,17 +72,22 @@ CHECKS = (
     ("drift", ("drifts", "drift")),
     ("info", ("mains",)),
     ("dropped", ("leave them out",)),
-    ("info", ("the rig declares none", "type-B", "no shape in the scan model",
+    ("scale", ("the inertia's scale is not taken",)),
+    ("info", ("calibrated in situ", "the inertia's scale is not estimated",
+              "the rig declares none", "type-B", "no shape in the scan model",
               "short-time Wiener gains", "the reactions carry the inertia",
               "above the scan's band", "the scan's noise makes")),
     ("span", ("load differs from every scan",)),
 )
 """Which check wrote a note: the first whose phrases the note holds (else ``other``)."""
-ALARMS = ("flux", "pole", "scan", "misfit", "pull-only", "dc", "drift", "dropped", "other")
+ALARMS = ("flux", "pole", "scan", "misfit", "pull-only", "dc", "drift", "dropped", "scale",
+          "other")
 """The checks whose notes are alarms (``info`` and ``span`` only inform: a harmonic near the
 mains', one without a shape, the type-B sources the rig leaves out, a load between the scans';
 under any drive, what the smoother lets through, the reactions' transfer, a force above the
-scan's band, the scan's share of the variance)."""
+scan's band, the scan's share of the variance, the inertia's scale calibrated in situ or not
+estimated without a flux channel). ``scale``: the inertia's scale refused (the flux does not
+explain the estimate, or the scale lies beyond the declared uncertainties)."""
 COLUMNS = (*ALARMS, "info", "span")
 
 
