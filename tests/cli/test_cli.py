@@ -564,7 +564,9 @@ def test_predict_follows_the_flux_law_from_the_flux(tmp_path, capsys):
     assert out["total_n"] == pytest.approx(2 * 1e-8 / (forcecal.actuator.MU0 * 8e-4), rel=1e-12)
     for argv, named in ((("--current", "1", "--gap", "1e-3"), "--flux"),
                         (("--flux", "1e-4", "--current", "1"), "without --current"),
-                        (("--flux", "1e-4", "--frequency", "50"), "--frequency")):
+                        (("--flux", "1e-4", "--frequency", "50"), "--frequency"),
+                        (("--flux", "nan"), "argument --flux: nan Wb is not a finite"),
+                        (("--flux", "2e-3"), "more than 10 times the largest calibrated flux")):
         assert_refused(cli("predict", path, *argv), capsys, tmp_path / "none", named, "flux")
 
 

@@ -660,6 +660,27 @@ def _check_finite_prediction(pred: Prediction) -> None:
                          "or near zero?)")
 
 
+def check_flux(calibration: Calibration, flux: Any, name: str = "flux") -> np.ndarray:
+    """The fluxes (n,) [Wb] :func:`predict_flux` predicts from, refusing (InputError, naming
+    ``name``) one not finite, beyond :data:`MAX_FLUX_WB`, or more than
+    :data:`EXTRAPOLATION` times the largest calibrated flux."""
+    phi = np.atleast_1d(np.asarray(flux, dtype=float))
+    if phi.ndim != 1:
+        raise InputError(f"{name} must be a scalar or (n,); got shape {phi.shape}")
+    bad = ~(np.isfinite(phi) & (np.abs(phi) <= MAX_FLUX_WB))
+    if np.any(bad):
+        raise InputError(f"{name} {float(phi[bad][0])!r} Wb is not a finite flux through a pole "
+                         f"within {MAX_FLUX_WB:g} Wb")
+    if calibration.flux_range is not None:
+        top = max(abs(v) for v in calibration.flux_range)
+        bad = np.abs(phi) > EXTRAPOLATION * top
+        if np.any(bad):
+            raise InputError(f"{name} {float(phi[bad][0]):g} Wb is more than {EXTRAPOLATION:g} "
+                             f"times the largest calibrated flux {top:.4g} Wb "
+                             f"({_named(calibration)})")
+    return phi
+
+
 def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
     """Total and per-pole force from the flux through one pole, for the flux law.
 
@@ -678,7 +699,9 @@ def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
     Raises
     ------
     InputError
-        When the law predicts from current and gap, or the flux is not finite.
+        When the law predicts from current and gap, or a flux is not finite, beyond
+        :data:`MAX_FLUX_WB`, or more than :data:`EXTRAPOLATION` times the largest calibrated
+        one (:func:`check_flux`).
 
     Warns
     -----
@@ -688,13 +711,9 @@ def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
     law = calibration.law_object
     if not law.needs_flux:
         raise InputError(f"calibration law '{law.name}' predicts from current and gap; use predict")
-    phi = np.atleast_1d(np.asarray(flux, dtype=float))
-    if phi.ndim != 1 or not np.all(np.isfinite(phi)):
-        raise InputError(f"flux must be finite, a scalar or (n,); got shape {phi.shape}")
+    phi = check_flux(calibration, flux)
     if calibration.flux_range is not None:
         _warn_outside(phi, calibration.flux_range, "flux", "Wb", 1.0)
-    if np.any(np.abs(phi) > MAX_FLUX_WB):
-        raise InputError(f"flux beyond {MAX_FLUX_WB:g} Wb in magnitude; not a pole's flux")
     s = np.ones((phi.size, calibration.n_poles))
     with np.errstate(all="ignore"):
         pred = _propagate(law, calibration, np.zeros(phi.size), s, phi)

@@ -398,7 +398,7 @@ def _flux_hint(result) -> list[str]:
 def _predict_inputs(args, cal) -> str:
     """What ``predict`` is given, checked against what the calibration's law predicts from (the
     API's checks: the same limits and wording, naming the options); said in messages."""
-    from ..actuator.prediction import check_current_and_gaps
+    from ..actuator.prediction import check_current_and_gaps, check_flux
 
     where = f"{PROG} predict: calibration '{args.calibration}' (law '{cal.law}')"
     if cal.law_object.needs_flux:
@@ -408,6 +408,10 @@ def _predict_inputs(args, cal) -> str:
         if args.frequency is not None:
             raise _ArgumentError(f"{where}: argument --frequency: the force follows the flux "
                                  "at any frequency; give --flux alone")
+        try:
+            check_flux(cal, args.flux, name="argument --flux:")
+        except InputError as exc:
+            raise _ArgumentError(f"{PROG} predict: {exc}") from None
         return f"{args.flux:g} Wb"
     if args.flux is not None or args.current is None or args.gap is None:
         raise _ArgumentError(f"{where} predicts from current and gap: give --current A and "

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from ..actuator.frequency import MATCHED
-from ..actuator.prediction import EXTRAPOLATION, FREQUENCY_EXTRAPOLATION, MAX_FLUX_WB
+from ..actuator.prediction import EXTRAPOLATION, FREQUENCY_EXTRAPOLATION
 from ..actuator.selection import HELD_OUT_ABS_TOL, HELD_OUT_REL_TOL
 from ..campaign.samples import calibration_data
 from .cells import NONE, Grid, lab_unit, num, pct
@@ -77,7 +77,7 @@ def _ranges(result: CampaignResult) -> Grid:
     beyond = {
         "i": f"warns; refuses beyond {EXTRAPOLATION:g} × the largest |i|",
         "f": f"warns; refuses above {FREQUENCY_EXTRAPOLATION:g} × the highest",
-        "φ": f"warns; refuses beyond {MAX_FLUX_WB:g} Wb",
+        "φ": f"warns; refuses beyond {EXTRAPOLATION:g} × the largest |φ|",
     }
     gap_rule = (f"warns; refuses below 1/{EXTRAPOLATION:g} of the smallest or above "
                 f"{EXTRAPOLATION:g} × the largest")
