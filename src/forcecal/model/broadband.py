@@ -384,7 +384,7 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     basis = np.column_stack([s.evaluate(points) for s in shapes])
     coords, cov = _line_coordinates(basis, weights, resp.values, resp.std, good, h, std,
                                     len(points), len(resp.frequencies))
-    ratios, ratio_std, choice = choose_ratios(resp.frequencies, coords, cov)
+    ratios, ratio_std, choice = _drive_line_ratios(resp.frequencies, coords, cov, good)
     line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
                 / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
     return BroadbandModel(band=band, shapes=shapes, couplings=couplings,
@@ -403,6 +403,24 @@ def _reference_level(scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float] 
         return None
     ref = scan.reference
     return float(np.median(ref.mean(axis=1))), float(np.median(ref.std(axis=1)))
+
+
+def _drive_line_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray,
+                       good: np.ndarray) -> tuple[np.ndarray, np.ndarray, RatioChoice]:
+    """:func:`choose_ratios` over the lines that carry the drive, their ratios and standard
+    uncertainties interpolated onto every line: a line between the drive's holds the scan's
+    noise over a reference without signal, not the structure's response to the drive (on a
+    lab scan one such line's spurious first coordinate took the splines' ratio there to 4,
+    where the drive's lines read 0.005)."""
+    if np.all(good):
+        return choose_ratios(frequencies, coords, cov)
+    ratios, std, choice = choose_ratios(frequencies[good], coords[:, good], cov[good])
+    at = frequencies[good]
+
+    def onto(rows: np.ndarray) -> np.ndarray:
+        return np.array([np.interp(frequencies, at, row) for row in rows])
+
+    return onto(ratios.real) + 1j * onto(ratios.imag), onto(std), choice
 
 
 def _broadband_band(rig: Rig, scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float]:
