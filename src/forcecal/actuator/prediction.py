@@ -542,12 +542,7 @@ def check_current_and_gaps(calibration: Calibration, current: Any, gaps: Any,
     if np.any(bad):
         raise InputError(f"{names[1]} {float(s[bad][0])!r} m is not an air gap between 0 and "
                          f"{MAX_GAP_M:g} m (0.0008 for 0.8 mm)")
-    top = max(abs(v) for v in calibration.current_range)
-    bad = np.abs(i) > EXTRAPOLATION * top
-    if np.any(bad):
-        raise InputError(f"{names[0]} {float(i[bad][0]):g} A is more than {EXTRAPOLATION:g} "
-                         f"times the largest calibrated current {top:.4g} A "
-                         f"({_named(calibration)})")
+    _refuse_far(calibration, i, calibration.current_range, names[0], "A", "current")
     lo, hi = calibration.gap_range
     bad = (s < lo / EXTRAPOLATION) | (s > hi * EXTRAPOLATION)
     if np.any(bad):
@@ -672,13 +667,20 @@ def check_flux(calibration: Calibration, flux: Any, name: str = "flux") -> np.nd
         raise InputError(f"{name} {float(phi[bad][0])!r} Wb is not a finite flux through a pole "
                          f"within {MAX_FLUX_WB:g} Wb")
     if calibration.flux_range is not None:
-        top = max(abs(v) for v in calibration.flux_range)
-        bad = np.abs(phi) > EXTRAPOLATION * top
-        if np.any(bad):
-            raise InputError(f"{name} {float(phi[bad][0]):g} Wb is more than {EXTRAPOLATION:g} "
-                             f"times the largest calibrated flux {top:.4g} Wb "
-                             f"({_named(calibration)})")
+        _refuse_far(calibration, phi, calibration.flux_range, name, "Wb", "flux")
     return phi
+
+
+def _refuse_far(calibration: Calibration, values: np.ndarray, bounds: tuple[float, float],
+                name: str, unit: str, what: str) -> None:
+    """InputError, naming ``name`` and the calibration, for a value more than
+    :data:`EXTRAPOLATION` times the largest calibrated one in magnitude."""
+    top = max(abs(v) for v in bounds)
+    bad = np.abs(values) > EXTRAPOLATION * top
+    if np.any(bad):
+        raise InputError(f"{name} {float(values[bad][0]):g} {unit} is more than "
+                         f"{EXTRAPOLATION:g} times the largest calibrated {what} {top:.4g} "
+                         f"{unit} ({_named(calibration)})")
 
 
 def predict_flux(calibration: Calibration, flux: Any) -> Prediction:
