@@ -206,3 +206,16 @@ def test_a_flux_channels_sign_is_named_and_the_maxwell_check_stands():
     notes = flux_notes(_paired(), *_two_channels(3, -1.0), "run")
     assert len(notes) == 1 and "'phi2' reads -1 times 'phi1'" in notes[0], notes
     assert "look at both: a sign" in notes[0], notes
+
+
+@pytest.mark.parametrize("dead", ["phi1", "phi2"])
+def test_a_dead_flux_channel_is_named_as_one(dead):
+    """Either channel of the core reading nothing: it reads 0 times the other, named first as
+    carrying next to no flux (before, a dead first channel made the live one read '+0 times'
+    it)."""
+    run, terms = _two_channels(3)
+    channels = {**run.channels, dead: np.zeros(N)}
+    notes = flux_notes(_paired(), Run(channels=channels, fs=FS, source="run.csv"), terms, "run")
+    live = "phi2" if dead == "phi1" else "phi1"
+    assert f"'{dead}' reads +0 times '{live}'" in notes[0], notes
+    assert f"look at '{dead}' first: it carries next to no flux" in notes[0], notes

@@ -106,6 +106,21 @@ def test_without_a_flux_channel_the_scale_stays_one():
     assert "no flux channel" in est.note
 
 
+def test_a_constant_flux_channel_is_no_flux_channel():
+    """A dead (constant) flux channel holds no shape: the scale stays 1 with the note of a run
+    without flux, never a NaN (its basis had divided by a zero RMS)."""
+    rng = np.random.default_rng(4)
+    phi, inertia, reactions = _structure(rng)
+    for flux in (np.zeros((1, N)), np.vstack([np.full(N, 3e-5), np.zeros(N)])):
+        est = estimate_inertia_scale(inertia, reactions, flux, FS, BAND, ALLOWED, "synthetic")
+        assert not est.applied and est.scale == 1.0 and "nan" not in est.note, est.note
+        assert "no flux channel that varies" in est.note
+    live = np.vstack([np.zeros(N), phi[0]])             # the live one of two is used
+    assert estimate_inertia_scale(inertia, reactions, live, FS, BAND, ALLOWED, "s").applied
+    shift = scale_shift(inertia, live, FS, BAND, 1.0)    # and so does the absorption
+    assert np.isfinite(shift(0.01 * inertia)) and shift(0.01 * inertia) == pytest.approx(-0.01)
+
+
 def test_a_force_the_flux_does_not_explain_is_refused():
     rng = np.random.default_rng(4)
     phi, inertia, reactions = _structure(rng)

@@ -56,6 +56,9 @@ MAX_LINES = 400
 AKAIKE = 2.0
 """Chi-square a cause of several sizes (every gauge's offset: the tare) must gain per size
 beyond the best single gauge's offset to be named beside it (Akaike's criterion)."""
+DEAD_RATIO = 1e-4
+"""A flux channel reading less than this share of its core's other is said to carry next to no
+flux (a dead or unplugged channel, or a unit far off; mWb read as Wb, 1e-3, is a scale)."""
 SHIFT_MM = 200.0
 """[mm] the farthest a point is looked for from where the rig puts it."""
 NUISANCE = ("gauge sensitivity", "probe sensitivity", "masses")
@@ -451,8 +454,9 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
              "in the run; its force is not checked against Maxwell's stress"
              for k, f in enumerate(rig.forces) if f.flux is not None and k not in fluxes]
     poles = sorted(fluxes)
-    notes += flux_pair_notes(rig, run, terms, what)
-    skipped = _unusable(rig, run, terms, fluxes)
+    pairs = _pair_misfits(rig, run, terms)           # once for the notes and the reason
+    notes += _pair_texts(pairs, what)
+    skipped = _unusable(rig, run, terms, fluxes, pairs)
     if skipped:
         return [*notes, f"{what}: {skipped}: the forces are not checked against Maxwell's "
                 "stress Phi^2 / (2 mu0 A)"]
@@ -523,8 +527,14 @@ def flux_pair_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list
     -------
     list of str
     """
+    return _pair_texts(_pair_misfits(rig, run, terms), what)
+
+
+def _pair_texts(pairs: list[tuple[str, str, str, tuple[float, int, float, float], str]],
+                what: str) -> list[str]:
+    """The notes of :func:`flux_pair_notes` on the pairs :func:`_pair_misfits` found."""
     notes = []
-    for core, c0, c, (chi2, dof, scaled, r), look in _pair_misfits(rig, run, terms):
+    for core, c0, c, (chi2, dof, scaled, r), look in pairs:
         notes.append(
             f"{what}: the flux channels '{c0}' and '{c}' of core '{core}' (forces[].flux) "
             f"disagree, though poles of one core carry one flux: '{c}' reads {r:+.4g} times "
@@ -539,30 +549,37 @@ def flux_pair_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list
 def _pair_misfits(rig: Rig, run: Run, terms: EstimateTerms
                   ) -> list[tuple[str, str, str, tuple[float, int, float, float], str]]:
     """(core, reference channel, channel, :func:`_flux_misfit`, where to look) of every pair
-    of one core's flux channels that disagree."""
+    of one core's flux channels that disagree, the reference the core's first channel unless
+    it carries next to no flux (:data:`DEAD_RATIO`; then it reads 0 times the other)."""
     out = []
     for core, own in _own_channels(rig, run).items():
+        phasors = {k: terms.phasors(rig.actuator.flux_scale * run.channel(c), run)
+                   for k, c in own.items()}
+        size = {k: float(np.abs(p[0][terms.kept]).sum()) for k, p in phasors.items()}
         (k0, c0), *rest = own.items()
-        ref = terms.phasors(rig.actuator.flux_scale * run.channel(c0), run)
-        for k, c in rest:
-            misfit = _flux_misfit(ref, terms.phasors(rig.actuator.flux_scale * run.channel(c),
-                                                     run), terms.kept)
+        for k1, c1 in rest:
+            (kr, cr), (k, c) = (((k1, c1), (k0, c0)) if size[k0] < DEAD_RATIO * size[k1]
+                                else ((k0, c0), (k1, c1)))
+            misfit = _flux_misfit(phasors[kr], phasors[k], terms.kept)
             chi2, dof, scaled, _ = misfit
             if chi2 <= _limit(dof, FALSE_ALARM / 2) and chi2 - scaled <= _limit(
                     1, FALSE_ALARM / 2):
                 continue                  # neither the whole misfit nor the ratio's gain
-            if _sign_only(misfit[3]):
+            if abs(misfit[3]) < DEAD_RATIO:
+                look = (f"'{c}' first: it carries next to no flux (a dead or unplugged channel, "
+                        "or its unit far off)")
+            elif _sign_only(misfit[3]):
                 look = ("both: a sign (the force follows Phi^2, so neither force tells which; "
                         "the Maxwell check stands)")
             elif rig.actuator.pole_area is None:
                 look = "both: a scale (actuator.flux_scale), sign or unit"
             else:
-                off = {c0: _maxwell_departure(rig, run, terms, k0),
+                off = {cr: _maxwell_departure(rig, run, terms, kr),
                        c: _maxwell_departure(rig, run, terms, k)}
                 look = (f"'{max(off, key=off.__getitem__)}' first (its pole's force departs "
                         "further from its Maxwell force): a scale (actuator.flux_scale), sign "
                         "or unit")
-            out.append((core, c0, c, misfit, look))
+            out.append((core, cr, c, misfit, look))
     return out
 
 
@@ -587,12 +604,14 @@ def _maxwell_departure(rig: Rig, run: Run, terms: EstimateTerms, pole: int) -> f
     return abs(g - 1.0)
 
 
-def _unusable(rig: Rig, run: Run, terms: EstimateTerms,
-              fluxes: dict[int, np.ndarray]) -> str | None:
+def _unusable(rig: Rig, run: Run, terms: EstimateTerms, fluxes: dict[int, np.ndarray],
+              pairs: list[tuple[str, str, str, tuple[float, int, float, float], str]] | None
+              = None) -> str | None:
     """Why the poles' flux channels cannot be weighed against their forces (a constant
     channel, one that lost the DC a drive's bias gives it, or a core's channels that
-    disagree), or None."""
-    if any(not _sign_only(m[3][3]) for m in _pair_misfits(rig, run, terms)):
+    disagree: ``pairs`` of :func:`_pair_misfits`, found here when not given), or None."""
+    pairs = _pair_misfits(rig, run, terms) if pairs is None else pairs
+    if any(not _sign_only(m[3][3]) for m in pairs):
         return "the flux channels of one core disagree (the note on them)"
     poles = sorted(fluxes)
     dc = max(abs(float(np.mean(fluxes[k]))) for k in poles)

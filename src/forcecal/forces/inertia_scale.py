@@ -79,9 +79,16 @@ class InertiaScale:
     note: str
 
 
+def _varying(flux: np.ndarray) -> np.ndarray:
+    """The flux channels (rows) that vary: a constant one (a dead channel) holds no shape."""
+    flux = np.atleast_2d(np.asarray(flux, dtype=float))
+    out: np.ndarray = flux[np.ptp(flux, axis=1) > 1e-12 * np.max(np.abs(flux), axis=1)]
+    return out
+
+
 def flux_basis(flux: np.ndarray, fs: float, order: int = 2) -> np.ndarray:
-    """(N, n_funcs): a constant and, per flux channel, its powers up to ``order`` and each of
-    them times its derivative, every column but the constant of unit RMS.
+    """(N, n_funcs): a constant and, per flux channel that varies, its powers up to ``order``
+    and each of them times its derivative, every column but the constant of unit RMS.
 
     Parameters
     ----------
@@ -91,7 +98,7 @@ def flux_basis(flux: np.ndarray, fs: float, order: int = 2) -> np.ndarray:
         The highest power of the flux (2: Phi, Phi^2, Phi', Phi Phi').
     """
     cols = [np.ones(flux.shape[-1])]
-    for phi in np.atleast_2d(flux):
+    for phi in _varying(flux):
         x = phi - phi.mean()
         x = x / (np.std(x) or 1.0)
         dx = np.gradient(x) * fs
@@ -190,10 +197,12 @@ def estimate_inertia_scale(inertia: np.ndarray, reactions: np.ndarray, flux: np.
     InertiaScale
     """
     what = f"run '{source}': the inertia's scale"
+    flux = None if flux is None else _varying(flux)
     if flux is None or len(flux) == 0:
         return InertiaScale(1.0, 0.0, np.nan, np.nan, np.nan, False, (
-            f"{what} is not estimated from the run: it has no flux channel, and the coil "
-            "current alone does not explain a force that also follows the moving gap"))
+            f"{what} is not estimated from the run: it has no flux channel that varies, and "
+            "the coil current alone does not explain a force that also follows the moving "
+            "gap"))
     edge = int(round(fs / max(band[0], 1e-9)))
     inner = _inner(inertia.size, fs, band)
     j, r, phi = inertia[inner], reactions[inner], np.atleast_2d(flux)[:, inner]
