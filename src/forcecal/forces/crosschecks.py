@@ -88,6 +88,9 @@ class EstimateTerms:
         Under any drive (:func:`line_terms`), the columns are these lines of the record's
         discrete Fourier transform, ``w0`` apart, the first the DC; None: harmonics 0..H of a
         steady drive's fundamental w0.
+    rate : float
+        The false-alarm rate the checks are judged at (:data:`FALSE_ALARM` per record; a
+        stream checked segment by segment shares it among its segments).
     """
 
     force: np.ndarray
@@ -98,6 +101,7 @@ class EstimateTerms:
     kept: np.ndarray
     w0: float
     lines: np.ndarray | None = None
+    rate: float = FALSE_ALARM
 
     @property
     def angular(self) -> np.ndarray:
@@ -455,7 +459,7 @@ def flux_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list[str]
              for k, f in enumerate(rig.forces) if f.flux is not None and k not in fluxes]
     poles = sorted(fluxes)
     pairs = _pair_misfits(rig, run, terms)           # once for the notes and the reason
-    notes += _pair_texts(pairs, what)
+    notes += _pair_texts(pairs, what, terms.rate)
     skipped = _unusable(rig, run, terms, fluxes, pairs)
     if skipped:
         return [*notes, f"{what}: {skipped}: the forces are not checked against Maxwell's "
@@ -527,11 +531,11 @@ def flux_pair_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list
     -------
     list of str
     """
-    return _pair_texts(_pair_misfits(rig, run, terms), what)
+    return _pair_texts(_pair_misfits(rig, run, terms), what, terms.rate)
 
 
 def _pair_texts(pairs: list[tuple[str, str, str, tuple[float, int, float, float], str]],
-                what: str) -> list[str]:
+                what: str, rate: float) -> list[str]:
     """The notes of :func:`flux_pair_notes` on the pairs :func:`_pair_misfits` found."""
     notes = []
     for core, c0, c, (chi2, dof, scaled, r), look in pairs:
@@ -540,9 +544,9 @@ def _pair_texts(pairs: list[tuple[str, str, str, tuple[float, int, float, float]
             f"disagree, though poles of one core carry one flux: '{c}' reads {r:+.4g} times "
             f"'{c0}' (chi-square {chi2:.3g} for {dof} degrees of freedom with the ratio held "
             f"to 1 within the fringing ({FRINGING:.0%}), {scaled:.3g} with the ratio free; "
-            f"chance exceeds {_limit(dof, FALSE_ALARM / 2):.3g} and a gain of "
-            f"{_limit(1, FALSE_ALARM / 2):.3g}); look at {look}"
-            + ("" if scaled <= _limit(dof - 1) else "; or a delay, or another channel"))
+            f"chance exceeds {_limit(dof, rate / 2):.3g} and a gain of "
+            f"{_limit(1, rate / 2):.3g}); look at {look}"
+            + ("" if scaled <= _limit(dof - 1, rate) else "; or a delay, or another channel"))
     return notes
 
 
@@ -562,8 +566,8 @@ def _pair_misfits(rig: Rig, run: Run, terms: EstimateTerms
                                 else ((k0, c0), (k1, c1)))
             misfit = _flux_misfit(phasors[kr], phasors[k], terms.kept)
             chi2, dof, scaled, _ = misfit
-            if chi2 <= _limit(dof, FALSE_ALARM / 2) and chi2 - scaled <= _limit(
-                    1, FALSE_ALARM / 2):
+            if chi2 <= _limit(dof, terms.rate / 2) and chi2 - scaled <= _limit(
+                    1, terms.rate / 2):
                 continue                  # neither the whole misfit nor the ratio's gain
             if abs(misfit[3]) < DEAD_RATIO:
                 look = (f"'{c}' first: it carries next to no flux (a dead or unplugged channel, "
@@ -713,8 +717,9 @@ def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
     chi2, coef = problem.fit(pick(terms.force))
     period_ms = 1e3 * 2 * np.pi / max(float(terms.angular.max()), terms.w0)
     sensors = [c for c in causes if c.form in ("relative", "linear", "delay")]
-    gain = _limit(1, FALSE_ALARM / (2 * len(sensors)))
-    whole = _limit(dof, FALSE_ALARM / 2)
+    rate = terms.rate
+    gain = _limit(1, rate / (2 * len(sensors)))
+    whole = _limit(dof, rate / 2)
     if chi2 <= min(gain, whole):
         return []                    # no cause can gain more than the whole chi-square
     tried = sorted((c2, c.name, c.unit, size) for c in sensors
@@ -727,11 +732,10 @@ def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
     single = min((t[0] for t in tried if t[1] in {c.name for c in causes if c.form == "linear"}),
                  default=math.inf)
     tried = [t for t in tried if _free(t[3]) == 1 or single - t[0] > AKAIKE * (_free(t[3]) - 1)]
-    explain = [t for t in tried if chi2 - t[0] > _limit(_free(t[3]), FALSE_ALARM /
-                                                         (2 * len(sensors)))
-               and t[0] <= _limit(dof - _free(t[3]))]
+    explain = [t for t in tried if chi2 - t[0] > _limit(_free(t[3]), rate / (2 * len(sensors)))
+               and t[0] <= _limit(dof - _free(t[3]), rate)]
     return [f"{head(coef)}: chi-square {chi2:.3g} for {dof} degrees of freedom (chance exceeds "
-            f"{whole:.3g} at a {FALSE_ALARM / 2:g} rate), {best_gain:.3g} less with one sensor's "
+            f"{whole:.3g} at a {rate / 2:.3g} rate), {best_gain:.3g} less with one sensor's "
             f"mistake free (chance: {gain:.3g})"
             + _explained(tried, explain, {c.name for c in sensors})]
 

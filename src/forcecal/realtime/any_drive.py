@@ -62,6 +62,7 @@ from ..rig import Rig
 from ..signals.checks import NOISE_BLOCK, AboveBand, check_channel_noise
 from ..signals.wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
+from .segment_checks import SegmentChecks
 
 __all__ = ["stream_any", "stream_any_table"]
 
@@ -266,7 +267,8 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
                   fs: float, t0: float = 0.0, name: str = "<run>",
                   setup: AnyDriveSetup | None = None, block: int = 1 << 14,
                   tare: np.ndarray | None = None, tare_fs: float | None = None,
-                  flux: Mapping[str, np.ndarray] | None = None) -> TransientEstimate:
+                  flux: Mapping[str, np.ndarray] | None = None,
+                  current: Mapping[str, np.ndarray] | None = None) -> TransientEstimate:
     """A run held in memory through :class:`AnyDriveStream`, in blocks of ``block`` samples.
 
     Parameters
@@ -287,7 +289,12 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     tare, tare_fs : array and float, optional
         As :class:`AnyDriveStream`.
     flux : mapping of str to (N,) array, optional
-        The run's flux channels: the inertia's scale from the warm-up (:class:`AnyDriveStream`).
+        The run's flux channels, raw: the inertia's scale from the warm-up
+        (:class:`AnyDriveStream`), and the flux checks segment by segment
+        (:class:`~forcecal.realtime.segment_checks.SegmentChecks`, as every stream makes).
+    current : mapping of str to (N,) array, optional
+        The coil current's channel, raw, which the flux checks read (whether the drive is
+        biased).
 
     Returns
     -------
@@ -301,12 +308,20 @@ def stream_arrays(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes: n
     stream = AnyDriveStream(unit, model, fs, t0, setup=setup, source=name, tare=tare,
                             tare_fs=tare_fs, flux=tuple(flux))
     data = np.vstack([gauges, probes, *flux.values()])
-    chunks = list(_chunks(stream, (data[:, k:k + block]
-                                   for k in range(0, data.shape[1], block))))
+    raw = {**flux, **(current or {})}
+    checks = SegmentChecks(rig, model.band, fs, t0, data.shape[1], list(raw))
+    rows = np.array(list(raw.values())).reshape(len(raw), data.shape[1])
+    chunks = []
+    for c in _chunks(stream, (data[:, k:k + block] for k in range(0, data.shape[1], block))):
+        given = np.round((c.time - t0) * fs).astype(int)
+        assert stream.setup is not None
+        checks.add(c.estimate, rows[:, given], stream.setup.pinv)
+        chunks.append(c)
     note = (f"real time: every sample given {stream.latency:.3g} s after it, from a window of "
             f"the samples up to then; noise and band models from the first {WARMUP:g} s")
     assert stream.setup is not None
-    notes = (note, transfer_note(stream.setup.transfer, name),
+    checks.finish(stream.setup.pinv)
+    notes = (*checks.notes(f"run '{name}'"), note, transfer_note(stream.setup.transfer, name),
              *unseen_notes(stream.setup.unseen, tuple(rig.sensor_names), name),
              *type_b_notes(rig, name), *hum_notes(rig, tare, name),
              *stream.scan_share.notes(name), *_scale_notes(stream, name))
@@ -363,12 +378,15 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
     above = AboveBand(blocks.fs, model.band, blocks.t0)
     current = rig.actuator.current
     scan = LineRatio(model, blocks.fs, rig.mains, int(round(SEGMENT * blocks.fs)))
-    pending: list[np.ndarray] = []        # the current's samples not yet given out: a latency
+    flux = stream.channel_names[len(rig.gauges) + len(rig.sensors):]
+    checks = SegmentChecks(rig, model.band, blocks.fs, blocks.t0, blocks.n_samples,
+                           [*flux, current])
+    pending: list[np.ndarray] = []   # the flux's and current's samples not yet given: a latency
 
     def channels() -> Iterator[np.ndarray]:
         for block in blocks.blocks([*stream.channel_names, current], read):
-            pending.append(block[-1] * rig.actuator.current_scale)
-            above.add(pending[-1])
+            pending.append(block[-1 - len(flux):])
+            above.add(block[-1] * rig.actuator.current_scale)
             yield block[:-1]
 
     with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
@@ -379,11 +397,17 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
                 check(c.time, dict(zip(names, est.force, strict=True)),
                       dict(zip(names, est.static, strict=True)))
             out.write(c.time, stream_rows(est.force, est.static, c.std))
-            held = np.concatenate(pending)
-            scan.add(est.coordinate, held[:len(c.time)])
-            pending[:] = [held[len(c.time):]]
+            held = np.hstack(pending)
+            scan.add(est.coordinate, held[-1, :len(c.time)] * rig.actuator.current_scale)
+            assert stream.setup is not None
+            checks.add(est, held[:, :len(c.time)], stream.setup.pinv)
+            pending[:] = [held[:, len(c.time):]]
         rows = out.rows
+    if stream.setup is not None:
+        checks.finish(stream.setup.pinv)
     if note is not None:
+        for text in checks.notes(f"run '{blocks.source}'"):
+            note(text)
         for text in scan.notes(list(rig.sensor_names), f"run '{blocks.source}'"):
             note(text)
         for text in _scale_notes(stream, blocks.source):
@@ -426,9 +450,12 @@ def stream_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None = Non
         As :func:`forcecal.forces.transient.reconstruct_any`.
     """
     gauges, probes, zero, above = run_inputs(rig, model, run, tare)
+    current = rig.actuator.current
     live = stream_arrays(rig, model, gauges, probes, run.fs, run.t0, run.name,
                          tare=zero, tare_fs=None if tare is None else tare.fs,
                          flux={c: run.channel(c) for c in rig.flux_channels
-                               if c in run.channels})
+                               if c in run.channels},
+                         current={current: run.channel(current)} if current in run.channels
+                         else None)
     scan = run_line_notes(rig, model, run, live.coordinates[0], f"run '{run.source}'")
     return dataclasses.replace(live, notes=(*scan, *live.notes, *above))

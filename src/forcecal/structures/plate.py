@@ -11,7 +11,7 @@ import numpy as np
 
 from .base import LumpedMass, OutOfPlane, ranges_text
 
-__all__ = ["Plate", "inside_polygon"]
+__all__ = ["Plate"]
 
 _N_TRI = 12
 """Gauss points per direction on each triangle (exact for degree <= 22)."""
