@@ -29,7 +29,6 @@ from forcecal.actuator import (
     CalibrationData,
     ExtrapolationWarning,
     fit_law,
-    held_out_error,
     ideal_k,
     predict,
     predict_flux,
@@ -37,6 +36,7 @@ from forcecal.actuator import (
     select_law,
 )
 from forcecal.actuator.laws import SATURATING
+from forcecal.actuator.selection import held_out_error
 from forcecal.errors import FitError, InputError
 
 TURNS = 400

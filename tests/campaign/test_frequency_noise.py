@@ -47,3 +47,34 @@ def test_harmonics_above_the_band_are_not_measured_and_get_no_weight(beam, bb_mo
     # the stated noise of the harmonics it holds, unchanged
     var = sum(np.asarray(s) ** 2 for s in noise.force_std.values())[:5]
     assert np.all(std[:5] ** 2 >= var * (1 - 1e-12))
+
+
+def test_runs_at_other_frequencies_share_the_scans_ratio_errors(beam, bb_model):
+    """Two steady runs of one campaign, at 20 and 46 Hz: the broadband model's smoothed ratios
+    err alike at neighbouring frequencies, so their noise shares those errors under one name
+    each (a law over frequency then does not average them away as if every step's were its
+    own). Their fundamentals' totals move together under them: correlation 0.32 of their
+    whole shape error (test above 0.15); without them the runs share no shape error but the
+    quasi-static shape's."""
+    from forcecal.campaign.noise import run_noise
+    from forcecal.forces.steady import reconstruct
+
+    effects = {}
+    for f0, seed in ((20.0, 4), (F0, 5)):
+        wave = np.sin(2 * np.pi * f0 * np.arange(int(2.0 * FS)) / FS)
+        run, _ = record_run(beam, np.random.default_rng(seed), 6.0 + 1.5 * wave,
+                            0.6 + 0.1 * wave, "steady")
+        rig = dataclasses.replace(beam[3], frequency=f0, drive="steady")
+        model = steady_model(bb_model, rig, f0, 4)
+        est = reconstruct(rig, model, run, n_harmonics=4)
+        effects[f0] = {e.name: e.total[1] for e in run_noise(rig, model, run, est, None).shared
+                       if e.source == "scan shapes"}
+    a, b = effects[20.0], effects[F0]
+    common = sorted(set(a) & set(b))
+    assert any(n.startswith("scan ratio") for n in common), common
+    assert all(n.startswith(("scan ratio", "quasi-static shape")) for n in common), common
+    ours = [n for n in common if n.startswith("scan ratio")]
+    va, vb = (np.array([x[n] for n in ours]) for x in (a, b))
+    corr = abs(np.vdot(va, vb)) / np.sqrt(sum(abs(v) ** 2 for v in a.values())
+                                          * sum(abs(v) ** 2 for v in b.values()))
+    assert corr > 0.15, corr

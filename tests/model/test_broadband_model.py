@@ -306,10 +306,51 @@ def test_the_ratios_come_from_the_lines_that_carry_the_drive():
     spurious = int(np.flatnonzero(~good & (f > 140))[0])
     coords[:, spurious] = [0.5, 2.0, 0.1]
     cov = np.einsum("l,kj->lkj", 1e-8 * np.maximum(np.abs(coords[0]), 1e-2) ** 2, np.eye(3))
-    ratios, std, _ = _drive_line_ratios(f, coords, cov, good)
+    ratios, std, _, _ = _drive_line_ratios(f, coords, cov, good)
     inside = (f >= f[good][0]) & (f <= f[good][-1])      # beyond, the end's ratio is held
     off = np.abs(ratios[1] - true)[inside]
     assert np.max(off) < 1e-6, np.max(off)
     assert np.all(np.isfinite(std)) and std.shape == ratios.shape
-    every, _, _ = choose_ratios(f, coords, cov)
+    every, _, _, _ = choose_ratios(f, coords, cov)
     assert abs(every[1, spurious] - true[spurious]) > 0.2
+
+
+def test_the_ratios_error_shared_between_lines_is_split_off_not_added(beam, bb_model, tmp_path):
+    """The splines' noise through the smoother is shared by neighbouring lines: the model keeps
+    it as error directions over the lines (the first shape none), each ratio's variance at a
+    line at least their sum. A steady run's model carries them as errors of every run, one
+    change of every harmonic's and the quasi-static shape's coefficients each; the shapes'
+    own covariances keep the rest, so that the two add up to the ratios' whole stated
+    variance at every harmonic (to 1e-9 of it) and at the lowest line. The ratio of the first
+    pair errs alike at 20 and 40 Hz (correlation of its error 0.65 there, test above 0.5).
+    The directions survive the model file; one of the wrong length is refused naming it."""
+    rig = dataclasses.replace(beam[3], frequency=20.0, drive="steady")
+    dirs = bb_model.ratio_directions
+    assert dirs is not None and len(dirs[0]) == 0 and all(len(d) for d in dirs[1:])
+    for k, d in enumerate(dirs):
+        assert np.all(np.sum(d**2, axis=0) <= bb_model.ratio_std[k] ** 2 * (1 + 1e-9))
+    sm = steady_model(bb_model, rig, 20.0, 4)
+    first = bb_model.shapes[0]
+    real = np.column_stack([s.coefficients for s in bb_model.shapes]).real
+    at = np.concatenate([sm.harmonics * 20.0, bb_model.frequencies[:1]])
+    whole = [first.coefficient_covariance + (real * bb_model.mixing_std(at)[:, j] ** 2) @ real.T
+             for j in range(len(at))]
+    own = [s.coefficient_covariance for s in sm.shapes] + [sm.static_shape.coefficient_covariance]
+    for j in range(len(at)):
+        shared = sum(np.outer(c.real, c.real) for name, changes, dc in sm.shared_errors
+                     if name.endswith(" re")
+                     for c in [changes[j] if j < len(sm.shapes) else dc])
+        np.testing.assert_allclose(own[j] + shared, whole[j], rtol=1e-9,
+                                   atol=1e-9 * np.abs(whole[j]).max())
+    (_, d1), *_ = bb_model.mixing_directions(np.array([20.0, 40.0]))
+    corr = float(d1[:, 0] @ d1[:, 1] / np.sqrt((d1[:, 0] @ d1[:, 0]) * (d1[:, 1] @ d1[:, 1])))
+    assert corr > 0.5, corr
+    back = BroadbandModel.from_json(json.loads(json.dumps(bb_model.to_json())))
+    for a, b in zip(back.ratio_directions, dirs, strict=True):
+        np.testing.assert_allclose(a, b, rtol=1e-12)
+    doc = bb_model.to_json()
+    doc["ratio_directions"][1][0] = doc["ratio_directions"][1][0][:-1]
+    path = tmp_path / "model.json"
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=r"key 'ratio_directions\[1\]\[0\]' has \d+ values"):
+        load_any_model(path)

@@ -145,7 +145,7 @@ def test_modal_ratios_beat_the_splines_near_a_lightly_damped_mode():
     errors = []
     for seed in range(3):
         data, cov = _noisy(h, np.random.default_rng(seed))
-        ratios, std, choice = choose_ratios(LINES, data, cov)
+        ratios, std, choice, _ = choose_ratios(LINES, data, cov)
         spline, _ = smooth_ratios(LINES, data, cov)
         assert choice.source == "modal" and choice.aic_modal < choice.aic_spline
         np.testing.assert_allclose(choice.modes[0, [0, 2]], [70.0, 0.005], rtol=0.05)
@@ -186,13 +186,13 @@ def test_the_choice_falls_on_the_splines_without_a_mode_in_band():
     h = _response(((320.0, 0.01),), 50.0 * np.array([[1.0], [0.3 + 0.01j], [-0.2]]),
                   ONE_CONSTANTS)
     data, cov = _noisy(h, np.random.default_rng(0))
-    ratios, std, choice = choose_ratios(LINES, data, cov)
+    ratios, std, choice, _ = choose_ratios(LINES, data, cov)
     spline, spline_std = smooth_ratios(LINES, data, cov)
     assert choice.source == "spline" and np.isnan(choice.aic_modal)
     assert np.isfinite(choice.aic_spline) and choice.modes.shape == (0, 4)
     np.testing.assert_array_equal(ratios, spline)
     np.testing.assert_array_equal(std, spline_std)
-    _, _, alone = choose_ratios(LINES, data[:1], cov[:, :1, :1])
+    _, _, alone, _ = choose_ratios(LINES, data[:1], cov[:, :1, :1])
     assert alone.source == "spline" and np.isnan(alone.aic_spline)
 
 

@@ -28,7 +28,7 @@ from .frequency import FrequencyLaw, SteadyRecord
 from .frequency_fit import fit_frequency_law
 from .laws import ALL_LAWS, FLUX, K_I0_SFE2, K_I2_S2, K_I2_SFE2, LAWS, MU0, POWER, Law, ideal_k
 from .prediction import Calibration, ExtrapolationWarning, predict, predict_flux
-from .selection import Candidate, Selection, held_out_error, report_text, select_law
+from .selection import Candidate, Selection, report_text, select_law
 
 __all__ = [
     "ALL_LAWS",
@@ -51,7 +51,6 @@ __all__ = [
     "SteadyRecord",
     "fit_frequency_law",
     "fit_law",
-    "held_out_error",
     "ideal_k",
     "predict",
     "predict_flux",

@@ -406,6 +406,38 @@ def _static_effects(run: _ShapeRun, cov: np.ndarray) -> tuple[SharedEffect, ...]
     return tuple(out)
 
 
+def _shared_shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
+    """The shapes' errors that every run of the model shares whatever its frequency
+    (:attr:`forcecal.model.spatial.SpatialModel.shared_errors`: a broadband model's smoothed
+    ratios): each moves every harmonic's shape and the quasi-static shape at once, and so the
+    total force and the pole displacement (changes from the estimate's own: linear)."""
+    model, rig = run.model, run.rig
+    static = model.static_shape
+    if not model.shared_errors or static is None:
+        return ()
+    xs = rig.structure.coordinates(rig.sensor_points)
+    xp = rig.structure.coordinates(rig.force_points)
+    dc_probes, dc_poles = static.basis.evaluate(xs), static.basis.evaluate(xp)
+    rotor = _rotor(model, rig, static.evaluate)
+    h = run.inputs.sensors.shape[1] - 1
+    zero = np.zeros(dc_probes.shape[1])
+    base_dc = _dc_moved(run, dc_probes @ zero, dc_poles @ zero, rotor)
+    harmonics = [(k, model.shapes[k].basis.evaluate(xp)) for k, n in enumerate(model.harmonics)
+                 if 1 <= int(n) <= h]
+    base = {k: _shape_change(run, k, 0, at_poles, np.zeros(at_poles.shape[1]))
+            for k, at_poles in harmonics}
+    out = []
+    for name, change, dc in model.shared_errors:
+        total = np.zeros(h + 1, dtype=complex)
+        motion = np.zeros((len(rig.forces), h + 1), dtype=complex)
+        for k, at_poles in harmonics:
+            t, m = _shape_change(run, k, 0, at_poles, change[k])
+            total, motion = total + t - base[k][0], motion + m - base[k][1]
+        motion[:, 0] = _dc_moved(run, dc_probes @ dc, dc_poles @ dc, rotor) - base_dc
+        out.append(SharedEffect(name=name, source="scan shapes", total=total, motion=motion))
+    return tuple(out)
+
+
 def _shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
     """The scan shapes' errors: for every harmonic's members, each principal direction of the
     coefficients' covariance (Re and Im), its signed change of the total force and of the pole
@@ -417,6 +449,7 @@ def _shape_effects(run: _ShapeRun) -> tuple[SharedEffect, ...]:
     model = run.model
     static = _static_covariance(model)
     out = list(_static_effects(run, static)) if static is not None else []
+    out += _shared_shape_effects(run)
     xp = run.rig.structure.coordinates(run.rig.force_points)
     for k, n in enumerate(model.harmonics):
         if int(n) > run.inputs.sensors.shape[1] - 1 or int(n) == 0:

@@ -41,6 +41,7 @@ from .coverage import check_scan_coverage, check_scan_on_rig
 from .frf import scan_response
 from .inertia import mass_coupling
 from .modal import PLAUSIBLE, ModalFit, identify, ratio_dof
+from .ratio_errors import error_directions, shared_ratio_errors
 from .screening import MAX_SET_ASIDE, record_weights
 from .spatial import (
     MIN_SNR,
@@ -164,6 +165,11 @@ class BroadbandModel:
     file : str
         The MODEL.json the model was read from (:func:`load_any_model`); empty for a model
         built here. Refusals name the model by it (:attr:`origin`).
+    ratio_directions : tuple of (n_dirs, n_lines) arrays, or None
+        Per shape, the part of its ratio's error that neighbouring lines share (the lines'
+        noise through the splines, :func:`error_directions`; of Re and of Im each, the first
+        shape's empty): ``ratio_std`` holds it and each line's own part. None: every line's
+        error its own (the modal model's ratios, a model written before they were kept).
     """
 
     band: tuple[float, float]
@@ -184,6 +190,7 @@ class BroadbandModel:
     file: str = ""
     ratio_choice: RatioChoice = field(default_factory=RatioChoice)
     reference: tuple[float, float] | None = None
+    ratio_directions: tuple[np.ndarray, ...] | None = None
 
     @property
     def origin(self) -> str:
@@ -243,6 +250,15 @@ class BroadbandModel:
             return np.zeros((self.n_shapes, len(f)))
         return np.array([np.interp(f, self.frequencies, s) for s in self.ratio_std])
 
+    def mixing_directions(self, frequencies: np.ndarray) -> list[tuple[int, np.ndarray]]:
+        """Each shape's ratio error directions at ``frequencies`` (n_freq,) [Hz], interpolated
+        as the ratios are: (k, (n_dirs, n_freq) array [1]) for every shape that has some."""
+        if self.ratio_directions is None:
+            return []
+        f = np.atleast_1d(np.asarray(frequencies, float))
+        return [(k, np.array([np.interp(f, self.frequencies, d) for d in dirs]))
+                for k, dirs in enumerate(self.ratio_directions) if len(dirs)]
+
     def inertia_correction(self, frequencies: np.ndarray, probe_shapes: np.ndarray,
                            weights: np.ndarray) -> np.ndarray:
         """(n_gauges, n_freq) complex [1]: what the inertia J_r = m_{r,1} q''_1 of the first
@@ -289,7 +305,9 @@ class BroadbandModel:
                 **({} if self.ratio_std is None else {"ratio_std": self.ratio_std.tolist()}),
                 "ratio_model": self.ratio_choice.to_json(),
                 **({} if self.reference is None else {"reference_dc_a": self.reference[0],
-                                                      "reference_ac_a": self.reference[1]})}
+                                                      "reference_ac_a": self.reference[1]}),
+                **({} if self.ratio_directions is None else {"ratio_directions": [
+                    d.tolist() for d in self.ratio_directions]})}
 
     @classmethod
     def from_json(cls, doc: dict[str, Any], source: str = "<model>") -> BroadbandModel:
@@ -318,7 +336,10 @@ class BroadbandModel:
                    gauge_names=tuple(doc["gauge_names"]), n_points=int(doc["n_points"]),
                    source=str(doc["source"]), notes=tuple(doc["notes"]),
                    rig=dict(doc["rig"]), ratios=ratios, ratio_std=ratio_std,
-                   ratio_choice=choice, reference=(
+                   ratio_choice=choice, ratio_directions=None if "ratio_directions" not in doc
+                   else tuple(np.asarray(d, float).reshape(-1, len(doc["frequencies"]))
+                              for d in doc["ratio_directions"]),
+                   reference=(
                        None if doc.get("reference_dc_a") is None
                        else (float(doc["reference_dc_a"]), float(doc.get("reference_ac_a", 0)))))
 
@@ -384,7 +405,8 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
     basis = np.column_stack([s.evaluate(points) for s in shapes])
     coords, cov = _line_coordinates(basis, weights, resp.values, resp.std, good, h, std,
                                     len(points), len(resp.frequencies))
-    ratios, ratio_std, choice = _drive_line_ratios(resp.frequencies, coords, cov, good)
+    ratios, ratio_std, choice, directions = _drive_line_ratios(resp.frequencies, coords, cov,
+                                                                good)
     line_snr = (np.sqrt(np.mean(np.abs(resp.values) ** 2, axis=0))
                 / (np.sqrt(2) * np.maximum(np.median(resp.std, axis=0), tiny)))
     return BroadbandModel(band=band, shapes=shapes, couplings=couplings,
@@ -393,7 +415,7 @@ def build_broadband_model(rig: Rig, scan: Scan | ScanSpectra | ScanFRF,
                           gauge_names=tuple(rig.gauge_names), n_points=len(points),
                           source=scan.source, notes=tuple(notes), rig=rig_keys(rig),
                           ratios=ratios, ratio_std=ratio_std, ratio_choice=choice,
-                          reference=_reference_level(scan))
+                          reference=_reference_level(scan), ratio_directions=directions)
 
 
 def _reference_level(scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float] | None:
@@ -406,7 +428,8 @@ def _reference_level(scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float] 
 
 
 def _drive_line_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray,
-                       good: np.ndarray) -> tuple[np.ndarray, np.ndarray, RatioChoice]:
+                       good: np.ndarray) -> tuple[np.ndarray, np.ndarray, RatioChoice,
+                                                  tuple[np.ndarray, ...] | None]:
     """:func:`choose_ratios` over the lines that carry the drive, their ratios and standard
     uncertainties interpolated onto every line: a line between the drive's holds the scan's
     noise over a reference without signal, not the structure's response to the drive (on a
@@ -414,13 +437,16 @@ def _drive_line_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndar
     where the drive's lines read 0.005)."""
     if np.all(good):
         return choose_ratios(frequencies, coords, cov)
-    ratios, std, choice = choose_ratios(frequencies[good], coords[:, good], cov[good])
+    ratios, std, choice, directions = choose_ratios(frequencies[good], coords[:, good],
+                                                    cov[good])
     at = frequencies[good]
 
     def onto(rows: np.ndarray) -> np.ndarray:
-        return np.array([np.interp(frequencies, at, row) for row in rows])
+        return np.array([np.interp(frequencies, at, row) for row in rows]).reshape(
+            len(rows), len(frequencies))
 
-    return onto(ratios.real) + 1j * onto(ratios.imag), onto(std), choice
+    return (onto(ratios.real) + 1j * onto(ratios.imag), onto(std), choice,
+            None if directions is None else tuple(onto(d) for d in directions))
 
 
 def _broadband_band(rig: Rig, scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float]:
@@ -551,7 +577,7 @@ def smooth_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     10 and 30 Hz was 3-5 times their stated uncertainty, a bias the same in every draw of the
     scan's noise, and what that noise moved the total force by 2.1 times its statement.
     """
-    out, std, _, _ = _spline_ratios(frequencies, coords, cov)
+    out, std, _, _, _ = _spline_ratios(frequencies, coords, cov)
     return out, std
 
 
@@ -575,17 +601,22 @@ def _line_ratios(coords: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.nd
 
 
 def _spline_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
-    """:func:`smooth_ratios`, with the lines' own ratios' variances (:func:`_line_ratios`)
-    and the splines' degrees of freedom, sum_k 2 tr S_k (Re and Im)."""
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, float, tuple[np.ndarray, ...]]:
+    """:func:`smooth_ratios`, with the lines' own ratios' variances (:func:`_line_ratios`),
+    the splines' degrees of freedom, sum_k 2 tr S_k (Re and Im), and each ratio's error
+    directions over the lines (:func:`~forcecal.model.ratio_errors.error_directions` of
+    S_k diag(var_k) S_k^T: the lines' noise through the smoother, which every line's ratio
+    shares with its neighbours)."""
     ratios, var = _line_ratios(coords, cov)
     out, std = np.ones_like(ratios), np.zeros(ratios.shape)
     dof = 0.0
+    directions = [np.zeros((0, ratios.shape[1]))]
     for k in range(1, coords.shape[0]):
         r = ratios[k]
         if r.size < 5:                        # too few lines to smooth
             out[k], std[k] = r, np.sqrt(var[k])
             dof += 2.0 * r.size
+            directions.append(np.zeros((0, r.size)))
             continue
         family = SplineFamily.over(frequencies, 1.0 / var[k])
         smoother = family.matrix(family.least_risk(r))
@@ -593,11 +624,13 @@ def _spline_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
         bias = smoother @ out[k] - out[k]     # the smoother's bias on its own estimate
         std[k] = np.sqrt(smoother**2 @ var[k] + np.abs(bias) ** 2 / 2.0)
         dof += 2.0 * float(np.trace(smoother))
-    return out, std, var, dof
+        directions.append(error_directions((smoother * var[k]) @ smoother.T))
+    return out, std, var, dof, tuple(directions)
+
 
 
 def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, RatioChoice]:
+                  ) -> tuple[np.ndarray, np.ndarray, RatioChoice, tuple[np.ndarray, ...] | None]:
     """The ratios a_k / a_1 at the lines and their standard uncertainty (of Re and of Im
     each), from the splines (:func:`smooth_ratios`) or from the modal model of the
     coordinates (:func:`forcecal.model.modal.identify`) where its Akaike criterion on the lines'
@@ -619,10 +652,18 @@ def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     coords : (n_shapes, n_lines) complex array
     cov : (n_lines, n_shapes, n_shapes) array
         The coordinates' covariance, of Re and of Im each.
+
+    Returns
+    -------
+    ratios, std, choice
+        As the module's model keeps them.
+    directions : tuple of (n_dirs, n_lines) arrays, or None
+        The splines' error directions per shape (:func:`_spline_ratios`); None for the modal
+        model's ratios, whose errors are each line's own.
     """
-    spline, spline_std, var, spline_dof = _spline_ratios(frequencies, coords, cov)
+    spline, spline_std, var, spline_dof, directions = _spline_ratios(frequencies, coords, cov)
     if coords.shape[0] < 2:
-        return spline, spline_std, RatioChoice()
+        return spline, spline_std, RatioChoice(), directions
     own = coords / np.where(coords[0] != 0, coords[0], np.finfo(float).tiny)
 
     def aic(fitted: np.ndarray, dof: float) -> float:
@@ -631,7 +672,7 @@ def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     aic_spline = aic(spline, spline_dof)
     fit = identify(frequencies, coords, cov)
     if fit is None:
-        return spline, spline_std, RatioChoice(aic_spline=aic_spline)
+        return spline, spline_std, RatioChoice(aic_spline=aic_spline), directions
     modal, modal_std = fit.ratios(frequencies)
     aic_modal = aic(modal, ratio_dof(fit, frequencies, coords, cov))
     # the splines stay unless the modal model makes them implausible (their Akaike weight
@@ -642,8 +683,8 @@ def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
                          aic_spline=aic_spline, aic_modal=aic_modal, modes=_modes(fit),
                          level_noise=fit.level_noise)
     if chosen.source == "modal":
-        return modal, modal_std, chosen
-    return spline, spline_std, chosen
+        return modal, modal_std, chosen, None
+    return spline, spline_std, chosen, directions
 
 
 def _modes(fit: ModalFit) -> np.ndarray:
@@ -752,32 +793,33 @@ def steady_model(model: BroadbandModel, rig: Rig, f0: float, n_harmonics: int) -
         f"{r:.1f} < {MIN_SNR:g}; its shape is interpolated in the span of all lines"
         for k, r in zip(n[inside], snr[inside], strict=True) if r < MIN_SNR)
     kept = n[inside]
-    mix = model.mixing(kept * f0)                                # (n_shapes, n_kept)
-    mix_std = model.mixing_std(kept * f0)
+    lowest = model.frequencies[:1]          # the quasi-static shape, with its ratios' error
+    at = np.concatenate([kept * f0, lowest])
+    mix = model.mixing(at)                                       # (n_shapes, n_kept + 1)
     first = model.shapes[0]
     coefs = np.column_stack([s.coefficients for s in model.shapes]).astype(complex)
-    # each shape's coefficient covariance: the first span shape's fit, and the ratios'
-    # uncertainty along the span's other shapes (delta phi = sum_k phi_k delta r_k)
     real = coefs.real
+    shared, own_var = shared_ratio_errors(model, real, at)
+    # each shape's coefficient covariance: the first span shape's fit, and the ratios' own
+    # uncertainty along the span's other shapes (delta phi = sum_k phi_k delta r_k); the part
+    # the lines share through the splines is one error of every run (``shared_errors``)
     shapes = tuple(dataclasses.replace(
         first, coefficients=coefs @ mix[:, j],
         coefficient_covariance=first.coefficient_covariance
-        + (real * mix_std[:, j] ** 2) @ real.T) for j in range(len(kept)))
+        + (real * own_var[:, j]) @ real.T) for j in range(len(kept)))
     couplings = (model.couplings.astype(complex) @ mix).T       # (n_kept, n_gauges)
     # the shapes share one basis, orthonormal over the scan points: their MAC is that of
     # their coefficients
     mac = np.array([[shape_similarity(p.coefficients, q.coefficients) for q in shapes]
                     for p in shapes])
-    lowest = model.frequencies[:1]          # the quasi-static shape, with its ratios' error
     static = dataclasses.replace(
-        first, coefficients=coefs @ model.mixing(lowest)[:, 0],
-        coefficient_covariance=first.coefficient_covariance
-        + (real * model.mixing_std(lowest)[:, 0] ** 2) @ real.T)
+        first, coefficients=coefs @ mix[:, -1],
+        coefficient_covariance=first.coefficient_covariance + (real * own_var[:, -1]) @ real.T)
     return SpatialModel(
         f0=f0, harmonics=kept, shapes=shapes, couplings=couplings, similarity=mac,
         snr=snr, gauge_names=model.gauge_names, dropped=dict(sorted(dropped.items())),
         n_points=model.n_points, source=model.source, notes=notes, rig=model.rig,
-        static_shape=static, file=model.file)
+        static_shape=static, file=model.file, shared_errors=shared)
 
 
 def load_any_model(path: str | Path) -> SpatialModel | BroadbandModel:

@@ -89,6 +89,11 @@ class SpatialModel:
         the shapes are (:attr:`forcecal.model.scan.HarmonicShapes.drive`): the drive under
         which a coordinate of 1 is the scan's motion; None for a model of several scans or of
         spectra (:mod:`forcecal.forces.scan_check`)
+    shared_errors : errors of the shapes that every run of the model shares, whatever its
+        frequency: (name, (n_harm, n_coef) complex change of each shape's coefficients, (n_coef,)
+        complex change of the quasi-static shape's), each one standard deviation (a broadband
+        model's smoothed ratios, :meth:`forcecal.model.broadband.BroadbandModel.mixing_directions`);
+        the shapes' own covariances hold the rest. Not written to the model file.
     """
 
     f0: float
@@ -111,6 +116,7 @@ class SpatialModel:
     static_shape: ShapeFit | VectorShapeFit | None = None
     file: str = ""
     drive: np.ndarray | None = None
+    shared_errors: tuple[tuple[str, np.ndarray, np.ndarray], ...] = ()
 
     @property
     def origin(self) -> str:

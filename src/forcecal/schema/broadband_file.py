@@ -99,6 +99,10 @@ class BroadbandFile(Table):
     written before they were kept)."""
     ratio_std: list[list[NonNegative]] | None = None
     """Their standard uncertainty, of Re and of Im each (rows: shapes; columns: lines)."""
+    ratio_directions: list[list[list[Annotated[float, Field(allow_inf_nan=False)]]]] | None = None
+    """Per shape, the directions over the lines of the error its ratio shares with
+    neighbouring lines (the splines' smoothing), each scaled by its standard deviation (the
+    first shape's none; absent: every line's error its own)."""
     ratio_model: RatioModel | None = None
     """Whether the ratios are the splines' or the modal model's, and the scores that chose
     (absent from a model written before the choice: the splines')."""
@@ -160,6 +164,10 @@ def _check_broadband(f: Faults, m: BroadbandFile) -> None:
             f.matrix(part.im, f"{name}.im", n_k, n_lines)
     if m.ratio_std is not None:
         f.matrix(m.ratio_std, "ratio_std", n_k, n_lines)
+    if m.ratio_directions is not None:
+        f.count(m.ratio_directions, "ratio_directions", n_k, "lists (one per shape)")
+        for k, rows in enumerate(m.ratio_directions):
+            f.matrix(rows, f"ratio_directions[{k}]", None, n_lines)
 
 
 def _ascending(f: Faults, values: Sequence[float], key: str) -> None:
