@@ -190,12 +190,14 @@ def print_uncertainty(label: str, result: CampaignResult) -> None:
         print(f"  correlation K-s_fe {unc.correlation[0, 1]:+.4f}")
 
 
-def _seed_campaign(folder: Path, preset, fe, responses, scan_r, rng) -> tuple:
-    """One seed: the scan and every run re-measured, written with a manifest."""
+def _seed_campaign(folder: Path, preset, fe, responses, scan_r, rng, runs_rng=None) -> tuple:
+    """One seed: the scan and every run re-measured, written with a manifest (the runs from
+    ``runs_rng`` where given, else from ``rng`` after the scan)."""
     scan = measure_scan(preset, fe, scan_r, rng)
     rows = []
     for spec in preset.runs:
-        run = measure_run(preset, spec, fe, responses[spec.name], rng)
+        run = measure_run(preset, spec, fe, responses[spec.name],
+                          rng if runs_rng is None else runs_rng)
         write_run_csv(run, folder / "runs" / f"{spec.name}.csv")
         rows.append({"run": f"runs/{spec.name}.csv", "gap": spec.gap,
                      "tare": "true" if spec.tare else "false", **spec.labels})

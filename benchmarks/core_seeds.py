@@ -41,8 +41,12 @@ N: 10 by default, about 4 minutes on 2 cores (the physics 2-5 s per preset, a se
 calibration 9-13 s; 20 seeds take about 8 minutes): the ratio's sampling uncertainty is then
 about 0.24 of it.
 
+``--redraw scan`` or ``--redraw runs`` redraws only the scan's or only the runs' noise per
+seed, the other held at one draw: the scatter of each part, against the part of the stated
+uncertainty it makes.
+
 Run:  .venv/bin/python benchmarks/core_seeds.py [--seeds 10] [--presets solid laminated]
-          [--check]
+          [--check] [--redraw both|scan|runs]
 Writes benchmarks/results/core_seeds.json: the machine, N, the seeds, the elapsed time, and per
 preset the truth, every quantity's statistics (``rows``), the other model's parameters'
 (``other_model``), the models chosen, and every seed's values and stated uncertainties.
@@ -81,6 +85,8 @@ import calibration
 PRESETS = tuple(calibration.CORES)   # solid, laminated
 SEEDS = 10
 BASE_SEED = 1000
+FIXED_SEED = 999
+"""``--redraw scan`` or ``runs``: the seed of the part held at one draw."""
 TARGET_RATIO = calibration.TARGET_RATIO   # seed scatter / mean stated standard uncertainty
 PARAMS = ("K_total", "s_fe", "tau")
 UNITS = {"K_total": ("1e-6 N m^2/A^2", 1e6), "s_fe": ("um", 1e6), "tau": ("ms", 1e3),
@@ -114,13 +120,16 @@ def simulate(preset: Preset) -> dict:
             "seconds": time.perf_counter() - t}
 
 
-def calibrate_seed(preset: Preset, physics: dict, rng: np.random.Generator) -> FrequencyLaw:
+def calibrate_seed(preset: Preset, physics: dict, rng: np.random.Generator,
+                   runs_rng: np.random.Generator | None = None) -> FrequencyLaw:
     """One seed's noise drawn on the simulated physics, calibrated as ``forcecal scan`` and
-    ``forcecal calibrate`` do it; its law over frequency."""
+    ``forcecal calibrate`` do it; its law over frequency (the runs' noise from ``runs_rng``
+    where given)."""
     rig = user_rig(preset)
     with tempfile.TemporaryDirectory(prefix="forcecal-core-seed-") as tmp:
         scan, manifest = calibration._seed_campaign(Path(tmp), preset, physics["fe"],
-                                                    physics["responses"], physics["scan"], rng)
+                                                    physics["responses"], physics["scan"], rng,
+                                                    runs_rng)
         model = forcecal.build_spatial_model(rig, scan)
         result = forcecal.calibrate(rig, model, manifest)
     law = result.calibration.frequency_law
@@ -317,7 +326,18 @@ def check_seed0(name: str, preset: Preset, physics: dict, tr: dict) -> dict:
 # ------------------------------------------------------------------------------------ main
 
 
-def run_preset(name: str, n_seeds: int, check: bool) -> dict:
+def _generators(seed: int, redraw: str) -> tuple[np.random.Generator, np.random.Generator | None]:
+    """The scan's and the runs' generators of one seed: one for both (``both``, as
+    ``forcecal simulate`` draws), or the other part's held at ``FIXED_SEED`` (``scan``: only
+    the scan's noise redrawn; ``runs``: only the runs')."""
+    if redraw == "both":
+        return np.random.default_rng(seed), None
+    fixed = np.random.default_rng(FIXED_SEED)
+    drawn = np.random.default_rng(seed)
+    return (drawn, fixed) if redraw == "scan" else (fixed, drawn)
+
+
+def run_preset(name: str, n_seeds: int, check: bool, redraw: str = "both") -> dict:
     """One preset: its physics once, then every seed's noise and calibration."""
     preset = get_preset(name)
     tr = truth(preset)
@@ -329,7 +349,7 @@ def run_preset(name: str, n_seeds: int, check: bool) -> dict:
     for k in range(n_seeds):
         seed = BASE_SEED + k
         try:
-            law = calibrate_seed(preset, physics, np.random.default_rng(seed))
+            law = calibrate_seed(preset, physics, *_generators(seed, redraw))
         except ForcecalError as exc:
             failed.append({"seed": seed, "error": str(exc)})
             print(f"  {name} seed {k + 1}/{n_seeds}: FAILED: {exc}", file=sys.stderr)
@@ -358,21 +378,27 @@ def main() -> int:
                     help="the real-core presets (default both)")
     ap.add_argument("--check", action="store_true",
                     help="first compare seed 0 through the command line and through the API")
+    ap.add_argument("--redraw", choices=("both", "scan", "runs"), default="both",
+                    help="the noise redrawn per seed: both (default), only the scan's or only "
+                         "the runs' (the other's held at one draw); results then go to "
+                         "core_seeds_<redraw>.json")
     args = ap.parse_args()
     if args.seeds < 2:
         ap.error("--seeds: at least 2 seeds give a scatter")
     t0 = time.perf_counter()
     doc: dict = {"benchmark": "core_seeds", "machine": machine(), "n_seeds": args.seeds,
-                 "base_seed": BASE_SEED, "target": TARGET_RATIO, "presets": {}}
+                 "base_seed": BASE_SEED, "redraw": args.redraw, "target": TARGET_RATIO,
+                 "presets": {}}
     for name in args.presets:
-        doc["presets"][name] = run_preset(name, args.seeds, args.check)
+        doc["presets"][name] = run_preset(name, args.seeds, args.check, args.redraw)
     doc["elapsed_s"] = time.perf_counter() - t0
     doc["machine"]["load_average_end"] = os.getloadavg() if hasattr(os, "getloadavg") else None
     for name, res in doc["presets"].items():
         print_table(name, res)
     print(f"\nN = {args.seeds} seeds per preset; elapsed {doc['elapsed_s']:.0f} s")
     RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "core_seeds.json").write_text(json.dumps(doc, indent=2, default=float) + "\n")
+    out = "core_seeds.json" if args.redraw == "both" else f"core_seeds_{args.redraw}.json"
+    (RESULTS / out).write_text(json.dumps(doc, indent=2, default=float) + "\n")
     return 0
 
 
