@@ -323,7 +323,8 @@ def test_the_ratios_error_shared_between_lines_is_split_off_not_added(beam, bb_m
     own covariances keep the rest, so that the two add up to the ratios' whole stated
     variance at every harmonic (to 1e-9 of it) and at the lowest line. The ratio of the first
     pair errs alike at 20 and 40 Hz (correlation of its error 0.65 there, test above 0.5).
-    The directions survive the model file; one of the wrong length is refused naming it."""
+    The directions survive the model file; one of the wrong length, or holding more than its
+    ratio's whole variance at a line, is refused naming it."""
     rig = dataclasses.replace(beam[3], frequency=20.0, drive="steady")
     dirs = bb_model.ratio_directions
     assert dirs is not None and len(dirs[0]) == 0 and all(len(d) for d in dirs[1:])
@@ -353,4 +354,10 @@ def test_the_ratios_error_shared_between_lines_is_split_off_not_added(beam, bb_m
     path = tmp_path / "model.json"
     path.write_text(json.dumps(doc))
     with pytest.raises(InputError, match=r"key 'ratio_directions\[1\]\[0\]' has \d+ values"):
+        load_any_model(path)
+    doc = bb_model.to_json()                  # a shared part beyond the whole variance
+    doc["ratio_directions"][1][0] = [10 * x for x in doc["ratio_directions"][1][0]]
+    path.write_text(json.dumps(doc))
+    with pytest.raises(InputError, match=r"key 'ratio_directions\[1\]' holds a variance .* "
+                                         r"beyond its ratio's whole"):
         load_any_model(path)

@@ -16,6 +16,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Annotated, Any, Literal
 
+import numpy as np
 from pydantic import AfterValidator, Field
 
 from ..errors import InputError
@@ -168,6 +169,25 @@ def _check_broadband(f: Faults, m: BroadbandFile) -> None:
         f.count(m.ratio_directions, "ratio_directions", n_k, "lists (one per shape)")
         for k, rows in enumerate(m.ratio_directions):
             f.matrix(rows, f"ratio_directions[{k}]", None, n_lines)
+            _within_std(f, rows, None if m.ratio_std is None else m.ratio_std[k], k)
+
+
+def _within_std(f: Faults, rows: Sequence[Sequence[float]], std: Sequence[float] | None,
+                k: int) -> None:
+    """A ratio's shared error (its directions' squares summed at a line) within its whole
+    variance (``ratio_std``) at every line, to rounding: the directions are part of it."""
+    if not rows:
+        return
+    if std is None:
+        raise f.fail(f"ratio_directions[{k}]", "is given without ratio_std, of which it is part")
+    shared = np.sum(np.square(np.asarray(rows, dtype=float)), axis=0)
+    whole = np.square(np.asarray(std, dtype=float))
+    bad = np.flatnonzero(shared > whole * (1 + 1e-6) + 1e-300)
+    if bad.size:
+        j = int(bad[0])
+        raise f.fail(f"ratio_directions[{k}]", f"holds a variance {shared[j]:.3g} at line {j}, "
+                     f"beyond its ratio's whole {whole[j]:.3g} (ratio_std[{k}][{j}] squared); "
+                     "expected a part of it")
 
 
 def _ascending(f: Faults, values: Sequence[float], key: str) -> None:
