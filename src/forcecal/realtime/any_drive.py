@@ -357,8 +357,10 @@ def stream_any_table(rig: Rig, model: BroadbandModel, blocks: RunBlocks, target:
         Called once the table is written with the note of the half second in which the
         drive's force held the most above the scan's band, when it held more than
         :data:`forcecal.signals.checks.ABOVE_BAND` (:class:`forcecal.signals.checks.AboveBand`: a
-        stream cannot see ahead, but it can say so at the end), and with the warnings of its
-        setup (a transfer that misfits, probes that contradict the operating shapes).
+        stream cannot see ahead, but it can say so at the end), with the warnings of its
+        setup (a transfer that misfits, probes that contradict the operating shapes), and with
+        the notes of ``reconstruct``'s cross-checks made segment by segment
+        (:class:`~forcecal.realtime.segment_checks.SegmentChecks`).
     tare : Run, optional
         A zero-current record: with ``acquisition.mains`` its gauges' hum tones join the
         noise (its means are the zero the ``blocks``' ``offsets`` take off).
