@@ -24,7 +24,7 @@ if TYPE_CHECKING:
 __all__ = ["shared_ratio_errors"]
 
 
-DIRECTIONS_KEPT = 1.0 - 1e-4
+DIRECTIONS_KEPT = 1.0 - 1e-3
 """The share of a smoothed ratio's noise variance (summed over the lines) its error
 directions keep (:func:`error_directions`); the rest stays each line's own."""
 
