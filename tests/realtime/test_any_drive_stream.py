@@ -212,9 +212,8 @@ def test_the_stream_makes_reconstructs_cross_checks_segment_by_segment(beam, bb_
     each at a quarter of the record's false-alarm rate): the U-core's poles against each other
     without a flux channel, against their Maxwell force with one (Phi = sqrt(2 mu0 A f), 0.1 %
     noise). A clean run draws neither note (without a flux channel: the CLI test above);
-    R1's scale 10 % off is named by both with its size
-    in every segment (achieved +10.2 % and +10.1 % in the first, test 9-11 %), the segment
-    said."""
+    R1's scale 10 % off is named by both with its size in every segment (achieved +10.2 % and
+    +10.1 % in the first, test 9-11 %), the segment said."""
     import forcecal.realtime.segment_checks as segments
     from forcecal.forces.crosschecks import MU0
 
