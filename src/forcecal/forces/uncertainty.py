@@ -146,7 +146,7 @@ def shape_jacobian(model: SpatialModel, ops: ShapeOperators, k: int, sensors: Ha
         return inertia_term(m, gain @ s, w0n)
 
     cols, blocks = [], []
-    for i, (fit, base) in enumerate(zip(fits, p0, strict=True)):
+    for i, (member, base) in enumerate(zip(members, p0, strict=True)):
         nf = len(base)
         h = 1e-6 * np.linalg.norm(base)
         part = np.empty((c[i].shape[0], 2 * nf), dtype=complex)
@@ -158,7 +158,7 @@ def shape_jacobian(model: SpatialModel, ops: ShapeOperators, k: int, sensors: Ha
                 minus = [*p0[:i], base - e, *p0[i + 1:]]
                 part[:, re_im * nf + j] = (inertia(plus) - inertia(minus)) / (2 * h)
         cols.append(part)
-        blocks.append(np.kron(np.eye(2), fit.coefficient_covariance))  # Re, Im independent
+        blocks.append(np.kron(np.eye(2), model.shape_covariance(k, member)))  # Re, Im apart
     return np.hstack(cols), scipy.linalg.block_diag(*blocks)
 
 

@@ -153,6 +153,19 @@ class SpatialModel:
         """
         return (self.shapes[k], *(self.span[k] if self.span else ()))
 
+    def shape_covariance(self, k: int, member: int = 0) -> np.ndarray:
+        """The whole covariance of Re and of Im of harmonic k's member shape's coefficients:
+        its own and, for ``shapes[k]``, the errors every run of the model shares
+        (:attr:`shared_errors`, which a single run's estimate counts as its own)."""
+        cov = np.asarray(self.members(k)[member].coefficient_covariance, dtype=float)
+        if member or not self.shared_errors:
+            return cov
+        # each shared error moves Re or Im of the coefficients; Re and Im alike in all
+        parts = [(c[k].real, c[k].imag) for _, c, _ in self.shared_errors]
+        shared = 0.5 * sum(np.outer(re, re) + np.outer(im, im) for re, im in parts)
+        out: np.ndarray = cov + shared
+        return out
+
     def member_couplings(self, k: int) -> np.ndarray:
         """(n_gauges, n_members) complex [kg m]: the mass couplings of harmonic k's span."""
         extra = self.span_couplings[k] if self.span else np.zeros((len(self.gauge_names), 0))
