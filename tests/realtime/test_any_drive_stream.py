@@ -251,7 +251,7 @@ def test_the_cli_stream_says_the_segment_checks_note(beam, bb_model, random_run,
                                                       capsys):
     """``forcecal stream`` under any drive, its run holding the flux channel (Phi = sqrt(2 mu0
     A f)) and R1's scale 10 % off in the rig file: one note on stderr naming the gauge's scale
-    (achieved +10.1 %, test 9-11 %) in the record's one segment, the table written, exit
+    (achieved +10.0 %, test 9-11 %) in the record's one segment, the table written, exit
     status 0 (a clean run draws none: the test above)."""
     import tomli_w
 
