@@ -28,6 +28,7 @@ from ..forces.coordinates import coordinate_map, sensor_weights
 from ..forces.steady import ForceEstimate, channels_si, solve_inputs
 from ..forces.uncertainty import ShapeOperators, shape_operators
 from ..model.inertia import inertia_term
+from ..model.ratio_errors import principal_directions
 from ..model.relaxation import force_matrix
 from ..model.spatial import SpatialModel
 from ..records import Run
@@ -366,9 +367,7 @@ def _holds(cov: np.ndarray, part: np.ndarray) -> bool:
 def _directions(cov: np.ndarray, scale: float) -> list[np.ndarray]:
     """The principal directions of a coefficient covariance, each scaled by its standard
     deviation, those above round-off of ``scale`` (the largest variance it is part of)."""
-    lam, vec = np.linalg.eigh(cov)
-    keep = np.flatnonzero(lam > 1e-12 * max(scale, 1e-300))
-    return [np.sqrt(lam[d]) * vec[:, d] for d in keep]
+    return list(principal_directions(cov, floor=1e-12 * max(scale, 1e-300)))
 
 
 def _static_effects(run: _ShapeRun, cov: np.ndarray) -> tuple[SharedEffect, ...]:

@@ -514,9 +514,9 @@ def flux_pair_notes(rig: Rig, run: Run, terms: EstimateTerms, what: str) -> list
     """A note per core whose poles' own flux channels disagree: poles in series on one coil
     carry one flux, so a channel's scale, sign or unit is off: the whole misfit with their
     ratio held to 1 within the fringing (:data:`FRINGING`), or the gain of freeing the ratio,
-    beyond chance (each at half of :data:`FALSE_ALARM`); the ratio is named, and with the pole
-    area the channel whose pole's force departs further from its Maxwell force is named
-    first (both for a sign, which Phi^2 hides).
+    beyond chance (each at half the terms' rate, :data:`FALSE_ALARM` a record); the ratio is
+    named, and with the pole area the channel whose pole's force departs further from its
+    Maxwell force is named first (both for a sign, which Phi^2 hides).
 
     Parameters
     ----------
@@ -706,8 +706,8 @@ def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
             head: Callable[[np.ndarray], str]) -> list[str]:
     """The note, if any, on the forces ``pick`` selects against ``problem``'s reference: the
     sensors' mistakes, one parameter each, decide (the whole misfit or one of their gains
-    beyond chance, each at half of :data:`FALSE_ALARM`); the geometry's (a search over
-    positions, a swap) only explain what they decided."""
+    beyond chance, each at half the terms' rate, :data:`FALSE_ALARM` a record); the
+    geometry's (a search over positions, a swap) only explain what they decided."""
     causes = _causes(rig, terms)
     problem = dataclasses.replace(problem, nuisance=tuple(
         (c.name, _column(c, pick), c.prior) for c in causes if c.prior > 0))

@@ -29,18 +29,26 @@ DIRECTIONS_KEPT = 1.0 - 1e-3
 directions keep (:func:`error_directions`); the rest stays each line's own."""
 
 
-def error_directions(cov: np.ndarray) -> np.ndarray:
-    """(n_dirs, n) the principal directions of a covariance over the lines, each scaled by its
-    standard deviation, the strongest first, as many as hold :data:`DIRECTIONS_KEPT` of its
-    trace: sum_d D_d D_d^T is the covariance to that share."""
+def principal_directions(cov: np.ndarray, share: float = 1.0, floor: float = 0.0
+                         ) -> np.ndarray:
+    """(n_dirs, n) the principal directions of a covariance, each scaled by its standard
+    deviation, the strongest first: those whose variance exceeds ``floor``, and no more than
+    hold ``share`` of its trace (sum_d D_d D_d^T is the covariance to that share)."""
     lam, vec = np.linalg.eigh(0.5 * (cov + cov.T))
     lam, vec = lam[::-1].clip(min=0.0), vec[:, ::-1]
     total = float(lam.sum())
     if not total > 0:
         return np.zeros((0, cov.shape[0]))
-    n = int(np.searchsorted(np.cumsum(lam), DIRECTIONS_KEPT * total)) + 1
+    n = int(np.searchsorted(np.cumsum(lam), share * total)) + 1 if share < 1.0 else len(lam)
+    n = min(n, int(np.count_nonzero(lam > floor)))
     out: np.ndarray = (vec[:, :n] * np.sqrt(lam[:n])).T
     return out
+
+
+def error_directions(cov: np.ndarray) -> np.ndarray:
+    """(n_dirs, n) a smoothed ratio's error directions over the lines: the principal
+    directions of its noise covariance that hold :data:`DIRECTIONS_KEPT` of its trace."""
+    return principal_directions(cov, DIRECTIONS_KEPT)
 
 
 def shared_ratio_errors(model: BroadbandModel, real: np.ndarray, at: np.ndarray
