@@ -55,6 +55,23 @@ def campaign_dir(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def random_lab(tmp_path_factory):
+    """(rig, model, run, tare, folder) of the 'random' preset's lab rig (seed 0: coloured
+    noise, hum, sensitivities drawn from the declared type-B uncertainties), its model built
+    as ``forcecal scan`` builds it."""
+    from forcecal.cli.main import main
+    from forcecal.model.broadband import load_any_model
+
+    out = tmp_path_factory.mktemp("random_lab")
+    write_simulation(out, "random", seed=0, realism="lab")
+    assert main(["scan", "-q", str(out / "rig.toml"), str(out / "scan.uff"), "-o",
+                 str(out / "model.json")]) == 0
+    rig = load_rig(out / "rig.toml")
+    return (rig, load_any_model(out / "model.json"), read_run(out / "runs" / "random.csv", rig),
+            read_run(out / "runs" / "tare.csv", rig), out)
+
+
+@pytest.fixture(scope="session")
 def paper(paper_dir):
     """(rig, scan, model, run) of the simulated 'paper' rig."""
     rig = load_rig(paper_dir / "rig.toml")

@@ -155,23 +155,6 @@ def test_the_scale_absorbs_a_change_shaped_like_the_inertia_and_nothing_the_flux
     assert abs(shift(flux_shaped)) < 1e-12
 
 
-@pytest.fixture(scope="module")
-def random_lab(tmp_path_factory):
-    from forcecal.cli.main import main
-    from forcecal.io.run_files import read_run
-    from forcecal.model.broadband import load_any_model
-    from forcecal.rig import load_rig
-    from forcecal.simulate.export import write_simulation
-
-    out = tmp_path_factory.mktemp("random_lab")
-    write_simulation(out, "random", seed=0, realism="lab")
-    assert main(["scan", "-q", str(out / "rig.toml"), str(out / "scan.uff"), "-o",
-                 str(out / "model.json")]) == 0
-    rig = load_rig(out / "rig.toml")
-    return (rig, load_any_model(out / "model.json"), read_run(out / "runs" / "random.csv", rig),
-            read_run(out / "runs" / "tare.csv", rig), out)
-
-
 def test_on_the_lab_rig_the_scale_is_the_truths(random_lab):
     from forcecal.forces.transient import reconstruct_any
 

@@ -11,6 +11,7 @@ from numpy.polynomial import legendre
 
 from forcecal.errors import ConditioningError, DataError
 from forcecal.model.basis import (
+    column_fits,
     fit_shape,
     n_functions,
     orthonormal_basis,
@@ -247,3 +248,33 @@ def test_covariance_carries_the_choice_of_order():
     assert len(orders) >= 4
     assert 0.9 <= rms <= 1.15, rms                     # achieved 1.05
     assert np.sqrt(np.mean(np.square(z_conditional))) > 1.2   # achieved 1.30: the guard's point
+
+
+def test_each_column_of_a_stack_is_known_to_its_own_residual():
+    """A stack of a smooth shape (noise 0.02) and a rough pattern no smooth field fits (1.0, a
+    span's junk): pooled, the smooth column's covariance takes the rough one's residual (its
+    stated error 26-29 times its scatter); column by column its own (scatter / stated
+    0.96-1.04 over 200 draws; the rough column's residual 0.78), the stack's order (9) and
+    coefficients kept."""
+    rng = np.random.default_rng(12)
+    x = scan_points(40, rng)
+    truth = legendre_shape(x, np.array([1.0, 0.4, -0.2]))
+    rough = rng.standard_normal(40)
+    coefs, stated, pooled = [], [], []
+    for seed in range(200):
+        noise = 0.02 * np.random.default_rng(2000 + seed).standard_normal(40)
+        values = np.column_stack([truth + noise, rough])
+        fit = fit_shape(x, values, (0.0, L))
+        smooth, junk = column_fits(fit, x, values)
+        assert smooth.order == junk.order == fit.order
+        np.testing.assert_array_equal(smooth.coefficients, fit.coefficients[:, 0])
+        assert 0.6 < junk.residual_std < 1.0
+        k = fit.basis.functions_up_to(fit.order)
+        coefs.append(smooth.coefficients[:k])
+        stated.append(np.sqrt(np.diag(smooth.coefficient_covariance)[:k]))
+        pooled.append(np.sqrt(np.diag(fit.coefficient_covariance)[:k]))
+    k = min(len(c) for c in coefs)
+    scatter = np.std([c[:k] for c in coefs], axis=0, ddof=1)
+    ratio = scatter / np.mean([s[:k] for s in stated], axis=0)
+    assert np.all((ratio > 0.85) & (ratio < 1.15)), ratio          # achieved 0.96-1.04
+    assert np.all(np.mean([s[:k] for s in pooled], axis=0) > 10 * scatter)   # pooled: 26-29x

@@ -34,7 +34,7 @@ from ..model.relaxation import force_matrix
 from ..model.spatial import SpatialModel
 from ..rig import Rig
 from .coordinates import coordinate_map, sensor_weights
-from .reaction_transfer import filtered
+from .reaction_transfer import fourier_filter
 from .solve import force_solve
 from .uncertainty import combinations
 
@@ -490,6 +490,7 @@ def series_type_b_variance(moves: TypeBMoves | None, model: BroadbandModel,
     static = inertia - reactions
     by_inertia = (None if absorbed is None
                   else np.vstack([pinv @ inertia, (pinv @ inertia).sum(axis=0)]))
+    through = fourier_filter(acceleration[None, :], fs)
     for k in range(len(moves.names)):                           # one at a time: memory
 
         def response(f: np.ndarray, k: int = k) -> np.ndarray:   # q''_1 -> dJ, (n_g, n_f)
@@ -498,7 +499,7 @@ def series_type_b_variance(moves: TypeBMoves | None, model: BroadbandModel,
             by_probe = coordinate_map @ (moves.probes[k] @ mix) / seen
             return (moves.couplings[k] @ mix + (model.couplings @ mix) * by_probe) / seen
 
-        d_inertia = filtered(np.tile(acceleration, (len(inertia), 1)), fs, response)
+        d_inertia = through(response)                           # (n_g, N)
         if moves.gauge[k] >= 0:
             d_inertia[moves.gauge[k]] -= moves.scale[k] * reactions[moves.gauge[k]]
         d_force = moves.pinv[k] @ static + pinv @ d_inertia

@@ -94,10 +94,11 @@ def shape_error_weights(model: BroadbandModel, frequencies: np.ndarray,
     g1 = probe_shapes[:, 0] * weights
     norm = g1 @ probe_shapes[:, 0]
 
+    seen_by = g1 @ basis_probes[:, :n]                                  # (n,)
+    coupled_by = rows @ basis_couplings[:, :n]                          # (r, n)
+
     def inertia(coeffs: np.ndarray) -> np.ndarray:              # (..., n, n_f) -> (..., r, f)
-        seen = np.einsum("p,pj,...jf->...f", g1, basis_probes[:, :n], coeffs)
-        return np.einsum("cg,gj,...jf->...cf", rows, basis_couplings[:, :n], coeffs) * (
-            norm / seen)[..., None, :]
+        return (coupled_by @ coeffs) * (norm / (seen_by @ coeffs))[..., None, :]
 
     operating = span @ model.mixing(frequencies)                        # (n, n_f)
     base = inertia(operating)

@@ -50,13 +50,25 @@ def filtered(x: np.ndarray, fs: float, response: Callable[[np.ndarray], np.ndarr
     """Signals ``x`` (n, N) through a response (a function of the frequencies [Hz] giving
     (n, n_freq) or (n_freq,) complex factors), by the discrete Fourier transform of the record
     extended at both ends by its odd reflection (no jump where it wraps)."""
+    return fourier_filter(x, fs)(response)
+
+
+def fourier_filter(x: np.ndarray, fs: float
+                   ) -> Callable[[Callable[[np.ndarray], np.ndarray]], np.ndarray]:
+    """:func:`filtered` of ``x`` (n, N) as a function of the response alone, the record's
+    transform taken once: many responses of one signal (a type-B parameter's each)."""
     n = x.shape[-1]
     pad = min(n - 1, max(n // 4, 1))
     ext = np.concatenate([2 * x[:, :1] - x[:, pad:0:-1], x,
                           2 * x[:, -1:] - x[:, -2:-pad - 2:-1]], axis=-1)
     f = np.fft.rfftfreq(ext.shape[-1], 1.0 / fs)
-    out = np.fft.irfft(np.fft.rfft(ext, axis=-1) * response(f), n=ext.shape[-1], axis=-1)
-    return out[:, pad:pad + n]
+    spectrum = np.fft.rfft(ext, axis=-1)
+
+    def through(response: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:
+        out = np.fft.irfft(spectrum * response(f), n=ext.shape[-1], axis=-1)
+        return out[:, pad:pad + n]
+
+    return through
 
 
 @dataclass(frozen=True)

@@ -57,7 +57,12 @@ from .inertia_scale import (
     scale_shift,
     scale_variance,
 )
-from .reaction_transfer import ReactionTransfer, filtered, fit_reaction_transfer
+from .reaction_transfer import (
+    ReactionTransfer,
+    filtered,
+    fit_reaction_transfer,
+    fourier_filter,
+)
 from .scan_check import run_line_notes
 from .solve import force_solve, reactions_only
 from .steady import channels_si
@@ -560,7 +565,8 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                                                setup.noise_weights(model, frame)[-1:]]),
                                fs, frame)                 # and the total's by its noise alone
     shift = setup.scale_shift
-    var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv) ** 2 + scan[:-1]
+    var = ext.inner(_transfer_std(transfer, u, fs, inertia_of, pinv,
+                                  setup.residual_model) ** 2 + scan[:-1]
                     + series_type_b_variance(setup.type_b, model, gam, setup.coordinate_map, pinv,
                                              acc, inertia, reactions, fs, None if shift is None
                                              else lambda d: shift(ext.inner(d)))) + edge**2
@@ -636,11 +642,15 @@ def _noise_paths(setup: AnyDriveSetup, correction: Callable[[np.ndarray], np.nda
     bm_r, bm_res = setup.reaction_models, setup.residual_model
     f = np.fft.rfftfreq(frame, 1.0 / fs)
     to_force = pinv @ (setup.couplings[:, None] * correction(f))  # q_1'' -> forces, (k, bins)
+    by_probes = smoother_response(bm_res, 2, frame)               # q_1 -> its part of q_1''
+    # u reaches q_1'' through the transfer, less what the probes' part takes back of it (their
+    # smoother is fed q_1 - G u): where that smoother passes, a gauge's noise does not reach
+    # the inertia
     via_u = (np.zeros_like(f) if transfer is None
-             else (2j * np.pi * f) ** 2 * transfer.response(f))
+             else ((2j * np.pi * f) ** 2 - by_probes) * transfer.response(f))
     per_gauge = [(-pinv[:, r, None] + to_force * via_u * setup.total_row[r])
                  * smoother_response(bm_r[r], 0, frame) for r in range(n_g)]
-    per_q = smoother_response(bm_res, 2, frame) * to_force        # the probes' path, per q_1
+    per_q = by_probes * to_force                                  # the probes' path, per q_1
     hum = [(per_gauge[c] if c < n_g else setup.coordinate_map[c - n_g] * per_q)
            * tone_density(frame, fs, tone, power)     # each gauge's and probe's hum tones
            for c, tone, power in setup.hum if power > 0]
@@ -693,16 +703,18 @@ def transfer_note(transfer: ReactionTransfer | None, source: str) -> str:
 
 
 def _transfer_std(transfer: ReactionTransfer | None, u: np.ndarray, fs: float,
-                  inertia_of: Callable[[np.ndarray], np.ndarray], pinv: np.ndarray
-                  ) -> np.ndarray:
+                  inertia_of: Callable[[np.ndarray], np.ndarray], pinv: np.ndarray,
+                  residual: BandModel) -> np.ndarray:
     """(n_forces + 1, N) [N]: each force's and the total's standard uncertainty from the
     transfer's parameters, sample by sample (their covariance through the inertia each one
-    moves)."""
+    moves: through the gauges' part of q_1'', less what the probes' part, fed q_1 - G u and
+    smoothed by ``residual``, takes back)."""
     if transfer is None:
         return np.zeros((len(pinv) + 1, u.shape[-1]))
-    sens = transfer.sensitivities
-    moves = filtered(np.repeat(u, len(transfer.cov), axis=0), fs,
-                     lambda f: (2j * np.pi * f) ** 2 * sens(f))  # (n_params, N) in q_1''
+    through = fourier_filter(np.repeat(u, len(transfer.cov), axis=0), fs)
+    in_q = through(transfer.sensitivities)                       # (n_params, N) in q_1
+    moves = through(lambda f: (2j * np.pi * f) ** 2 * transfer.sensitivities(f)) - np.stack(
+        [smooth_states(residual, row, states=(2,))[0] for row in in_q])   # in q_1''
     part = np.einsum("fg,kgn->kfn", pinv, inertia_of(moves))    # (n_params, n_forces, N)
     part = np.concatenate([part, part.sum(axis=1, keepdims=True)], axis=1)
     return np.sqrt(np.maximum(np.einsum("kfn,kl,lfn->fn", part, transfer.cov, part), 0.0))

@@ -23,7 +23,7 @@ The basis itself (raw functions, orthonormalization) lives in the private module
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -255,6 +255,50 @@ def fit_shape(
         coefficient_covariance=_averaged_covariance(coef, n_funcs[: top + 1], k_best,
                                                     weights_p[: top + 1], sigmas[: top + 1]),
     )
+
+
+def column_fits(fit: ShapeFit, points: np.ndarray, values: np.ndarray,
+                weights: np.ndarray | None = None) -> tuple[ShapeFit, ...]:
+    """Every column of a real stack fitted by :func:`fit_shape` as a shape of its own, with its
+    own residual and covariance.
+
+    The stack's fit shares one order, one order weighting and one residual level among its
+    columns, which is right for columns of one shape (Re and Im, harmonics). Columns of unlike
+    content (a span's patterns: some smooth, some left rough by junk the smooth basis cannot
+    take) are each known to their own residual: the pooled level gives a smooth column the
+    rough ones' misfit. Each column keeps the stack's basis, chosen order and order weights
+    (:func:`order_weights` over the stack), with its own sigma_p and coefficients' differences
+    in :func:`_averaged_covariance`.
+
+    Parameters
+    ----------
+    fit : ShapeFit
+        The stack's fit, of real (n_points, k) ``values`` at ``points`` with ``weights``.
+    points, values, weights
+        As given to :func:`fit_shape`.
+
+    Returns
+    -------
+    tuple of k ShapeFit
+    """
+    y = np.asarray(values, dtype=float).reshape(len(points), -1)
+    n, m = y.shape
+    sw = np.sqrt(as_weights(weights, n))[:, None]
+    b = fit.basis.evaluate(as_points(points, fit.basis.n_dim)) * sw  # orthonormal columns
+    orders = fit.orders[fit.orders <= fit.basis.order]
+    n_funcs = np.array([fit.basis.functions_up_to(int(p)) for p in orders])
+    k_best = fit.basis.functions_up_to(fit.order)
+    coef = b.T @ (y * sw)                                           # (n_funcs, m)
+    rss = np.array([np.sum((y * sw - b[:, :k] @ coef[:k]) ** 2, axis=0) for k in n_funcs])
+    weights_p = (np.ones(1) if fit.criterion == "fixed"
+                 else order_weights(rss.sum(axis=1), n_funcs, n * m, m, fit.criterion))
+    sigmas = np.sqrt(rss / (n - n_funcs)[:, None])                  # (n_orders, m)
+    best = int(np.flatnonzero(n_funcs == k_best)[0])
+    return tuple(replace(
+        fit, coefficients=fit.coefficients[:, j], residual_std=float(sigmas[best, j]),
+        coefficient_covariance=_averaged_covariance(coef[:, j], n_funcs, k_best, weights_p,
+                                                    sigmas[:, j]))
+        for j in range(m))
 
 
 def order_weights(rss: np.ndarray, n_funcs: np.ndarray, n_obs: int, m: int,

@@ -36,7 +36,7 @@ from ..records import Scan, ScanFRF, ScanSpectra
 from ..rig import Rig
 from ..schema.broadband_file import BROADBAND_KEYS, check_broadband_document
 from ..signals.spline_smoother import SplineFamily
-from .basis import ShapeFit, shape_similarity
+from .basis import ShapeFit, column_fits, shape_similarity
 from .coverage import check_scan_coverage, check_scan_on_rig
 from .frf import scan_response
 from .inertia import mass_coupling
@@ -513,11 +513,12 @@ def _span_shapes(rig: Rig, points: np.ndarray, u: np.ndarray, sv: np.ndarray, d:
     fit = st.fit_shape(points, u[:, :d] * sv[:d], criterion, weights, "polynomial",
                        min_order=lead.basis.order if isinstance(lead, ShapeFit) else 1)
     assert isinstance(fit, ShapeFit), "a beam's or a plate's shape"
-    return tuple(ShapeFit(basis=fit.basis, coefficients=fit.coefficients[:, k] / sv[k],
-                          order=fit.order, orders=fit.orders, score=fit.score,
-                          criterion=fit.criterion, residual_std=fit.residual_std / sv[k],
-                          coefficient_covariance=fit.coefficient_covariance / sv[k] ** 2)
-                 for k in range(d))
+    # each pattern known to its own residual: the rough ones' misfit, pooled, gave the smooth
+    # ones' covariance up to 50 times their own (the lab rig's sweep scan)
+    return tuple(dataclasses.replace(s, coefficients=s.coefficients / sv[k],
+                         residual_std=s.residual_std / sv[k],
+                         coefficient_covariance=s.coefficient_covariance / sv[k] ** 2)
+                 for k, s in enumerate(column_fits(fit, points, u[:, :d] * sv[:d], weights)))
 
 
 def _line_coordinates(basis: np.ndarray, weights: np.ndarray, values: np.ndarray,

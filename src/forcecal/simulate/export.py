@@ -33,7 +33,7 @@ from .beam import natural_frequencies
 from .lab import draw_errors, record_lab_scan
 from .magnet import KNEE, Drive
 from .physics import Model, Truth, build_model, scan_file, static_gaps
-from .presets import BodySpec, PlateSpec, Preset, get_preset, with_tare
+from .presets import BodySpec, PlateSpec, Preset, get_preset, with_realism, with_tare
 from .realism import Realism
 from .sldv_frf import frf_export
 from .virtual_rig import public_rig, record_run, record_scan
@@ -224,7 +224,7 @@ def _write_scan(preset: Preset, scan: Scan, path: Path, binary: bool, export: st
     return averages
 
 
-def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
+def write_simulation(out: str | Path, preset_name: str | Preset = "paper", seed: int = 0,
                      progress: Callable[[str], None] | None = None,
                      binary_uff: bool = False,
                      realism: str | Realism | None = None, scan_export: str = "time") -> Path:
@@ -234,8 +234,9 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     ----------
     out : str or Path
         The output folder (see the module docstring for its layout).
-    preset_name : str
-        A name of :data:`forcecal.simulate.presets.PRESETS`.
+    preset_name : str or Preset
+        A name of :data:`forcecal.simulate.presets.PRESETS`, or a preset (a built-in one with
+        fewer runs: a study that redraws one run's noise over many seeds).
     seed : int
         Seed of the measurement noise.
     progress : callable, optional
@@ -285,7 +286,8 @@ def write_simulation(out: str | Path, preset_name: str = "paper", seed: int = 0,
     point H1 and its coherence up to the acquisition's bandwidth (fs / 2.56), the averages
     behind them stated as ``acquisition.scan_averages``.
     """
-    preset = get_preset(preset_name, realism)
+    preset = (get_preset(preset_name, realism) if isinstance(preset_name, str)
+              else with_realism(preset_name, realism))
     check_scan_export(preset, scan_export)
     if preset.realism is not None:
         preset = with_tare(preset)

@@ -577,8 +577,13 @@ def get_preset(name: str, realism: str | Realism | None = None) -> Preset:
     """
     if name not in PRESETS:
         raise InputError(f"preset '{name}' is unknown (choose from {', '.join(PRESETS)})")
+    return with_realism(PRESETS[name](), realism)
+
+
+def with_realism(preset: Preset, realism: str | Realism | None) -> Preset:
+    """``preset`` under ``realism`` (as :func:`get_preset` takes it; None keeps the preset's
+    own), with a zero-current tare run where a ``lab`` rig has none (:func:`with_tare`)."""
     chosen = resolve_realism(realism)
-    preset = PRESETS[name]()
     if chosen is None:
         return preset
     return with_tare(dataclasses.replace(preset, realism=chosen))
