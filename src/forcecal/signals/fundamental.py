@@ -30,6 +30,7 @@ from .fourier_sums import (
     checked_samples,
     design_matrix,
     fit_chunked,
+    normal_fit,
     qr_fit,
 )
 
@@ -197,12 +198,17 @@ def _check_explained(explained: float, f_best: float, f0_nominal: float, search:
 
 
 def _total_rss(groups: list[np.ndarray], fs: float, f0: float, h: int, t0: float) -> float:
-    """Total residual sum of squares of QR fits of every record of ``groups``."""
+    """Total residual sum of squares of least-squares fits of every record of ``groups``."""
     total = 0.0
     for g in groups:
         t = t0 + np.arange(g.shape[1]) / fs
-        q, _ = np.linalg.qr(design_matrix(t, f0, h))
-        resid = g.T - q @ (q.T @ g.T)
+        a = design_matrix(t, f0, h)
+        got = normal_fit(a, g.T)
+        if got is None:
+            q, _ = np.linalg.qr(a)
+            resid = g.T - q @ (q.T @ g.T)
+        else:
+            resid = got[1]
         total += float(np.sum(resid**2))
     return total
 
