@@ -10,6 +10,7 @@ around its extent.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 from numpy.polynomial import legendre
@@ -208,11 +209,36 @@ def raw_functions(points: ArrayLike, extent: ArrayLike, order: int,
     DimensionError
         An unknown family, or what the family's function raises.
     """
+    if family not in FAMILIES:
+        raise DimensionError(f"basis family '{family}' is unknown (choose from "
+                             f"{', '.join(FAMILIES)})")
+    pts = np.ascontiguousarray(points, dtype=float)
+    if pts.shape[0] > CACHED_POINTS:
+        return _raw(pts, extent, order, family)
+    dom = np.ascontiguousarray(extent, dtype=float)
+    return _remembered(pts.tobytes(), pts.shape, dom.tobytes(), dom.shape, int(order), family)
+
+
+CACHED_POINTS = 512
+"""Sets of at most this many points keep their raw functions (:func:`_remembered`): the
+quadrature nodes, probes and gauges at which every shape of a model, every harmonic and every
+type-B move evaluates its basis again (a calibration evaluated one set 20 000 times)."""
+
+
+@lru_cache(maxsize=64)
+def _remembered(points: bytes, shape: tuple[int, ...], extent: bytes,
+                extent_shape: tuple[int, ...], order: int, family: str) -> np.ndarray:
+    """:func:`_raw` of points and an extent given by their bytes, read-only."""
+    out = _raw(np.frombuffer(points).reshape(shape), np.frombuffer(extent).reshape(extent_shape),
+               order, family)
+    out.flags.writeable = False
+    return out
+
+
+def _raw(points: np.ndarray, extent: ArrayLike, order: int, family: str) -> np.ndarray:
     if family == "legendre":
         return legendre_vandermonde(points, extent, order)
-    if family == "modes":
-        return modal_functions(points, extent, order)
-    raise DimensionError(f"basis family '{family}' is unknown (choose from {', '.join(FAMILIES)})")
+    return modal_functions(points, extent, order)
 
 
 @dataclass(frozen=True)
