@@ -19,7 +19,11 @@ drawn sensitivities in units of their declared uncertainty. The same again with 
 sensitivity divided out of the run's and the tare's records and the rig declaring its
 sensors' sensitivities exact: the statement's random part alone, seed by seed (the positions
 and masses stay declared uncertain though the simulator's are exact, so the forces' own
-ratios there lie below 1; the total does not depend on them).
+ratios there lie below 1; the total does not depend on them). The mains hum is a draw of that
+kind too: one phase per channel and record, the same tone all record long, so where it makes
+most of a window's statement the window's ratio scatters from seed to seed as |e^(j a) +
+e^(j b)| / sqrt(2) does (on the sweep at seed 1 the gauges' hum phases lie 169 degrees apart,
+and their hum in the total is 0.16 of one gauge's).
 
 Run:  .venv/bin/python benchmarks/lab_coverage.py [--seeds N] [--presets sweep random]
 Writes benchmarks/results/lab_coverage.json.
