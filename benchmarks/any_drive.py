@@ -29,7 +29,12 @@ compares:
   rig the stepped sines; the inertia's scale calibrated in situ (s, its uncertainty, the
   truth's s) and the windows without and with it.
 
-Run:  .venv/bin/python benchmarks/any_drive.py [--only sweep|random] [--ratios auto|spline|modal]
+``--only dwell`` runs the ``dwell`` preset alone (a 20 s sweep slowly through the first mode):
+its windows beside a reference, the noisy reactions deconvolved with the structure's exact
+transfer from the total force to the reactions' sum (:func:`_reference`), and their ratio.
+
+Run:  .venv/bin/python benchmarks/any_drive.py [--only sweep|random|dwell]
+      [--ratios auto|spline|modal]
 Writes benchmarks/results/any_drive.json (with --only or --ratios spline,
 any_drive_<preset>_<ratios>.json). ``--only`` runs one preset's drive runs (seed 0 and the
 worst windows of seeds 1-2; the sweep's stepped sines at seed 0) without the stepped sines'
@@ -231,6 +236,25 @@ def _campaign_seed(tmp: Path, seed: int) -> dict:
     return _campaign(folder)
 
 
+def _reference(folder: Path, run: str, truth: pd.DataFrame) -> list[float]:
+    """Every 0.5 s window of a reference: the run's noisy reactions deconvolved with the
+    structure's exact transfer from the total force to the reactions' sum, over the lines that
+    carry the force (the record's own: the simulator's noise-free reactions over its total at
+    those lines), as the simulator knows them; the total's mean taken from the truth."""
+    rig = load_rig(folder / "rig.toml")
+    known = np.load(folder / "truth" / f"{run}.npz")
+    clean = (known["inertia"] - force_matrix(rig) @ known["pole_force"]).sum(axis=0)
+    total = truth["total"].to_numpy()
+    record = read_run(folder / "runs" / f"{run}.csv", rig)
+    measured = np.fft.rfft(sum(record.channel(g) for g in rig.gauge_names))
+    spectrum = np.fft.rfft(total - total.mean())
+    lines = np.abs(spectrum) > 1e-3 * np.abs(spectrum).max()
+    kept = np.zeros_like(spectrum)
+    kept[lines] = measured[lines] * spectrum[lines] / np.fft.rfft(clean)[lines]
+    estimate = total.mean() + np.fft.irfft(kept, total.size)
+    return _windows(pd.DataFrame({"total": estimate}), truth, "total", 0.5)
+
+
 def _worst_windows(tmp: Path, preset: str, seed: int) -> dict:
     """The worst window of a drive run at another seed, against the truth and as claimed, and
     its observed / stated."""
@@ -328,14 +352,17 @@ def run(seeds: int = 4, drive_seeds: int = 3, only: str | None = None,
             results["lab"] = [_lab(Path(tmp), preset, seed) for preset in ("sweep", "random")
                               for seed in range(lab_seeds)]
             return results
-        for preset, run_name in (("sweep", "sweep"), ("random", "random")):
-            if only not in (None, preset):
+        for preset, run_name in (("sweep", "sweep"), ("random", "random"), ("dwell", "dwell")):
+            if only != preset and (only is not None or preset == "dwell"):
                 continue
             folder = Path(tmp) / preset
             start = time.perf_counter()
             write_simulation(folder, preset, seed=0)
             sim_s = time.perf_counter() - start
-            results[preset] = {"simulate_s": sim_s, **_drive_run(folder, run_name)}
+            results[preset] = {"simulate_s": sim_s, **_drive_run(folder, run_name),
+                               "windows_reference": _reference(
+                                   folder, run_name,
+                                   pd.read_csv(folder / "truth" / f"{run_name}.forces.csv"))}
             if preset == "sweep":
                 results["stepped_sines"] = _campaign(folder)
             results[f"{preset}_seeds"] = [_worst_windows(Path(tmp), preset, seed)
@@ -351,7 +378,7 @@ def run(seeds: int = 4, drive_seeds: int = 3, only: str | None = None,
 
 
 def report(res: dict) -> None:
-    for preset, target in (("sweep", 0.005), ("random", 0.02)):
+    for preset, target in (("sweep", 0.005), ("random", 0.02), ("dwell", 0.005)):
         if preset not in res:
             continue
         r = res[preset]
@@ -371,6 +398,12 @@ def report(res: dict) -> None:
         print("  err/u    " + " ".join(f"{w:7.2f}" for w in r["windows_stated"])
               + "   (each window's error as claimed over its stated uncertainty, RMS)")
         print("  static   " + " ".join(f"{w:7.1%}" for w in r["windows_static"]))
+        if "windows_reference" in r:
+            print("  refer.   " + " ".join(f"{w:7.2%}" for w in r["windows_reference"])
+                  + "   (the noisy reactions deconvolved with the exact transfer)")
+            print("  ratio    " + " ".join(
+                f"{a / b:7.2f}" for a, b in zip(r["windows"], r["windows_reference"],
+                                                strict=True)))
         if preset == "sweep":                 # 10 -> 150 Hz in 4 s: the mode at 1.7 s
             mode = int((MODE_HZ - 10.0) / (140.0 / 4.0) / 0.1)
             near = slice(mode - 3, mode + 4)
@@ -440,29 +473,30 @@ def _report_lab(lab: list[dict]) -> None:
 
 
 def _keep_splines(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice]:
+                  ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice, tuple | None]:
     """:func:`forcecal.model.broadband.choose_ratios` before the modal model: the splines'."""
-    ratios, std = broadband.smooth_ratios(frequencies, coords, cov)
-    return ratios, std, broadband.RatioChoice()
+    _, _, choice, _ = _CHOOSE(frequencies, coords, cov)
+    ratios, std, _, _, directions = broadband._spline_ratios(frequencies, coords, cov)
+    return ratios, std, dataclasses.replace(choice, source="spline"), directions
 
 
 _CHOOSE = broadband.choose_ratios
 
 
 def _take_modal(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice]:
+                ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice, tuple | None]:
     """The modal model's ratios wherever :func:`forcecal.model.modal.identify` finds one,
     whatever the criterion says."""
-    ratios, std, choice = _CHOOSE(frequencies, coords, cov)
+    ratios, std, choice, directions = _CHOOSE(frequencies, coords, cov)
     fit = broadband.identify(frequencies, coords, cov)
     if fit is None:
-        return ratios, std, choice
-    return (*fit.ratios(frequencies), dataclasses.replace(choice, source="modal"))
+        return ratios, std, choice, directions
+    return (*fit.ratios(frequencies), dataclasses.replace(choice, source="modal"), None)
 
 
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--only", choices=("sweep", "random"))
+    parser.add_argument("--only", choices=("sweep", "random", "dwell"))
     parser.add_argument("--ratios", choices=("auto", "spline", "modal"), default="auto")
     parser.add_argument("--lab", type=int, metavar="SEEDS",
                         help="only the lab rig's drive runs, seeds 0..SEEDS-1")

@@ -556,3 +556,22 @@ def test_a_random_scan_windows_whole_periods(sweep_rig):
     r = scan_response(rig, model)
     assert len(r.t) == 10_000
     np.testing.assert_allclose(r.current[0], 0.6 + noise.value(r.t), rtol=1e-12)
+
+
+def test_the_dwell_preset_lingers_at_the_mode_longer_than_the_scan_does():
+    """The ``dwell`` run sweeps through the closed-loop first mode (about 69 Hz at 1 mm) at
+    3 Hz/s: within the mode's half-power band (2 zeta f, 1.4 Hz at 1 % damping) for 0.46 s,
+    against the chirp scan's 1.8 ms a period (7 ms over its 1 s record, four periods); its
+    run uses the broadband scan of the ``sweep`` preset, whose lines lie 4 Hz apart."""
+    dwell, sweep = get_preset("dwell"), get_preset("sweep")
+    assert dwell.scan == sweep.scan and dwell.band == sweep.band
+    run = dwell.runs[0]
+    wave = run.drives[0].waveform
+    assert wave.f_start < 69.0 < wave.f_stop and run.duration == wave.duration
+    bandwidth = 2 * dwell.beam.damping_ratio * 69.0
+    in_run = bandwidth / ((wave.f_stop - wave.f_start) / wave.duration)
+    chirp = dwell.scan.drives[0].waveform
+    per_record = (dwell.scan.record / chirp.period) * bandwidth / (
+        (chirp.f_stop - chirp.f_start) / chirp.period)
+    assert in_run > 0.4 and in_run > 50 * per_record, (in_run, per_record)
+    assert 1.0 / chirp.period > 2 * bandwidth                       # lines 4 Hz apart

@@ -49,6 +49,7 @@ from ..signals.wiener import (
 from .budget import TypeBMoves, series_type_b_variance, type_b_moves, type_b_notes
 from .crosschecks import flux_notes, line_terms, pole_notes
 from .estimate import inertia_share_of, series_summary
+from .inertia_ends import edge_length, ends_std
 from .inertia_errors import ScanNoiseShare, inertia_error_weights
 from .inertia_scale import (
     InertiaScale,
@@ -283,11 +284,8 @@ def any_drive_setup(rig: Rig, model: BroadbandModel, gauges: np.ndarray, probes:
     total_row = -np.ones(len(pinv)) @ pinv
     u = total_row @ gauges
     transfer = fit_reaction_transfer(q, u, fs, band, var_q, hum)
-    bm_res = bm_q
-    if transfer is not None:
-        rest = q - filtered(u[None, :], fs, transfer.response)[0]
-        bm_res = band_model(fs, *_prior(rest, fs, band, var_q, RESIDUAL_MARGIN, band[0], hum),
-                            var_q)
+    bm_res = bm_q if transfer is None else _residual_model(q, u, transfer, fs, band, var_q,
+                                                           hum)
     return AnyDriveSetup(band=band, fs=fs, probe_shapes=gam, probe_weights=w,
                          coordinate_map=q_map, var_q=var_q, coordinate_model=bm_q,
                          reaction_models=bm_r, var_g=var_g, couplings=model.couplings[:, 0],
@@ -318,16 +316,33 @@ def _channel_hum(rig: Rig, band: tuple[float, float], tare: np.ndarray | None,
                  for m, f in enumerate(tones))
 
 
-def with_reaction_priors(setup: AnyDriveSetup, gauges: np.ndarray,
+def _residual_model(q: np.ndarray, u: np.ndarray, transfer: ReactionTransfer, fs: float,
+                    band: tuple[float, float], var_q: float, mains: float | None) -> BandModel:
+    """The band model of what the reactions' transfer leaves of the first shape's coordinate,
+    q_1 - G u: the probes' part of the inertia, smoothed up to where it rises above their
+    noise."""
+    rest = q - filtered(u[None, :], fs, transfer.response)[0]
+    return band_model(fs, *_prior(rest, fs, band, var_q, RESIDUAL_MARGIN, band[0], mains),
+                      var_q)
+
+
+def with_reaction_priors(setup: AnyDriveSetup, gauges: np.ndarray, probes: np.ndarray,
                          mains: float | None = None) -> AnyDriveSetup:
     """``setup`` with every gauge's band model set from ``gauges`` (n_gauges, N) [N], their
-    noise kept: a stream's smoothers follow its drive (a sweep's first seconds hold only its
-    bottom; smoothers set there, at 170 Hz where the whole run's were at 182 Hz, put the
-    stream 1.3 of the batch's uncertainty off at the sweep's top, 140-150 Hz)."""
+    noise kept, and the probes' part of the inertia's from the same stretch with ``probes``
+    (n_probes, N) [m]: a stream's smoothers follow its drive. A sweep's first seconds hold only
+    its bottom: smoothers set there, at 170 Hz where the whole run's were at 182 Hz, put the
+    stream 1.3 of the batch's uncertainty off at the sweep's top, 140-150 Hz; and a transfer
+    fitted there misses a mode the sweep reaches later (the ``dwell`` preset), which the
+    probes' part then takes, its band set from what the transfer leaves in the stretch."""
     fs, band = setup.fs, setup.band
     models = tuple(band_model(fs, *_prior(g, fs, band, v, mains=mains), v)
                    for g, v in zip(gauges, setup.var_g, strict=True))
-    return dataclasses.replace(setup, reaction_models=models)
+    if setup.transfer is None:
+        return dataclasses.replace(setup, reaction_models=models)
+    residual = _residual_model(setup.coordinate_map @ probes, setup.total_row @ gauges,
+                               setup.transfer, fs, band, setup.var_q, mains)
+    return dataclasses.replace(setup, reaction_models=models, residual_model=residual)
 
 
 def hum_notes(rig: Rig, tare: object, source: str) -> tuple[str, ...]:
@@ -537,7 +552,7 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     """
     fs = setup.fs
     transfer = setup.transfer
-    reach = _edge_length(fs, setup.coordinate_model, gauges.shape[-1])
+    reach = edge_length(fs, setup.coordinate_model, gauges.shape[-1])
     white = np.r_[setup.var_g, 1.0 / setup.probe_weights]          # each channel's noise
     ext = extend(np.vstack([gauges, probes]), fs, setup.band[1], reach, white, ends,
                  frame // 4)                                     # carried past the ends
@@ -560,7 +575,7 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     basis = _total_basis(len(pinv))
     sw = wiener_smooth(basis @ force, np.einsum("jk,ksb->jsb", basis, noise), fs, frame,
                        np.vstack([basis.T, basis.sum(axis=1)]))
-    edge = _ends_std(ext.inner, ext.missed, pinv, by_gauges, by_probes, reach, len(gauges))
+    edge = ends_std(ext.inner, ext.missed, pinv, by_gauges, by_probes, reach, len(gauges))
     scan = short_time_variance(acc, np.vstack([setup.error_weights(model, frame),
                                                setup.noise_weights(model, frame)[-1:]]),
                                fs, frame)                 # and the total's by its noise alone
@@ -667,20 +682,6 @@ def _total_basis(n: int) -> np.ndarray:
     return np.linalg.qr(start)[0].T
 
 
-def _ends_std(inner: Callable[[np.ndarray], np.ndarray], missed: np.ndarray, pinv: np.ndarray,
-              by_gauges: np.ndarray, by_probes: np.ndarray, reach: int, n_g: int
-              ) -> np.ndarray:
-    """(n_forces + 1, N) [N]: each force's and the total's uncertainty at the stretch's ends,
-    the gauges' part of the inertia lost in the share the gauges' prediction misses
-    (``missed``, (2, n_channels), the gauges first), the probes' in the probes'."""
-    part_g, part_p = (inner(pinv @ x) for x in (by_gauges, by_probes))
-    return np.hypot(
-        _edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach,
-                  missed[:, :n_g].max(axis=1)),
-        _edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach,
-                  missed[:, n_g:].max(axis=1)))
-
-
 TRANSFER_MISFIT = 2.0
 """A transfer whose residual's chi-square per degree of freedom exceeds this is noted: the
 reactions do not explain the probes' coordinate, and the probes carry what it misses."""
@@ -718,36 +719,6 @@ def _transfer_std(transfer: ReactionTransfer | None, u: np.ndarray, fs: float,
     part = np.einsum("fg,kgn->kfn", pinv, inertia_of(moves))    # (n_params, n_forces, N)
     part = np.concatenate([part, part.sum(axis=1, keepdims=True)], axis=1)
     return np.sqrt(np.maximum(np.einsum("kfn,kl,lfn->fn", part, transfer.cov, part), 0.0))
-
-
-EDGE_PERIODS = 2.0
-"""The record's first and last this many periods of the coordinate's cutoff hold an inertia
-the smoother cannot see whole (:func:`_edge_std`)."""
-
-
-def _edge_length(fs: float, bm: BandModel, n: int) -> int:
-    """Samples at either end of ``n`` within ``EDGE_PERIODS`` periods of the cutoff of ``bm``."""
-    return min(int(np.ceil(EDGE_PERIODS * fs / (bm.scale[1] / (2 * np.pi)))), n // 2)
-
-
-def _edge_std(part: np.ndarray, m: int, missed: np.ndarray) -> np.ndarray:
-    """(n, N) [N]: the uncertainty of the inertia's part ``part`` (n, N) at the record's ends.
-
-    Within about a period of the cutoff of an end the smoothers and the reactions' transfer
-    take samples beyond it, which the record carries by a prediction
-    (:mod:`forcecal.signals.record_ends`): the inertia there is lost in the share the prediction
-    misses (``missed``, at the start and at the end; 1, its whole size, for a reflection).
-    Stated as the inertia part's RMS over the ``m`` samples next to each end times that share,
-    tapered as (1 - t / T_e)^2 from the end."""
-    n = part.shape[-1]
-    out = np.zeros_like(part)
-    if m < 1:
-        return out
-    taper = (1.0 - np.arange(m) / m) ** 2                        # from the end inwards
-    out[:, :m] = (missed[0] * np.sqrt(np.mean(part[:, :m] ** 2, axis=1)))[:, None] * taper
-    out[:, n - m:] = ((missed[1] * np.sqrt(np.mean(part[:, n - m:] ** 2, axis=1)))[:, None]
-                      * taper[::-1])
-    return out
 
 
 def run_channels(rig: Rig, run: Run, tare: Run | None = None

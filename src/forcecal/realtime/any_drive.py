@@ -15,7 +15,7 @@ the samples it gives:
 - at the end of the record the rest is given at once.
 
 Memory and work per sample stay flat in the record's length. A stream set up from its own
-first seconds sets its gauges' smoothers again in every window from the window's own gauges
+first seconds sets its smoothers again in every window from the window's own records
 (:func:`forcecal.forces.transient.with_reaction_priors`: a sweep's first seconds hold only its
 bottom).
 """
@@ -222,7 +222,8 @@ class AnyDriveStream:
         window = self._buffer[:, start - self._start:]
         setup = self._setup
         if self._own_setup:            # its smoothers follow the drive, from the window's gauges
-            setup = with_reaction_priors(setup, window[:self._n_g], self.rig.mains)
+            setup = with_reaction_priors(setup, window[:self._n_g],
+                                         window[self._n_g:self._n_g + self._n_p], self.rig.mains)
         est = window_forces(setup, self.model, window[:self._n_g],
                             window[self._n_g:self._n_g + self._n_p],
                             stft_frame(self.fs, window.shape[1]), self.source,
