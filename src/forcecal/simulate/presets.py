@@ -443,45 +443,42 @@ def _sweep() -> Preset:
     runs.append(RunSpec("tare", drives=(Drive("current", 0.0, 0.0, _STEPS[0] * (1 + 7e-4)),),
                         gap=1.0e-3, duration=0.5, tare=True,
                         labels={"dc": "0", "ac": "0", "frequency": f"{_STEPS[0]}"}))
-    return Preset(
-        name="sweep",
-        description="the paper's beam and U-core magnet, whose force lags its current (eddy "
-                    "currents, 0.5 ms), current drive: scanned under a periodic chirp 5-200 Hz "
-                    "on 0.6 A DC; a sweep 10 -> 150 Hz over 4 s (0.1 A on 0.6 A DC, 1 mm); a "
-                    "stepped-sine campaign over a decade, 10..100 Hz in 7 steps x gaps 0.8, "
-                    "1.0, 1.2 mm (0.6 A DC, 0.2 A AC) and a zero-current tare",
-        beam=BeamSpec(), magnets=(_EDDY_MAGNET,), sensors=_SENSORS, scan=_BROADBAND_SCAN,
-        runs=tuple(runs), nominal_frequency=_STEPS[0], band=(5.0, 200.0),
-    )
+    return _sweep_rig("sweep", "the paper's beam and U-core magnet, whose force lags its current "
+                      "(eddy currents, 0.5 ms), current drive: scanned under a periodic chirp "
+                      "5-200 Hz on 0.6 A DC; a sweep 10 -> 150 Hz over 4 s (0.1 A on 0.6 A DC, "
+                      "1 mm); a stepped-sine campaign over a decade, 10..100 Hz in 7 steps x "
+                      "gaps 0.8, 1.0, 1.2 mm (0.6 A DC, 0.2 A AC) and a zero-current tare",
+                      tuple(runs), _STEPS[0])
+
+
+def _sweep_rig(name: str, description: str, runs: tuple[RunSpec, ...],
+               nominal: float) -> Preset:
+    """A preset of the sweep rig (the paper's beam, the U-core whose force lags its current,
+    the chirp scan over 5-200 Hz) with these runs."""
+    return Preset(name=name, description=description, beam=BeamSpec(), magnets=(_EDDY_MAGNET,),
+                  sensors=_SENSORS, scan=_BROADBAND_SCAN, runs=runs, nominal_frequency=nominal,
+                  band=(5.0, 200.0))
 
 
 def _dwell() -> Preset:
-    return Preset(
-        name="dwell",
-        description="the sweep rig (the paper's beam, a U-core whose force lags its current) "
-                    "scanned under a periodic chirp 5-200 Hz (lines 4 Hz apart, the chirp "
-                    "crossing the first bending mode in 2 ms a period); one run swept slowly "
-                    "through that mode, 40 -> 100 Hz in 20 s (0.05 A on 0.6 A DC, 1 mm): half a "
-                    "second within its half-power band, longer than the scan's records hold it",
-        beam=BeamSpec(), magnets=(_EDDY_MAGNET,), sensors=_SENSORS, scan=_BROADBAND_SCAN,
-        runs=(RunSpec("dwell", drives=(Drive("current", 0.6, 0.0, 40.0, waveform=SweptSine(
-            0.05, 40.0, 100.0, 20.0)),), gap=1.0e-3, duration=20.0, manifest=False),),
-        nominal_frequency=40.0, band=(5.0, 200.0),
-    )
+    run = RunSpec("dwell", drives=(Drive("current", 0.6, 0.0, 40.0, waveform=SweptSine(
+        0.05, 40.0, 100.0, 20.0)),), gap=1.0e-3, duration=20.0, manifest=False)
+    return _sweep_rig("dwell", "the sweep rig (the paper's beam, a U-core whose force lags its "
+                      "current) scanned under a periodic chirp 5-200 Hz (lines 4 Hz apart, the "
+                      "chirp crossing the first bending mode in 2 ms a period); one run swept "
+                      "slowly through that mode, 40 -> 100 Hz in 20 s (0.05 A on 0.6 A DC, "
+                      "1 mm): half a second within its half-power band, longer than the scan's "
+                      "records hold it", (run,), 40.0)
 
 
 def _random() -> Preset:
     noise = BandLimitedRandom(0.07, 5.0, 150.0, period=4.0, seed=7)
-    return Preset(
-        name="random",
-        description="the sweep rig (the paper's beam, a U-core whose force lags its current) "
-                    "scanned under a periodic chirp 5-200 Hz; one run of band-limited random "
-                    "current 5-150 Hz, 0.07 A RMS on 0.6 A DC, 4 s at 1 mm",
-        beam=BeamSpec(), magnets=(_EDDY_MAGNET,), sensors=_SENSORS, scan=_BROADBAND_SCAN,
-        runs=(RunSpec("random", drives=(Drive("current", 0.6, 0.0, 5.0, waveform=noise),),
-                      gap=1.0e-3, duration=4.0, manifest=False),),
-        nominal_frequency=5.0, band=(5.0, 200.0),
-    )
+    run = RunSpec("random", drives=(Drive("current", 0.6, 0.0, 5.0, waveform=noise),),
+                  gap=1.0e-3, duration=4.0, manifest=False)
+    return _sweep_rig("random", "the sweep rig (the paper's beam, a U-core whose force lags its "
+                      "current) scanned under a periodic chirp 5-200 Hz; one run of "
+                      "band-limited random current 5-150 Hz, 0.07 A RMS on 0.6 A DC, 4 s at "
+                      "1 mm", (run,), 5.0)
 
 
 _SOLID_MAGNET = dataclasses.replace(_MAGNET, core="solid", conductivity=2.0e6,
