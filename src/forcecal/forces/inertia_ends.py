@@ -49,14 +49,12 @@ def edge_std(part: np.ndarray, m: int, missed: np.ndarray) -> np.ndarray:
 
 
 def ends_std(inner: Callable[[np.ndarray], np.ndarray], missed: np.ndarray, pinv: np.ndarray,
-              by_gauges: np.ndarray, by_probes: np.ndarray, reach: int, n_g: int
-              ) -> np.ndarray:
+             by_gauges: np.ndarray, by_probes: np.ndarray, reach: int, n_g: int
+             ) -> np.ndarray:
     """(n_forces + 1, N) [N]: each force's and the total's uncertainty at the stretch's ends,
     the gauges' part of the inertia lost in the share the gauges' prediction misses
     (``missed``, (2, n_channels), the gauges first), the probes' in the probes'."""
     part_g, part_p = (inner(pinv @ x) for x in (by_gauges, by_probes))
     return np.hypot(
-        edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach,
-                  missed[:, :n_g].max(axis=1)),
-        edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach,
-                  missed[:, n_g:].max(axis=1)))
+        edge_std(np.vstack([part_g, part_g.sum(axis=0)]), reach, missed[:, :n_g].max(axis=1)),
+        edge_std(np.vstack([part_p, part_p.sum(axis=0)]), reach, missed[:, n_g:].max(axis=1)))

@@ -213,16 +213,18 @@ def raw_functions(points: ArrayLike, extent: ArrayLike, order: int,
         raise DimensionError(f"basis family '{family}' is unknown (choose from "
                              f"{', '.join(FAMILIES)})")
     pts = np.ascontiguousarray(points, dtype=float)
-    if pts.shape[0] > CACHED_POINTS:
-        return _raw(pts, extent, order, family)
     dom = np.ascontiguousarray(extent, dtype=float)
+    n_dim = 1 if dom.ndim == 1 else dom.shape[0]
+    if dom.ndim > 2 or order < 1 or pts.shape[0] * n_functions(order, n_dim) > CACHED_VALUES:
+        return _raw(pts, extent, order, family)
     return _remembered(pts.tobytes(), pts.shape, dom.tobytes(), dom.shape, int(order), family)
 
 
-CACHED_POINTS = 512
-"""Sets of at most this many points keep their raw functions (:func:`_remembered`): the
-quadrature nodes, probes and gauges at which every shape of a model, every harmonic and every
-type-B move evaluates its basis again (a calibration evaluated one set 20 000 times)."""
+CACHED_VALUES = 1 << 16
+"""Raw functions of at most this many values (points x functions; 512 kB) are kept
+(:func:`_remembered`, 64 of them): the quadrature nodes, probes and gauges at which every
+shape of a model, every harmonic and every type-B move evaluates its basis again (a
+calibration evaluated one set 20 000 times)."""
 
 
 @lru_cache(maxsize=64)
