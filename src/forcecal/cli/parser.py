@@ -71,8 +71,10 @@ def _simulate_parser(sub: Any, fmt: type[argparse.HelpFormatter]) -> None:
                         "own coils, scanned twice) or tilt (two magnets on one current at unequal "
                         "pole gaps, scanned twice), sweep (a swept-sine run and a stepped-sine "
                         "campaign 10-100 Hz, an eddy-current magnet, a chirp scan), random "
-                        "(a band-limited random run) or dwell (a 20 s sweep slowly through the "
-                        "beam's first mode); a second scan is written to scan2.uff")
+                        "(a band-limited random run), dwell (a 20 s sweep slowly through the "
+                        "beam's first mode), solid or laminated (stepped-sine campaigns of a "
+                        "core whose flux diffuses) or saturation (an iron that saturates); a "
+                        "second scan is written to scan2.uff")
     p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
     p.add_argument("--binary-uff", action="store_true", help="write the scans as dataset 58b")
     p.add_argument("--scan-export", choices=("time", "frfs"), default="time",
