@@ -516,8 +516,8 @@ def _span_shapes(rig: Rig, points: np.ndarray, u: np.ndarray, sv: np.ndarray, d:
     # each pattern known to its own residual: the rough ones' misfit, pooled, gave the smooth
     # ones' covariance up to 50 times their own (the lab rig's sweep scan)
     return tuple(dataclasses.replace(s, coefficients=s.coefficients / sv[k],
-                         residual_std=s.residual_std / sv[k],
-                         coefficient_covariance=s.coefficient_covariance / sv[k] ** 2)
+                                     residual_std=s.residual_std / sv[k],
+                                     coefficient_covariance=s.coefficient_covariance / sv[k] ** 2)
                  for k, s in enumerate(column_fits(fit, points, u[:, :d] * sv[:d], weights)))
 
 
@@ -627,7 +627,6 @@ def _spline_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
         dof += 2.0 * float(np.trace(smoother))
         directions.append(error_directions((smoother * var[k]) @ smoother.T))
     return out, std, var, dof, tuple(directions)
-
 
 
 def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
