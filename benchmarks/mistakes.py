@@ -68,6 +68,7 @@ CHECKS = (
     ("scan", ("the scan's motion per unit",)),
     ("misfit", ("disagree with the scan model's shape",)),
     ("pull-only", ("pushes",)),
+    ("weight", ("where the rig's masses weigh",)),
     ("dc", ("far from the",)),
     ("drift", ("drifts", "drift")),
     ("info", ("mains",)),

@@ -74,6 +74,7 @@ class LabSpec:
     duration: float | None = None    # [s] the run's first part only (None: all of it)
     flux: bool = True                # False: the rig's flux channels and pole area left out
     only_run: bool = False           # the false-alarm survey takes ``run`` alone, not the folder
+    zeroed: float | None = None      # [N] the gauges zeroed to within this (:func:`rezero`)
 
 
 LABS = {
@@ -88,6 +89,7 @@ LABS = {
     "campaign": LabSpec("campaign", "lab", "g1000_dc06_ac02", ("scan.uff",), tare="tare"),
     "random-lab": LabSpec("random", "lab", "random", ("scan.uff",), tare="tare", only_run=True),
     "sweep-lab": LabSpec("sweep", "lab", "sweep", ("scan.uff",), tare="tare", only_run=True),
+    "paper-zeroed": LabSpec("paper", "lab", "paper", ("scan.uff",), tare="tare", zeroed=0.05),
 }
 """The labs: ``paper`` (ideal sensors, poles that pull alike), ``paper-lab`` (lab realism:
 coloured noise, hum, drawn sensitivities, gravity preload, gauge offsets, a tare;
@@ -98,7 +100,9 @@ modelled from both its scans), ``two-coil`` (two coils driven apart, both scans)
 check the estimate), ``campaign`` (lab realism; runs at three gaps and six currents, scanned
 at one: for the false alarms of the checks against the scan), and under any drive
 ``random-lab`` and ``sweep-lab`` (lab realism; a band-limited random run, a swept sine; for
-the false alarms of the cross-checks on a spectrum's lines)."""
+the false alarms of the cross-checks on a spectrum's lines), ``paper-zeroed`` (``paper-lab``
+whose gauges were zeroed to within 0.05 N without the beam, its rig saying so in ``[weight]``:
+the tare weighs the beam to 0.1 N of its 24.6 N)."""
 
 
 @dataclass
@@ -207,7 +211,10 @@ def build_lab(preset: str, seed: int, folder: Path, *, duration: float | None = 
             rig["actuator"].pop(key, None)
         for force in rig["forces"]:
             force.pop("flux", None)
-        (root / "rig.toml").write_text(tomli_w.dumps(rig), encoding="utf-8")
+    if spec.zeroed is not None:
+        assert tare is not None
+        rezero(root, rig, [run, tare], spec.zeroed, np.random.default_rng([seed, 34]))
+    (root / "rig.toml").write_text(tomli_w.dumps(rig), encoding="utf-8")
     model = root / "model.json"
     code, err = quiet_main(["scan", root / "rig.toml", *scans, "-o", model])
     assert code == 0, err
@@ -215,6 +222,22 @@ def build_lab(preset: str, seed: int, folder: Path, *, duration: float | None = 
               tare=tare, scans=scans, model=model)
     lab.clean = verdict(lab)
     return lab
+
+
+def rezero(root: Path, rig: dict, records: list[pd.DataFrame], level: float,
+           rng: np.random.Generator) -> None:
+    """The gauges of a lab zeroed again to within ``level`` [N]: the offsets the simulator
+    drew (its ``truth/simulator.json``) replaced in every record by new ones of that standard
+    deviation, and the rig's ``weight.gauge_zero`` set to it. The forces, every record zeroed
+    by the same tare, do not change; the tare's weight is known the better."""
+    drawn = json.loads((root / "truth" / "simulator.json").read_text(encoding="utf-8"))
+    for gauge in rig["gauges"]:
+        name = gauge["name"]
+        shift = (level * rng.standard_normal() - drawn["realism"]["gauge_offset_N"][name]) \
+            / gauge.get("scale", 1.0)
+        for frame in records:
+            frame[name] = frame[name] + shift
+    rig["weight"]["gauge_zero"] = level
 
 
 def _read_csv(path: Path, duration: float | None) -> pd.DataFrame:
@@ -417,6 +440,8 @@ PF = ("paper", "paper-lab")
 """The labs with a flux channel."""
 A = ("random-lab",)
 """A lab under any drive."""
+Z = ("paper-zeroed",)
+"""A lab whose tare weighs the structure (its gauges zeroed without it to within 0.05 N)."""
 
 MISTAKES: tuple[Mistake, ...] = (
     Mistake("gauge scale +2%", "one gauge's sensitivity in the rig 2 % off", (*PT, *A),
@@ -425,7 +450,7 @@ MISTAKES: tuple[Mistake, ...] = (
             _scale("gauges", 0, 1.10), GAUGE, SCALE),
     Mistake("gauge offset 1 N", "1 N on one gauge's zero since its tare (or zeroing)", (*PT, *A),
             _column(("g0",), add=1.0, tare=False), GAUGE, ("offset", "zero", "tare", "dc")),
-    Mistake("gauges both +2%", "both gauges' sensitivities 2 % high in the rig", (*PT, *A),
+    Mistake("gauges both +2%", "both gauges' sensitivities 2 % high in the rig", (*PT, *A, *Z),
             _scale("gauges", None, 1.02), GAUGES, SCALE),
     Mistake("gauge sign", "one gauge reports its compression (its scale's sign flipped)", PT,
             _scale("gauges", 0, -1.0), GAUGE, SIGN),
@@ -454,8 +479,8 @@ MISTAKES: tuple[Mistake, ...] = (
     Mistake("force point 5 cm", "one force point 5 cm from where the rig says", (*PTC, *A),
             _key(("forces", 0, "x"), offset=-0.05), ("{f0}", "force", "pole"), POSITION),
     Mistake("lumped mass forgotten", "the armature's lumped mass left out of the rig",
-            (*P, *A), _key(("structure", "masses"), drop=True), (), MASS),
-    Mistake("mass_per_length +10%", "the distributed mass 10 % off", P,
+            (*P, *A, *Z), _key(("structure", "masses"), drop=True), (), MASS),
+    Mistake("mass_per_length +10%", "the distributed mass 10 % off", (*P, *Z),
             _key(("structure", "mass_per_length"), factor=1.1), (), MASS),
     Mistake("skew gauges 4", "the gauges recorded 4 samples late (another DAQ module)",
             (*P, *A), _skew(("g0", "g1"), 4), GAUGES, SKEW),

@@ -175,6 +175,23 @@ class TypeB:
                 "defaults used: ") + text
 
 
+@dataclass(frozen=True)
+class Weight:
+    """The ``[weight]`` table: the gauges were zeroed without the structure, so a tare reads its
+    weight (:mod:`forcecal.forces.weight` checks it against the rig's masses).
+
+    Attributes
+    ----------
+    gravity : float [m/s^2]
+        Along -w (on a body along -z).
+    gauge_zero : float [N]
+        Type-B standard uncertainty of each gauge's zero.
+    """
+
+    gravity: float
+    gauge_zero: float
+
+
 def _listed(names: Sequence[str], most: int = 6) -> str:
     """Names joined by commas, the first ``most`` of them and a count of the rest."""
     more = len(names) - most
@@ -218,6 +235,9 @@ class Rig:
     """``acquisition.drive``: "steady" (periodic at one fundamental, the harmonic path) or
     "any" (swept, multi-tone or random: forces sample by sample,
     :mod:`forcecal.forces.transient`)."""
+    weight: Weight | None = None
+    """``[weight]``: gravity and the gauges' zero where the gauges read the structure's weight;
+    None when the rig does not say so."""
 
     def __repr__(self) -> str:
         """One line: the name, the structure, the gauges, forces and sensors, the drive."""
@@ -390,9 +410,10 @@ def parse_rig(doc: dict[str, Any], source: str = "<rig>") -> Rig:
     channels = channel_map(fail, keys.channels, names)
     type_b = (TypeB(**keys.uncertainty.model_dump(), declared=True)
               if keys.uncertainty is not None else TypeB())
+    weight = None if keys.weight is None else Weight(**keys.weight.model_dump())
     return Rig(name=keys.name or Path(source).stem, structure=structure, gauges=gauges,
                forces=forces, sensors=sensors, actuator=actuator, source=source,
-               channel_map=channels, type_b=type_b, **acq)
+               channel_map=channels, type_b=type_b, weight=weight, **acq)
 
 
 def _structure(fail: Fail, st: Any) -> Structure:
@@ -561,4 +582,6 @@ def rig_to_dict(rig: Rig) -> dict[str, Any]:
         doc["channels"] = dict(rig.channel_map)
     if rig.type_b.declared:
         doc["uncertainty"] = {k: getattr(rig.type_b, k) for k in TypeB.KEYS}
+    if rig.weight is not None:
+        doc["weight"] = {"gravity": rig.weight.gravity, "gauge_zero": rig.weight.gauge_zero}
     return doc

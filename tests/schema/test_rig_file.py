@@ -41,6 +41,7 @@ BEAM = {
                  "time": "Sample Time"},
     "uncertainty": {"gauge_scale": 0.005, "probe_scale": 0.01, "current_scale": 0.002,
                     "position": 5e-4, "mass": 0.01, "gap": 1e-5},
+    "weight": {"gravity": 9.81, "gauge_zero": 0.05},
 }
 PLATE = {
     "structure": {"kind": "plate", "mass_per_area": 7.85,

@@ -3,6 +3,6 @@ on this machine, or a Dask cluster (:mod:`.pool`), and the jobs the commands spr
 (:mod:`.jobs`), and the threads every command and API call runs on (:mod:`.threads`)."""
 
 
-from .pool import pool_map, run_jobs
+from .pool import run_jobs
 
-__all__ = ["pool_map", "run_jobs"]
+__all__ = ["run_jobs"]

@@ -34,7 +34,7 @@ from ..rig import Rig
 from ..signals.harmonics import fit_harmonics
 from ..signals.mains import near_mains
 from ..signals.noise import GUARD
-from .diagnostics import FALSE_ALARM
+from .diagnostics import FALSE_ALARM, chi_square_limit
 
 __all__ = ["EstimateTerms", "flux_notes", "line_terms", "pole_notes"]
 
@@ -394,13 +394,6 @@ def _cause_text(name: str, unit: str, size: _Size) -> str:
     return name if math.isnan(size) else f"{name} off by {size:+.3g} {unit}"
 
 
-def _limit(dof: int, rate: float = FALSE_ALARM) -> float:
-    """The chi-square of ``dof`` degrees of freedom that chance exceeds at ``rate``."""
-    from scipy.special import gammaincinv  # on use: a steady stream starts without it
-
-    return float(2 * gammaincinv(dof / 2, 1 - rate))
-
-
 def _weighed(fluxes: dict[int, np.ndarray], poles: list[int], area: float, run: Run,
              terms: EstimateTerms) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The poles' Maxwell phasors (n_poles, H+1), the harmonics compared (the kept ones, the
@@ -544,9 +537,10 @@ def _pair_texts(pairs: list[tuple[str, str, str, tuple[float, int, float, float]
             f"disagree, though poles of one core carry one flux: '{c}' reads {r:+.4g} times "
             f"'{c0}' (chi-square {chi2:.3g} for {dof} degrees of freedom with the ratio held "
             f"to 1 within the fringing ({FRINGING:.0%}), {scaled:.3g} with the ratio free; "
-            f"chance exceeds {_limit(dof, rate / 2):.3g} and a gain of "
-            f"{_limit(1, rate / 2):.3g}); look at {look}"
-            + ("" if scaled <= _limit(dof - 1, rate) else "; or a delay, or another channel"))
+            f"chance exceeds {chi_square_limit(dof, rate / 2):.3g} and a gain of "
+            f"{chi_square_limit(1, rate / 2):.3g}); look at {look}"
+            + ("" if scaled <= chi_square_limit(dof - 1, rate)
+               else "; or a delay, or another channel"))
     return notes
 
 
@@ -566,7 +560,7 @@ def _pair_misfits(rig: Rig, run: Run, terms: EstimateTerms
                                 else ((k0, c0), (k1, c1)))
             misfit = _flux_misfit(phasors[kr], phasors[k], terms.kept)
             chi2, dof, scaled, _ = misfit
-            if chi2 <= _limit(dof, terms.rate / 2) and chi2 - scaled <= _limit(
+            if chi2 <= chi_square_limit(dof, terms.rate / 2) and chi2 - scaled <= chi_square_limit(
                     1, terms.rate / 2):
                 continue                  # neither the whole misfit nor the ratio's gain
             if abs(misfit[3]) < DEAD_RATIO:
@@ -718,8 +712,8 @@ def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
     period_ms = 1e3 * 2 * np.pi / max(float(terms.angular.max()), terms.w0)
     sensors = [c for c in causes if c.form in ("relative", "linear", "delay")]
     rate = terms.rate
-    gain = _limit(1, rate / (2 * len(sensors)))
-    whole = _limit(dof, rate / 2)
+    gain = chi_square_limit(1, rate / (2 * len(sensors)))
+    whole = chi_square_limit(dof, rate / 2)
     if chi2 <= min(gain, whole):
         return []                    # no cause can gain more than the whole chi-square
     tried = sorted((c2, c.name, c.unit, size) for c in sensors
@@ -732,8 +726,9 @@ def _judged(rig: Rig, terms: EstimateTerms, problem: _Problem,
     single = min((t[0] for t in tried if t[1] in {c.name for c in causes if c.form == "linear"}),
                  default=math.inf)
     tried = [t for t in tried if _free(t[3]) == 1 or single - t[0] > AKAIKE * (_free(t[3]) - 1)]
-    explain = [t for t in tried if chi2 - t[0] > _limit(_free(t[3]), rate / (2 * len(sensors)))
-               and t[0] <= _limit(dof - _free(t[3]), rate)]
+    each = rate / (2 * len(sensors))
+    explain = [t for t in tried if chi2 - t[0] > chi_square_limit(_free(t[3]), each)
+               and t[0] <= chi_square_limit(dof - _free(t[3]), rate)]
     return [f"{head(coef)}: chi-square {chi2:.3g} for {dof} degrees of freedom (chance exceeds "
             f"{whole:.3g} at a {rate / 2:.3g} rate), {best_gain:.3g} less with one sensor's "
             f"mistake free (chance: {gain:.3g})"

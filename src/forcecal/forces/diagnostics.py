@@ -42,6 +42,14 @@ DRIFT_TOLERANCE = 1e-3
 """Relative change of the drive frequency across a record that draws a note."""
 
 
+def chi_square_limit(dof: int, rate: float = FALSE_ALARM) -> float:
+    """The chi-square of ``dof`` degrees of freedom that chance exceeds at ``rate``:
+    2 P^-1(dof / 2, 1 - rate) (scipy.special: lighter than .stats)."""
+    from scipy.special import gammaincinv  # on use: a steady stream starts without it
+
+    return float(2 * gammaincinv(dof / 2, 1 - rate))
+
+
 def misfit_limits(coords: Coordinates, n_sensors: int) -> tuple[float, np.ndarray, np.ndarray]:
     """The reduced chi-square of each harmonic's sensor fit above which the probes are noted.
 

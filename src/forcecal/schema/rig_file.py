@@ -252,6 +252,24 @@ class Uncertainty(Keys):
     """type-B standard uncertainty of each static air gap"""
 
 
+class Weight(Keys):
+    noun: ClassVar[str] = "weight"
+    gravity: float = Number(unit="m/s^2", ge=-100.0, le=100.0, default=9.81,
+                            hint="not a gravitational acceleration (9.81 m/s^2)")
+    """the gravitational acceleration, acting along -w (on a body along -z); negative where
+    the structure's +w points down (default 9.81)"""
+    gauge_zero: float = Number(unit="N", ge=0.0, le=1e6)
+    """type-B standard uncertainty of each gauge's zero (its reading without the structure)"""
+
+    @field_validator("gravity")
+    @classmethod
+    def _acting(cls, g: float) -> float:
+        if g == 0.0:
+            raise ValueError("= 0.0 m/s^2: a weight check needs gravity acting (9.81 along -w, "
+                             "-9.81 where +w points down)")
+        return g
+
+
 class RigFile(Keys):
     """The rig file."""
 
@@ -286,6 +304,9 @@ class RigFile(Keys):
     uncertainty: Uncertainty | None = None
     """type-B standard uncertainties (GUM); without the table the defaults apply and every
     estimate says so in a note"""
+    weight: Weight | None = None
+    """optional: the gauges were zeroed without the structure on them, so that a zero-current
+    record (a tare) reads its weight; every tare is then checked against the rig's masses"""
 
 
 def check_rig_document(doc: Any, source: str) -> RigFile:

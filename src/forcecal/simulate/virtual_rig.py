@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..records import Run, Scan
-from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor, TypeB
+from ..rig import Actuator, ForcePoint, Gauge, LumpedMass, Rig, Sensor, TypeB, Weight
 from ..structures import Beam, Body, Plate
 from .integrate import Response
 from .lab import LabErrors, measure_lab_run, measure_lab_scan, record_lab_run, record_lab_scan
@@ -62,12 +62,16 @@ def public_rig(preset: Preset) -> Rig:
     """What the lab writes in its rig file: geometry, masses, channels; no stiffness, no truth.
 
     Its ``[uncertainty]`` declares every type-B uncertainty zero (exact sensors), or those of
-    the preset's ``realism``.
+    the preset's ``realism``, whose rig also declares ``[weight]``: the gauges read the weight,
+    their zeros off by the realism's ``gauge_offset``.
     """
     b = preset.beam
     mag = preset.magnets[0]
     type_b = TypeB.none() if preset.realism is None else preset.realism.type_b
     mains = None if preset.realism is None or not preset.realism.hum else preset.realism.mains
+    lab = preset.realism
+    weight = (None if lab is None or lab.gravity == 0.0
+              else Weight(gravity=lab.gravity, gauge_zero=lab.gauge_offset))
     if isinstance(b, BodySpec):
         return Rig(
             name=f"virtual {preset.name} rig",
@@ -84,7 +88,7 @@ def public_rig(preset: Preset) -> Rig:
                           for n, x, y, z, *d in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
-            frequency=preset.nominal_frequency, type_b=type_b, mains=mains,
+            frequency=preset.nominal_frequency, type_b=type_b, mains=mains, weight=weight,
         )
     if isinstance(b, PlateSpec):
         return Rig(
@@ -99,7 +103,7 @@ def public_rig(preset: Preset) -> Rig:
             sensors=tuple(Sensor(name=n, x=x, y=y) for n, x, y in _rows(preset.sensors)),
             actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                               turns=mag.turns, pole_area=mag.pole_area),
-            frequency=preset.nominal_frequency, type_b=type_b, mains=mains,
+            frequency=preset.nominal_frequency, type_b=type_b, mains=mains, weight=weight,
         )
     return Rig(
         name=f"virtual {preset.name} rig",
@@ -112,7 +116,7 @@ def public_rig(preset: Preset) -> Rig:
         sensors=tuple(Sensor(name=n, x=x) for n, x in _rows(preset.sensors)),
         actuator=Actuator(current=mag.current_channel, flux=mag.flux_channel,
                           turns=mag.turns, pole_area=mag.pole_area),
-        frequency=preset.nominal_frequency, type_b=type_b, mains=mains,
+        frequency=preset.nominal_frequency, type_b=type_b, mains=mains, weight=weight,
     )
 
 

@@ -197,6 +197,11 @@ class Structure(ABC):
         """
 
     @abstractmethod
+    def up(self, coordinates: np.ndarray) -> np.ndarray:
+        """(n,) [1]: what a unit translation against gravity (along +w; on a body +z) moves at
+        each of these structure coordinates (what the structure's weight loads)."""
+
+    @abstractmethod
     def grid(self, n: int = 401) -> np.ndarray:
         """About ``n`` structure coordinates covering the structure (for the peaks of shapes)."""
 
@@ -318,6 +323,9 @@ class OutOfPlane(Structure, ABC):
     def rigid_modes(self, coordinates: np.ndarray, frame: Frame) -> np.ndarray:
         pts = np.asarray(coordinates, dtype=float).reshape(len(coordinates), -1)
         return np.vstack([np.ones(len(pts)), *pts[:, :self.dim].T])
+
+    def up(self, coordinates: np.ndarray) -> np.ndarray:
+        return np.ones(len(coordinates))
 
     def fit_shape(self, coordinates: np.ndarray, values: np.ndarray, criterion: str,
                   weights: np.ndarray, basis: str, min_order: int = 1) -> ShapeFit:

@@ -89,6 +89,9 @@ class Body(Structure):
     def rig_points(self, items: Sequence[Located]) -> np.ndarray:
         return locations(items)
 
+    def up(self, coordinates: np.ndarray) -> np.ndarray:
+        return np.asarray(coordinates, dtype=float)[:, 5]       # each location's dz
+
     def coordinates(self, points: np.ndarray, source: str = "<points>") -> np.ndarray:
         pts = np.asarray(points, dtype=float)
         if pts.ndim != 2 or pts.shape[1] != 6:

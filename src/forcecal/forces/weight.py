@@ -1,0 +1,213 @@
+"""The tare against the rig's weight: where the gauges were zeroed without the structure on them
+(the rig's ``[weight]`` table), a zero-current record reads the structure's weight.
+
+At rest, relaxing gauge r by psi_r, the gauges balance gravity: R_r = g sum_q m_q psi_r(q) u(q)
+over the rig's mass quadrature and lumped masses (u: the component along +w, on a body +z,
+:meth:`forcecal.structures.Structure.up`). The tare's means less these, d, have the covariance
+of the gauges' zeros (``weight.gauge_zero``), their scales (``uncertainty.gauge_scale``) and the
+masses (``uncertainty.mass``: the distributed mass and each lumped mass on its own); d^T C^-1 d
+is a chi-square of one degree of freedom per gauge, judged at
+:data:`~forcecal.forces.diagnostics.FALSE_ALARM` a record. Beyond it the note gives the mass the
+gauges carry beyond the rig's, where it sits, and the mistakes of one parameter that explain d
+(the distributed mass, a lumped mass, a gauge's scale, every gauge's, a gauge's zero), the best
+first. The inertia term rests on the rig's masses: a mass the rig gets wrong is a force the
+method gets wrong by the same share of the inertia. A tare that carries current is not a weight
+(the other checks name it), and is not checked.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+from ..model.inertia import mass_weights
+from ..records import Run
+from ..rig import Rig
+from .diagnostics import FALSE_ALARM, chi_square_limit
+
+__all__ = ["weight_notes"]
+
+ALIKE = 4.0
+"""Causes whose chi-squares lie within this of the best one's are said to be alike."""
+SLIP = 0.5
+"""The largest relative error of a mass or a scale named as an explanation: beyond it a value
+is not a slip but another mistake (a unit, a part left out), which the note's mass and centre
+describe."""
+IDLE_CURRENT = 0.05
+"""A tare whose current's RMS exceeds this share of the run's is not a weight record (the
+magnet would pull there with a share of the run's force near the square of it)."""
+
+
+def weight_parts(rig: Rig) -> list[tuple[str, np.ndarray]]:
+    """Each mass's weight on the gauges: the distributed mass's, then each lumped mass's.
+
+    Returns
+    -------
+    list of (key, (n_gauges,) ndarray [N])
+        The rig key that declares the mass, and the reactions its weight draws at rest.
+    """
+    assert rig.weight is not None
+    st = rig.structure
+    points, weights = mass_weights(rig)
+    field = weights * (rig.weight.gravity * st.up(points))[None, :]     # (n_g, n_q) [N]
+    n = len(st.masses)
+    lumped = np.zeros(field.shape[1], dtype=bool)
+    total = field.shape[1] // (3 if st.directed else 1)    # a body's nodes along x, y and z
+    for start in range(0, field.shape[1], total):
+        lumped[start + total - n:start + total] = True
+    parts = [(f"structure.{st.mass_field}", field[:, ~lumped].sum(axis=1))]
+    for k in range(n):
+        columns = [start + total - n + k for start in range(0, field.shape[1], total)]
+        parts.append((f"structure.masses[{k}] ({st.masses[k].mass:.3g} kg)",
+                      field[:, columns].sum(axis=1)))
+    return parts
+
+
+def tare_reactions(rig: Rig, tare: Run) -> np.ndarray:
+    """(n_gauges,) [N]: each gauge's mean over the tare record, with its scale."""
+    return np.array([g.scale * float(np.mean(tare.channel(g.name))) for g in rig.gauges])
+
+
+class _Misfit(NamedTuple):
+    """A tare's reactions against the rig's weight."""
+
+    read: np.ndarray                          # (n_g,) [N] the tare's reactions
+    parts: list[tuple[str, np.ndarray]]       # each mass's weight on the gauges
+    d: np.ndarray                             # (n_g,) [N] the reactions less the weight
+    inv: np.ndarray                           # (n_g, n_g) [1/N^2] d's inverse covariance
+
+    @property
+    def chi_square(self) -> float:
+        return float(self.d @ self.inv @ self.d)
+
+
+def _misfit(rig: Rig, tare: Run) -> _Misfit:
+    parts = weight_parts(rig)
+    read = tare_reactions(rig, tare)
+    d = read - sum((e for _, e in parts), start=np.zeros(len(read)))
+    return _Misfit(read, parts, d, np.linalg.pinv(_covariance(rig, read, parts)))
+
+
+def weight_chi_square(rig: Rig, tare: Run) -> tuple[float, int]:
+    """(chi-square, degrees of freedom) of a tare's reactions against the rig's weight."""
+    m = _misfit(rig, tare)
+    return m.chi_square, len(m.d)
+
+
+def _covariance(rig: Rig, read: np.ndarray, parts: list[tuple[str, np.ndarray]]) -> np.ndarray:
+    """The covariance of the tare's reactions less the weight's: zeros, scales, masses."""
+    assert rig.weight is not None
+    tb = rig.type_b
+    cov = np.diag(rig.weight.gauge_zero**2 + (tb.gauge_scale * read) ** 2)
+    for _, e in parts:
+        cov += tb.mass**2 * np.outer(e, e)
+    return cov
+
+
+def _causes(rig: Rig, read: np.ndarray, parts: list[tuple[str, np.ndarray]]
+            ) -> list[tuple[str, str, np.ndarray]]:
+    """(name, form, column): each mistake of one parameter and the change of d per unit of it;
+    ``relative`` ones per unit of b with the rig's value off by b / (1 - b) (a mass: -b)."""
+    names = rig.gauge_names
+    one = np.eye(len(names))
+    out = [(key, "mass", e) for key, e in parts]
+    out += [(f"gauge '{g}' scale (its 'scale' in the rig)", "relative", read * one[k])
+            for k, g in enumerate(names)]
+    if len(names) > 1:
+        out.append(("every gauge's scale (their 'scale' in the rig)", "relative", read))
+    out += [(f"gauge '{g}' zero (its reading without the structure)", "N", one[k])
+            for k, g in enumerate(names)]
+    return out
+
+
+def _fitted(d: np.ndarray, inv: np.ndarray, c: np.ndarray) -> tuple[float, float]:
+    """(chi-square left, coefficient) of d with the column c's multiple taken out."""
+    cc = float(c @ inv @ c)
+    if cc <= 0.0:
+        return float(d @ inv @ d), 0.0
+    a = float(c @ inv @ d) / cc
+    r = d - a * c
+    return float(r @ inv @ r), a
+
+
+def _relative(form: str, a: float) -> float:
+    """The rig's value against the truth, less 1, of a ``mass`` or ``relative`` cause of
+    coefficient ``a`` (inf where no positive truth gives it)."""
+    if form == "mass":
+        return -a / (1 + a) if a > -1.0 else np.inf
+    return a / (1 - a) if a < 1.0 else np.inf
+
+
+def _plausible(form: str, a: float) -> bool:
+    """Whether a cause's size is a slip of one key (at most :data:`SLIP` of its value)."""
+    return form == "N" or abs(_relative(form, a)) <= SLIP
+
+
+def _size_text(name: str, form: str, a: float) -> str:
+    if form == "N":
+        return f"{name} off by {a:+.3g} N"
+    return f"{name} off by {100 * _relative(form, a):+.3g} %"
+
+
+def _where(rig: Rig, d: np.ndarray) -> str:
+    """The extra mass the gauges carry and, on a beam or plate, its centre."""
+    assert rig.weight is not None
+    st = rig.structure
+    ups = st.up(st.coordinates(rig.gauge_points))
+    extra = float(ups @ d) / rig.weight.gravity
+    text = f"{abs(extra):.3g} kg {'more' if extra > 0 else 'less'} than the rig's masses"
+    if st.directed or ups @ d == 0:
+        return text
+    centre = np.asarray(rig.gauge_points, dtype=float)[:, :st.dim].T @ d / float(ups @ d)
+    return text + ", centred at " + ", ".join(f"{a} = {c:.3g} m"
+                                              for a, c in zip(st.axes, centre, strict=False))
+
+
+def weight_notes(rig: Rig, tare: Run | None, run: Run, what: str) -> list[str]:
+    """A note when a tare's reactions contradict the rig's weight (see the module docstring).
+
+    Parameters
+    ----------
+    rig : Rig
+        With its ``[weight]`` table; without it, or without a tare, nothing is checked.
+    tare : Run or None
+        The zero-current record.
+    run : Run
+        The run it zeroes (a tare with current beside the run's is not checked).
+    what : str
+        The run, at the start of the note.
+
+    Returns
+    -------
+    list of str
+    """
+    if rig.weight is None or tare is None:
+        return []
+    def rms(record: Run) -> float:
+        return float(np.sqrt(np.mean(np.square(record.channel(rig.actuator.current)))))
+
+    if rms(tare) > IDLE_CURRENT * rms(run):
+        return []
+    read, parts, d, inv = m = _misfit(rig, tare)
+    chi2, dof = m.chi_square, len(d)
+    limit = chi_square_limit(dof, FALSE_ALARM)
+    if chi2 <= limit:
+        return []
+    tried = sorted((*_fitted(d, inv, c), name, form) for name, form, c in _causes(rig, read, parts))
+    left = chi_square_limit(dof - 1, FALSE_ALARM) if dof > 1 else 0.0
+    explain = [t for t in tried if t[0] <= left and _plausible(t[3], t[1])]
+    head = (f"{what}: the tare '{tare.source}' reads {float(read.sum()):.4g} N on the gauges "
+            f"where the rig's masses weigh {float((read - d).sum()):.4g} N (weight.gravity = "
+            f"{rig.weight.gravity:g} m/s^2): {_where(rig, d)}; chi-square {chi2:.3g} for {dof} "
+            f"degrees of freedom (chance exceeds {limit:.3g} at a {FALSE_ALARM:g} rate)")
+    if not explain:
+        c2, a, name, form = tried[0]
+        return [f"{head}; no single mistake tried explains it (a mass, a gauge's scale or "
+                f"zero); the closest: {_size_text(name, form, a)} (chi-square then {c2:.3g})"]
+    alike = sum(1 for t in explain if t[0] - explain[0][0] <= ALIKE)
+    said = "; ".join(f"{_size_text(name, form, a)} (chi-square then {c2:.3g})"
+                     for c2, a, name, form in explain[:max(alike, 3)])
+    return [f"{head}; explained by {said}"
+            + (f" (the data cannot tell the first {alike} apart)" if alike > 1 else "")
+            + "; the inertia rests on the rig's masses"]
