@@ -63,6 +63,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/any_drive.py
 	$(BIN)/python benchmarks/frf_export.py
 	$(BIN)/python benchmarks/mistakes.py
+	$(BIN)/python benchmarks/weight.py
 	$(BIN)/python benchmarks/threads.py
 	$(BIN)/python benchmarks/fuzz.py
 
