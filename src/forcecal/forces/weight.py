@@ -4,8 +4,9 @@
 At rest, relaxing gauge r by psi_r, the gauges balance gravity: R_r = g sum_q m_q psi_r(q) u(q)
 over the rig's mass quadrature and lumped masses (u: the component along +w, on a body +z,
 :meth:`forcecal.structures.Structure.up`). The tare's means less these, d, have the covariance
-of the gauges' zeros (``weight.gauge_zero``), their scales (``uncertainty.gauge_scale``) and the
-masses (``uncertainty.mass``: the distributed mass and each lumped mass on its own); d^T C^-1 d
+of the record's noise, the gauges' zeros (``weight.gauge_zero``), their scales
+(``uncertainty.gauge_scale``) and the masses (``uncertainty.mass``: the distributed mass and
+each lumped mass on its own); d^T C^-1 d
 is a chi-square of one degree of freedom per gauge, judged at
 :data:`~forcecal.forces.diagnostics.FALSE_ALARM` a record. Beyond it the note gives the mass the
 gauges carry beyond the rig's, where it sits, and the mistakes of one parameter that explain d
@@ -30,6 +31,8 @@ __all__ = ["weight_notes"]
 
 ALIKE = 4.0
 """Causes whose chi-squares lie within this of the best one's are said to be alike."""
+BLOCKS = 10
+"""Blocks of the tare record whose means' scatter gives its mean's noise."""
 SLIP = 0.5
 """The largest relative error of a mass or a scale named as an explanation: beyond it a value
 is not a slip but another mistake (a unit, a part left out), which the note's mass and centre
@@ -64,9 +67,17 @@ def weight_parts(rig: Rig) -> list[tuple[str, np.ndarray]]:
     return parts
 
 
-def tare_reactions(rig: Rig, tare: Run) -> np.ndarray:
-    """(n_gauges,) [N]: each gauge's mean over the tare record, with its scale."""
-    return np.array([g.scale * float(np.mean(tare.channel(g.name))) for g in rig.gauges])
+def tare_reactions(rig: Rig, tare: Run) -> tuple[np.ndarray, np.ndarray]:
+    """(n_gauges,) [N]: each gauge's mean over the tare record, with its scale; and (n_gauges,)
+    [N^2] its variance, from the scatter of the means of :data:`BLOCKS` blocks of the record
+    (drift and 1/f noise included)."""
+    means, var = [], []
+    for g in rig.gauges:
+        x = g.scale * np.asarray(tare.channel(g.name), dtype=float)
+        blocks = [float(np.mean(b)) for b in np.array_split(x, min(BLOCKS, len(x)))]
+        means.append(float(np.mean(x)))
+        var.append(float(np.var(blocks, ddof=1)) / len(blocks) if len(blocks) > 1 else 0.0)
+    return np.array(means), np.array(var)
 
 
 class _Misfit(NamedTuple):
@@ -84,9 +95,9 @@ class _Misfit(NamedTuple):
 
 def _misfit(rig: Rig, tare: Run) -> _Misfit:
     parts = weight_parts(rig)
-    read = tare_reactions(rig, tare)
+    read, noise = tare_reactions(rig, tare)
     d = read - sum((e for _, e in parts), start=np.zeros(len(read)))
-    return _Misfit(read, parts, d, np.linalg.pinv(_covariance(rig, read, parts)))
+    return _Misfit(read, parts, d, np.linalg.pinv(_covariance(rig, read, noise, parts)))
 
 
 def weight_chi_square(rig: Rig, tare: Run) -> tuple[float, int]:
@@ -95,11 +106,13 @@ def weight_chi_square(rig: Rig, tare: Run) -> tuple[float, int]:
     return m.chi_square, len(m.d)
 
 
-def _covariance(rig: Rig, read: np.ndarray, parts: list[tuple[str, np.ndarray]]) -> np.ndarray:
-    """The covariance of the tare's reactions less the weight's: zeros, scales, masses."""
+def _covariance(rig: Rig, read: np.ndarray, noise: np.ndarray,
+                parts: list[tuple[str, np.ndarray]]) -> np.ndarray:
+    """The covariance of the tare's reactions less the weight's: the record's noise, the
+    gauges' zeros and scales, the masses."""
     assert rig.weight is not None
     tb = rig.type_b
-    cov = np.diag(rig.weight.gauge_zero**2 + (tb.gauge_scale * read) ** 2)
+    cov = np.diag(noise + rig.weight.gauge_zero**2 + (tb.gauge_scale * read) ** 2)
     for _, e in parts:
         cov += tb.mass**2 * np.outer(e, e)
     return cov

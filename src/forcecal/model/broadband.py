@@ -41,7 +41,7 @@ from .coverage import check_scan_coverage, check_scan_on_rig
 from .frf import scan_response
 from .inertia import mass_coupling
 from .modal import PLAUSIBLE, ModalFit, identify, ratio_dof
-from .ratio_errors import error_directions, shared_ratio_errors
+from .ratio_errors import error_directions, principal_directions, shared_ratio_errors
 from .screening import MAX_SET_ASIDE, record_weights
 from .spatial import (
     MIN_SNR,
@@ -167,9 +167,10 @@ class BroadbandModel:
         built here. Refusals name the model by it (:attr:`origin`).
     ratio_directions : tuple of (n_dirs, n_lines) arrays, or None
         Per shape, the part of its ratio's error that neighbouring lines share (the lines'
-        noise through the splines, :func:`error_directions`; of Re and of Im each, the first
-        shape's empty): ``ratio_std`` holds it and each line's own part. None: every line's
-        error its own (the modal model's ratios, a model written before they were kept).
+        noise through the splines, or the modal model's parameters' through its ratios,
+        :func:`error_directions`; of Re and of Im each, the first shape's empty):
+        ``ratio_std`` holds it and each line's own part. None: every line's error its own (a
+        model written before they were kept).
     """
 
     band: tuple[float, float]
@@ -542,6 +543,9 @@ def _line_coordinates(basis: np.ndarray, weights: np.ndarray, values: np.ndarray
     return coords, cov * birge[:, None, None]
 
 
+RANK_FLOOR = 1e-12
+"""The modal ratios' covariance over the lines keeps its principal directions down to this
+share of its largest variance (below it, rounding)."""
 WEIGHT_RANGE = 1e8
 """A line's ratio variance is held within this factor of the lines' median either way before
 it weighs the spline: a line whose noise reads zero took the whole fit (its ratio 1e132) and
@@ -658,8 +662,9 @@ def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     ratios, std, choice
         As the module's model keeps them.
     directions : tuple of (n_dirs, n_lines) arrays, or None
-        The splines' error directions per shape (:func:`_spline_ratios`); None for the modal
-        model's ratios, whose errors are each line's own.
+        The ratios' error directions per shape: the splines' (:func:`_spline_ratios`), or the
+        modal model's, whose few parameters move every line at once
+        (:meth:`~forcecal.model.modal.ModalFit.ratio_covariances`).
     """
     spline, spline_std, var, spline_dof, directions = _spline_ratios(frequencies, coords, cov)
     if coords.shape[0] < 2:
@@ -683,7 +688,12 @@ def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
                          aic_spline=aic_spline, aic_modal=aic_modal, modes=_modes(fit),
                          level_noise=fit.level_noise)
     if chosen.source == "modal":
-        return modal, modal_std, chosen, None
+        # the covariance is of the parameters' rank: all of it kept, the far lines' large
+        # variance leaving none of the mode's out
+        shared = fit.ratio_covariances(frequencies)
+        return modal, modal_std, chosen, (np.zeros((0, len(frequencies))), *(
+            principal_directions(c, floor=RANK_FLOOR * float(np.max(np.diag(c), initial=0.0)))
+            for c in shared[1:]))
     return spline, spline_std, chosen, directions
 
 

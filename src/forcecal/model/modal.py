@@ -188,12 +188,26 @@ class ModalFit:
         """The ratios h_k / h_1 at ``frequencies`` [Hz] (n_out, n_freq) complex, the first row
         1, and the standard uncertainty of Re and of Im of each (their mean variance), by
         linear propagation of :attr:`covariance`."""
-        h, dh = self.response_jacobian(frequencies)
-        r = h / h[0]
-        dr = (dh - r[:, :, None] * dh[0][None]) / h[0][None, :, None]
+        r, dr = self._ratio_jacobian(frequencies)
         var = (np.einsum("klp,pq,klq->kl", dr.real, self.covariance, dr.real)
                + np.einsum("klp,pq,klq->kl", dr.imag, self.covariance, dr.imag))
         return r, np.sqrt(np.clip(var, 0.0, None) / 2.0)
+
+    def ratio_covariances(self, frequencies: np.ndarray) -> np.ndarray:
+        """(n_out, n_freq, n_freq): each ratio's covariance between the frequencies, of Re and
+        of Im each (their mean), by linear propagation of :attr:`covariance`: the few
+        parameters move every line's ratio at once (its diagonal is :meth:`ratios`' variance)."""
+        _, dr = self._ratio_jacobian(frequencies)
+        cov: np.ndarray = (np.einsum("klp,pq,kmq->klm", dr.real, self.covariance, dr.real)
+                           + np.einsum("klp,pq,kmq->klm", dr.imag, self.covariance, dr.imag))
+        return cov / 2.0
+
+    def _ratio_jacobian(self, frequencies: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The ratios (n_out, n_freq) and their derivative with the parameter vector (n_out,
+        n_freq, n_params), complex."""
+        h, dh = self.response_jacobian(frequencies)
+        r = h / h[0]
+        return r, (dh - r[:, :, None] * dh[0][None]) / h[0][None, :, None]
 
     def _s(self, frequencies: np.ndarray) -> np.ndarray:
         return 2j * np.pi * np.asarray(frequencies, float) / self.scale
