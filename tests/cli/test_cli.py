@@ -620,7 +620,8 @@ def test_a_saturating_law_with_the_runs_flux_points_to_the_flux_law(law, flux, h
     result = SimpleNamespace(
         calibration=SimpleNamespace(law=law, law_object=get_law(law), params=np.array([1e-5]),
                                     stderr=np.array([1e-9])),
-        uncertainty=None, runs=[SimpleNamespace(samples=SimpleNamespace(flux=flux))] * 2,
+        uncertainty=None, runs=[SimpleNamespace(samples=SimpleNamespace(flux=flux), name="r",
+                                                estimate=SimpleNamespace(notes=()))] * 2,
         selection=SimpleNamespace(candidates=fitted, skipped=(("power", "why"),),
                                   best=SimpleNamespace(held_out=SimpleNamespace(rms=0.015))))
     lines = _calibration_summary(result, tmp_path, certificate=False)

@@ -51,6 +51,33 @@ def test_the_calibration_summary_says_law_k_u_held_out_and_certificate():
     assert lines[-1] == "  no certificate (--no-report)"
 
 
+def _runs(*notes_per_run):
+    return [SimpleNamespace(name=f"r{k}", estimate=SimpleNamespace(notes=tuple(notes)))
+            for k, notes in enumerate(notes_per_run)]
+
+
+def test_the_summary_says_the_runs_notes_once_per_kind_the_commonest_first():
+    # the same note but for its numbers and its run is one kind; a check failing on every
+    # run reads "3 of 3 runs"; beyond four kinds a count; none: no line
+    weigh = "run 'a/r{}.csv': the tare 'a/tare.csv' reads {} N on the gauges"
+    result = campaign()
+    result.runs = _runs(*([weigh.format(k, 25.46 + k / 10), f"harmonic {5 + k}: no shape"]
+                          for k in range(3)))
+    lines = cli_main._notes_summary(result)
+    assert lines[0] == ("  note (3 of 3 runs; 'r0'): the tare 'a/tare.csv' reads 25.46 N on the "
+                        "gauges")
+    assert lines[1] == "  note (3 of 3 runs; 'r0'): harmonic 5: no shape"
+    assert lines[-1] == "  every run's notes: 'runs' in calibration.json"
+    result.runs = _runs(*([f"kind {chr(97 + j)}" for j in range(k + 1)] for k in range(6)))
+    lines = cli_main._notes_summary(result)
+    assert lines[:2] == ["  note (6 of 6 runs; 'r0'): kind a", "  note (5 of 6 runs; 'r1'): kind b"]
+    assert lines[4] == "  ... 2 more kinds of note"
+    result.runs = _runs((), ())
+    assert cli_main._notes_summary(result) == []
+    full = cli_main._calibration_summary(result, Path("cal"), certificate=False)
+    assert full[-1] == "  no certificate (--no-report)"
+
+
 def test_demo_says_every_step_even_without_a_terminal(tmp_path, capsys, monkeypatch):
     def fake_demo(out, progress):
         for step in ("simulating", "  [1/2] run a", "  [2/2] run b"):
