@@ -622,6 +622,7 @@ def test_a_saturating_law_with_the_runs_flux_points_to_the_flux_law(law, flux, h
                                     stderr=np.array([1e-9])),
         uncertainty=None, runs=[SimpleNamespace(samples=SimpleNamespace(flux=flux), name="r",
                                                 estimate=SimpleNamespace(notes=()))] * 2,
+        note_kinds=lambda: [],
         selection=SimpleNamespace(candidates=fitted, skipped=(("power", "why"),),
                                   best=SimpleNamespace(held_out=SimpleNamespace(rms=0.015))))
     lines = _calibration_summary(result, tmp_path, certificate=False)

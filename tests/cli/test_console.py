@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from forcecal.actuator import Calibration
+from forcecal.campaign import CampaignResult
 from forcecal.cli.main import main
 
 cli_main = importlib.import_module("forcecal.cli.main")     # the module (forcecal.cli.main is
@@ -29,8 +30,11 @@ def calibration(law: str = "k_i2_sfe2") -> Calibration:
 def campaign(law: str = "k_i2_sfe2", held_out: float = 0.00109, uncertainty=None):
     """What the summary reads of a campaign's result (:class:`CampaignResult`)."""
     best = SimpleNamespace(held_out=SimpleNamespace(rms=held_out))
-    return SimpleNamespace(calibration=calibration(law), uncertainty=uncertainty,
-                           selection=SimpleNamespace(best=best, candidates=(best,) * 4))
+    result = SimpleNamespace(calibration=calibration(law), uncertainty=uncertainty,
+                             selection=SimpleNamespace(best=best, candidates=(best,) * 4),
+                             runs=())
+    result.note_kinds = lambda: CampaignResult.note_kinds(result)
+    return result
 
 
 def test_the_calibration_summary_says_law_k_u_held_out_and_certificate():

@@ -532,3 +532,26 @@ def test_the_figure_is_written_in_the_format_asked_for(certified, tmp_path, fmt,
     # shown at the size it was drawn at: 12 inches at 96 CSS pixels each
     assert re.search(r'<img src="data:[^"]+" width="1152"', page)
     assert "Fig. 1 (after the paper&#39;s fig. 9)" in page
+
+
+def test_the_runs_notes_are_stated_once_per_kind(certified):
+    # the same note but for its numbers is one kind, the commonest first; without any note the
+    # page says that no run drew one
+    runs = certified.result.runs
+    tare = "run 'a/{}.csv': the tare 'a/tare.csv' reads {:.2f} N on the gauges"
+    drawn = [dataclasses.replace(r, estimate=dataclasses.replace(
+        r.estimate, notes=(tare.format(r.name, 25.0 + k),
+                           *(("harmonic 5: no shape in the scan model",) if k == 0 else ()))))
+        for k, r in enumerate(runs)]
+    noted = dataclasses.replace(certified.result, runs=tuple(drawn))
+    page = calibration_certificate(certified.rig, noted, provenance({}))
+    rows = _table(page, "Notes the runs drew")
+    assert rows[1:] == [["the tare 'a/tare.csv' reads 25.00 N on the gauges",
+                         f"{len(runs)} of {len(runs)}", runs[0].name],
+                        ["harmonic 5: no shape in the scan model", f"1 of {len(runs)}",
+                         runs[0].name]]
+    quiet = dataclasses.replace(certified.result, runs=tuple(
+        dataclasses.replace(r, estimate=dataclasses.replace(r.estimate, notes=()))
+        for r in runs))
+    page = calibration_certificate(certified.rig, quiet, provenance({}))
+    assert "No run drew a note" in page and "Notes the runs drew" not in page

@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -160,6 +161,19 @@ class CampaignResult:
     def s_fe(self) -> float | None:
         """The chosen law's iron-path offset ``s_fe`` [m], when it has one."""
         return self.params.get("s_fe")
+
+    def note_kinds(self) -> list[tuple[str, tuple[str, ...]]]:
+        """The runs' notes once per kind (the same text but for its numbers and its run's
+        path), the kinds the most runs carry first (else in the order met): the first note of
+        each kind, without its run's path, and the runs that carry it."""
+        kinds: dict[str, tuple[str, list[str]]] = {}
+        for run in self.runs:
+            for note in run.estimate.notes:
+                text = re.sub(r"^run '[^']*': ", "", note)
+                key = re.sub(r"[-+]?\d[\d.]*(e[-+]?\d+)?", "#", text)
+                kinds.setdefault(key, (text, []))[1].append(run.name)
+        ranked = sorted(kinds.values(), key=lambda kind: -len(kind[1]))   # stable: first first
+        return [(text, tuple(names)) for text, names in ranked]
 
     def __repr__(self) -> str:
         """One line: the law, its parameters with standard uncertainties, the runs."""

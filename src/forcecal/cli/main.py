@@ -388,20 +388,10 @@ MAX_NOTE_KINDS = 4
 
 
 def _notes_summary(result) -> list[str]:
-    """The runs' notes, said once per kind (the same text but for its numbers and the run), the
-    kinds the most runs carry first, each with how many runs carry it and the first of them;
-    every run's notes are in calibration.json."""
-    import re
-
-    kinds: dict[str, tuple[str, list[str]]] = {}
-    for run in getattr(result, "runs", ()):
-        for note in run.estimate.notes:
-            text = re.sub(r"^run '[^']*': ", "", note)
-            key = re.sub(r"[-+]?\d[\d.]*(e[-+]?\d+)?", "#", text)
-            kinds.setdefault(key, (text, []))[1].append(run.name)
-    ranked = sorted(kinds.values(), key=lambda kind: -len(kind[1]))      # stable: first first
-    n = len(result.runs) if kinds else 0
-    lines = [f"  note ({len(names)} of {n} runs; '{names[0]}'): {text}"
+    """The runs' notes, said once per kind (:meth:`CampaignResult.note_kinds`), each with how
+    many runs carry it and the first of them; every run's notes are in calibration.json."""
+    ranked = result.note_kinds()
+    lines = [f"  note ({len(names)} of {len(result.runs)} runs; '{names[0]}'): {text}"
              for text, names in ranked[:MAX_NOTE_KINDS]]
     if len(ranked) > MAX_NOTE_KINDS:
         lines.append(f"  ... {len(ranked) - MAX_NOTE_KINDS} more kinds of note")

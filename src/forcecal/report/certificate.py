@@ -517,6 +517,17 @@ def _runs(result: CampaignResult) -> Grid:
                 rows=tuple(rows))
 
 
+def _notes(result: CampaignResult) -> Grid | None:
+    """The runs' notes once per kind (:meth:`CampaignResult.note_kinds`): the note, how many
+    runs drew it, the first of them; None when no run drew one."""
+    kinds = result.note_kinds()
+    if not kinds:
+        return None
+    n = len(result.runs)
+    return Grid(caption="Notes the runs drew", header=("note", "runs", "first run"),
+                rows=tuple((text, f"{len(names)} of {n}", names[0]) for text, names in kinds))
+
+
 # --------------------------------------------------------------------------------------------
 # the page
 
@@ -600,6 +611,7 @@ def calibration_certificate(rig: Rig, result: CampaignResult, provenance: Mappin
         "pooled": pooled,
         "groups": groups,
         "runs": _runs(result),
+        "notes": _notes(result),
         "figure": None if figure is None else {
             **dict.fromkeys(("width", "link", "file"), ""), "caption": FIGURE_CAPTION,
             **({"src": figure} if isinstance(figure, str) else figure)},
