@@ -94,6 +94,14 @@ def test_valid_rig_round_trips_through_toml(tmp_path):
     assert again.actuator == rig.actuator and again.frequency == rig.frequency
 
 
+def test_the_weight_table_reads_with_its_default_gravity_and_round_trips(tmp_path):
+    rig = load_rig(write(tmp_path, VALID + "\n[weight]\ngauge_zero = 0.2\n"))
+    assert (rig.weight.gravity, rig.weight.gauge_zero) == (9.81, 0.2)
+    again = load_rig(write(tmp_path, tomli_w.dumps(rig_to_dict(rig)), "again.toml"))
+    assert again.weight == rig.weight
+    assert load_rig(write(tmp_path, VALID, "plain.toml")).weight is None
+
+
 # Each case: (what to change in VALID, the key the message must name, what it must say).
 FAULTS = {
     "missing key": (("length = 0.6\n", ""), "structure.length", "is missing"),

@@ -6,14 +6,13 @@ over the rig's mass quadrature and lumped masses (u: the component along +w, on 
 :meth:`forcecal.structures.Structure.up`). The tare's means less these, d, have the covariance
 of the record's noise, the gauges' zeros (``weight.gauge_zero``), their scales
 (``uncertainty.gauge_scale``) and the masses (``uncertainty.mass``: the distributed mass and
-each lumped mass on its own); d^T C^-1 d
-is a chi-square of one degree of freedom per gauge, judged at
-:data:`~forcecal.forces.diagnostics.FALSE_ALARM` a record. Beyond it the note gives the mass the
-gauges carry beyond the rig's, where it sits, and the mistakes of one parameter that explain d
-(the distributed mass, a lumped mass, a gauge's scale, every gauge's, a gauge's zero), the best
-first. The inertia term rests on the rig's masses: a mass the rig gets wrong is a force the
-method gets wrong by the same share of the inertia. A tare that carries current is not a weight
-(the other checks name it), and is not checked.
+each lumped mass on its own); d^T C^-1 d is a chi-square of one degree of freedom per gauge,
+judged at :data:`~forcecal.forces.diagnostics.FALSE_ALARM` a record. Beyond it the note gives
+the mass the gauges carry beyond the rig's, where it sits, and the mistakes of one parameter
+that explain d (the distributed mass, a lumped mass, a gauge's scale, every gauge's, a gauge's
+zero), the best first. The inertia term rests on the rig's masses: a mass the rig gets wrong is
+a force the method gets wrong by the same share of the inertia. A tare that carries current is
+not a weight (the other checks name it), and is not checked.
 """
 
 from __future__ import annotations
@@ -197,10 +196,12 @@ def weight_notes(rig: Rig, tare: Run | None, run: Run, what: str) -> list[str]:
     """
     if rig.weight is None or tare is None:
         return []
-    def rms(record: Run) -> float:
-        return float(np.sqrt(np.mean(np.square(record.channel(rig.actuator.current)))))
+    current = rig.actuator.current
 
-    if rms(tare) > IDLE_CURRENT * rms(run):
+    def rms(record: Run) -> float:
+        return float(np.sqrt(np.mean(np.square(record.channel(current)))))
+
+    if current in tare.channels and rms(tare) > IDLE_CURRENT * rms(run):
         return []
     read, parts, d, inv = m = _misfit(rig, tare)
     chi2, dof = m.chi_square, len(d)
