@@ -415,7 +415,8 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     # that memory holds the run, its series and no more
     flux = flux_notes(rig, run, seen.terms, f"run '{run.source}'")
     flux += pole_notes(rig, run, seen.terms, f"run '{run.source}'")
-    flux += weight_notes(rig, tare, run, f"run '{run.source}'")
+    if not ac_coupled:                       # AC-coupled gauges read no weight
+        flux += weight_notes(rig, tare, run, f"run '{run.source}'")
     static_series = _static_series(rig, run, seen.pinv, seen.tare_dc, ac_coupled)
     series = _series(est.force, est.f0, run)
     checks = _self_checks(rig, model, run, est, seen, series, ac_coupled)
