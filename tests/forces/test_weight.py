@@ -8,11 +8,12 @@ import dataclasses
 import re
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from forcecal.api import reconstruct
 from forcecal.forces.steady import reconstruct as steady_reconstruct
-from forcecal.forces.weight import weight_chi_square, weight_notes, weight_parts
+from forcecal.forces.weight import current_rms, weight_chi_square, weight_notes, weight_parts
 from forcecal.rig import Weight
 from forcecal.simulate.lab import gravity_preload
 from forcecal.simulate.presets import get_preset, with_realism
@@ -34,7 +35,7 @@ def test_the_rigs_weight_on_each_gauge_is_the_finite_element_models_preload(name
 
 
 def _note(rig, tare, run) -> str:
-    notes = weight_notes(rig, tare, run, "run")
+    notes = weight_notes(rig, tare, current_rms(rig, run), "run")
     assert len(notes) == 1, notes
     return notes[0]
 
@@ -49,7 +50,7 @@ def test_a_clean_tare_is_silent_and_a_mistaken_mass_or_zero_is_named(random_lab)
     rig, _, run, tare, _ = random_lab
     chi2, dof = weight_chi_square(rig, tare)
     assert dof == 2 and chi2 < 13.8                    # the 1e-3 quantile (achieved 1.74)
-    assert weight_notes(rig, tare, run, "run") == []
+    assert weight_notes(rig, tare, current_rms(rig, run), "run") == []
     # the distributed mass 30 % high in the rig (achieved +25.3 %: the zeros' 0.7 N on a 22 N
     # weight); a lumped mass of 17 times its value explains as well and is not named
     heavy = dataclasses.replace(rig, structure=rig.structure.with_masses(distributed=1.3))
@@ -63,9 +64,10 @@ def test_a_clean_tare_is_silent_and_a_mistaken_mass_or_zero_is_named(random_lab)
     assert 2.0 < _size(note, "gauge 'R1' zero (its reading without the structure)") < 4.0
     assert "cannot tell the first 2 apart" in note
     # a record with current is no weight: the run given as its own tare is not weighed
-    assert weight_notes(heavy, run, run, "run") == []
+    assert weight_notes(heavy, run, current_rms(rig, run), "run") == []
+    assert weight_notes(heavy, tare, None, "run") == []                # nothing to compare with
     # a rig that does not say its gauges read the weight is not checked
-    assert weight_notes(dataclasses.replace(heavy, weight=None), tare, run, "run") == []
+    assert weight_notes(dataclasses.replace(heavy, weight=None), tare, 1.0, "run") == []
 
 
 def test_the_estimate_under_any_drive_carries_the_note(random_lab):
@@ -94,3 +96,23 @@ def test_a_steady_estimate_weighs_its_tare_unless_the_gauges_are_ac_coupled(pape
 
     assert len(said()) == 1 and "2.51 kg less than the rig's masses" in said()[0]
     assert said(ac_coupled=True) == []
+
+
+def test_the_stream_weighs_its_tare_against_the_scans_drive(random_lab, tmp_path, capsys):
+    # as reconstruct: a tare 3 N off on its first gauge is noted before the stream writes; a
+    # clean one is silent (a record with current as the tare: the unit test above)
+    from forcecal.cli.main import main
+
+    rig, _, _, _, out = random_lab
+    frame = pd.read_csv(out / "runs" / "tare.csv")
+    frame["R1"] = frame["R1"] + 3.0 / rig.gauges[0].scale
+    frame.to_csv(tmp_path / "tare3.csv", index=False)
+    said = {}
+    for name, tare in (("shifted", tmp_path / "tare3.csv"), ("clean", out / "runs" / "tare.csv")):
+        assert main(["stream", str(out / "rig.toml"), str(out / "model.json"),
+                     str(out / "runs" / "random.csv"), "--tare", str(tare), "-o",
+                     str(tmp_path / f"{name}.csv")]) == 0
+        said[name] = [line for line in capsys.readouterr().err.splitlines()
+                      if "the rig's masses weigh" in line]
+    assert len(said["shifted"]) == 1 and "gauge 'R1' zero" in said["shifted"][0]
+    assert said["clean"] == []

@@ -60,7 +60,7 @@ from .uncertainty import (
     unresolved_inertia,
     unresolved_inertia_bound,
 )
-from .weight import weight_notes
+from .weight import current_rms, weight_notes
 
 __all__ = [
     "ForceEstimate",
@@ -416,7 +416,7 @@ def reconstruct(rig: Rig, model: SpatialModel, run: Run, n_harmonics: int | None
     flux = flux_notes(rig, run, seen.terms, f"run '{run.source}'")
     flux += pole_notes(rig, run, seen.terms, f"run '{run.source}'")
     if not ac_coupled:                       # AC-coupled gauges read no weight
-        flux += weight_notes(rig, tare, run, f"run '{run.source}'")
+        flux += weight_notes(rig, tare, current_rms(rig, run), f"run '{run.source}'")
     static_series = _static_series(rig, run, seen.pinv, seen.tare_dc, ac_coupled)
     series = _series(est.force, est.f0, run)
     checks = _self_checks(rig, model, run, est, seen, series, ac_coupled)

@@ -68,7 +68,7 @@ from .scan_check import run_line_notes
 from .solve import force_solve, reactions_only
 from .steady import channels_si
 from .unseen_motion import UnseenMotion, probe_misfit, unseen_notes, unseen_weights
-from .weight import weight_notes
+from .weight import current_rms, weight_notes
 
 __all__ = [
     "AnyDriveSetup",
@@ -856,7 +856,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
              transfer_note(setup.transfer, run.source),
              *unseen_notes(setup.unseen, tuple(rig.sensor_names), run.source),
              *type_b_notes(rig, run.source), *hum_notes(rig, tare, run.source),
-             *weight_notes(rig, tare, run, what),
+             *weight_notes(rig, tare, current_rms(rig, run), what),
              *scan.notes(run.source), *above, *(() if scale is None else (scale.note,)))
     return dataclasses.replace(
         TransientEstimate.from_window(rig, run.name, run.t0, fs, est, model.band, True, notes),

@@ -176,7 +176,13 @@ def _where(rig: Rig, d: np.ndarray) -> str:
                                               for a, c in zip(st.axes, centre, strict=False))
 
 
-def weight_notes(rig: Rig, tare: Run | None, run: Run, what: str) -> list[str]:
+def current_rms(rig: Rig, record: Run) -> float:
+    """[A] the RMS of a record's coil current (its mean included)."""
+    return float(np.sqrt(np.mean(np.square(rig.actuator.current_scale
+                                           * record.channel(rig.actuator.current)))))
+
+
+def weight_notes(rig: Rig, tare: Run | None, driven: float | None, what: str) -> list[str]:
     """A note when a tare's reactions contradict the rig's weight (see the module docstring).
 
     Parameters
@@ -185,8 +191,11 @@ def weight_notes(rig: Rig, tare: Run | None, run: Run, what: str) -> list[str]:
         With its ``[weight]`` table; without it, or without a tare, nothing is checked.
     tare : Run or None
         The zero-current record.
-    run : Run
-        The run it zeroes (a tare with current beside the run's is not checked).
+    driven : float or None
+        [A] the RMS current of a record under the drive (the run the tare zeroes, or the
+        scan's reference): a tare whose current exceeds :data:`IDLE_CURRENT` of it is not
+        weighed, nor one with a current channel when it is None. A tare without the current
+        channel is a zero-current record by declaration.
     what : str
         The run, at the start of the note.
 
@@ -196,12 +205,8 @@ def weight_notes(rig: Rig, tare: Run | None, run: Run, what: str) -> list[str]:
     """
     if rig.weight is None or tare is None:
         return []
-    current = rig.actuator.current
-
-    def rms(record: Run) -> float:
-        return float(np.sqrt(np.mean(np.square(record.channel(current)))))
-
-    if current in tare.channels and rms(tare) > IDLE_CURRENT * rms(run):
+    if rig.actuator.current in tare.channels and (
+            driven is None or current_rms(rig, tare) > IDLE_CURRENT * driven):
         return []
     read, parts, d, inv = m = _misfit(rig, tare)
     chi2, dof = m.chi_square, len(d)

@@ -198,6 +198,12 @@ class BroadbandModel:
         """What a refusal names the model by: the MODEL.json it was read from, else its scan."""
         return self.file or self.source
 
+    @property
+    def drive_rms(self) -> float | None:
+        """[A] the RMS of the scan's coil current (its bias and its spread); None when not kept
+        (spectra, FRFs)."""
+        return None if self.reference is None else float(np.hypot(*self.reference))
+
     def __repr__(self) -> str:
         """One line: the scan, the band, the shapes, the points and lines, the notes."""
         return (f"BroadbandModel(scan '{self.source}', band {self.band[0]:g}-{self.band[1]:g} "

@@ -124,6 +124,13 @@ class SpatialModel:
         return self.file or self.source
 
     @property
+    def drive_rms(self) -> float | None:
+        """[A] the RMS of the scan's coil current, from its harmonics; None when not kept."""
+        if self.drive is None:
+            return None
+        return float(np.sqrt(abs(self.drive[0]) ** 2 + np.sum(np.abs(self.drive[1:]) ** 2) / 2))
+
+    @property
     def one_shape(self) -> bool:
         """Whether one shape serves every harmonic (all pairwise MAC >= ONE_SHAPE_MAC)."""
         return bool(np.all(self.similarity >= ONE_SHAPE_MAC))
