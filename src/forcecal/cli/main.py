@@ -500,14 +500,13 @@ def _cmd_stream(args) -> int:
                              "stream has a fixed latency and no memory to set")
     tare = _read_runs([args.tare], rig, check=False)[0] if args.tare else None
     blocks = check_run_blocks(rig, open_run_blocks(args.run, rig))
-    if tare is not None:             # weighed as reconstruct weighs it, against the scan's drive
-        from ..forces.weight import weight_notes
-
-        for text in weight_notes(rig, tare, model.drive_rms, f"run '{args.run}'"):
-            _say(f"note: {text}")
     if tare is not None:             # as reconstruct: the gauges' zero (the probes' too under
         blocks = replace(blocks, offsets={c: float(np.mean(tare.channel(c)))     # any drive)
                                           for c in drive.zeroed_channels(rig, model)})
+        from ..forces.weight import weight_notes  # weighed against the scan's drive
+
+        for text in weight_notes(rig, tare, model.drive_rms, f"run '{args.run}'"):
+            _say(f"note: {text}")
     check = bounded_forces(blocks.source, MAX_FORCE_N)     # the limit every output keeps
     with blocks:
         if not to_stdout:
