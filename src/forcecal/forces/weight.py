@@ -8,15 +8,16 @@ of the record's noise, the gauges' zeros (``weight.gauge_zero``), their scales
 (``uncertainty.gauge_scale``) and the masses (``uncertainty.mass``: the distributed mass and
 each lumped mass on its own); d^T C^-1 d is a chi-square of one degree of freedom per gauge,
 judged at :data:`~forcecal.forces.diagnostics.FALSE_ALARM` a record. Beyond it the note gives
-the mass the gauges carry beyond the rig's, where it sits, and the mistakes of one parameter
-that explain d (the distributed mass, a lumped mass, a gauge's scale, every gauge's, a gauge's
-zero), the best first. The inertia term rests on the rig's masses: a mass the rig gets wrong is
-a force the method gets wrong by the same share of the inertia. A tare that carries current is
-not a weight (the other checks name it), and is not checked.
+the mass the gauges carry beyond the rig's, where it sits when that is beyond its noise, and the
+mistakes of one parameter that explain d (the distributed mass, a lumped mass, a gauge's scale,
+every gauge's, a gauge's zero), the best first. The inertia term rests on the rig's masses: a
+mass the rig gets wrong is a force the method gets wrong by the same share of the inertia. A
+tare that carries current is not a weight (the other checks name it), and is not checked.
 """
 
 from __future__ import annotations
 
+import dataclasses
 from typing import NamedTuple
 
 import numpy as np
@@ -36,6 +37,9 @@ SLIP = 0.5
 """The largest relative error of a mass or a scale named as an explanation: beyond it a value
 is not a slip but another mistake (a unit, a part left out), which the note's mass and centre
 describe."""
+CENTRED = 3.0
+"""The extra mass's standard uncertainties beyond which the note says where it sits (a total
+within its noise has no centre to speak of: d over a sum near zero)."""
 IDLE_CURRENT = 0.05
 """A tare whose current's RMS exceeds this share of the run's is not a weight record (the
 magnet would pull there with a share of the run's force near the square of it)."""
@@ -50,20 +54,17 @@ def weight_parts(rig: Rig) -> list[tuple[str, np.ndarray]]:
         The rig key that declares the mass, and the reactions its weight draws at rest.
     """
     assert rig.weight is not None
-    st = rig.structure
-    points, weights = mass_weights(rig)
-    field = weights * (rig.weight.gravity * st.up(points))[None, :]     # (n_g, n_q) [N]
-    n = len(st.masses)
-    lumped = np.zeros(field.shape[1], dtype=bool)
-    total = field.shape[1] // (3 if st.directed else 1)    # a body's nodes along x, y and z
-    for start in range(0, field.shape[1], total):
-        lumped[start + total - n:start + total] = True
-    parts = [(f"structure.{st.mass_field}", field[:, ~lumped].sum(axis=1))]
-    for k in range(n):
-        columns = [start + total - n + k for start in range(0, field.shape[1], total)]
-        parts.append((f"structure.masses[{k}] ({st.masses[k].mass:.3g} kg)",
-                      field[:, columns].sum(axis=1)))
-    return parts
+    st, g, n = rig.structure, rig.weight.gravity, len(rig.structure.masses)
+
+    def weighs(distributed: float, lumped: list[float]) -> np.ndarray:
+        alone = dataclasses.replace(rig, structure=st.with_masses(distributed, lumped))
+        points, weights = mass_weights(alone)
+        out: np.ndarray = weights @ (g * st.up(points))
+        return out
+
+    return [(f"structure.{st.mass_field}", weighs(1.0, [0.0] * n)),
+            *((f"structure.masses[{k}] ({m.mass:.3g} kg)",
+               weighs(0.0, [float(j == k) for j in range(n)])) for k, m in enumerate(st.masses))]
 
 
 def tare_reactions(rig: Rig, tare: Run) -> tuple[np.ndarray, np.ndarray]:
@@ -85,7 +86,8 @@ class _Misfit(NamedTuple):
     read: np.ndarray                          # (n_g,) [N] the tare's reactions
     parts: list[tuple[str, np.ndarray]]       # each mass's weight on the gauges
     d: np.ndarray                             # (n_g,) [N] the reactions less the weight
-    inv: np.ndarray                           # (n_g, n_g) [1/N^2] d's inverse covariance
+    cov: np.ndarray                           # (n_g, n_g) [N^2] d's covariance
+    inv: np.ndarray                           # (n_g, n_g) [1/N^2] its pseudo-inverse
 
     @property
     def chi_square(self) -> float:
@@ -96,7 +98,8 @@ def _misfit(rig: Rig, tare: Run) -> _Misfit:
     parts = weight_parts(rig)
     read, noise = tare_reactions(rig, tare)
     d = read - sum((e for _, e in parts), start=np.zeros(len(read)))
-    return _Misfit(read, parts, d, np.linalg.pinv(_covariance(rig, read, noise, parts)))
+    cov = _covariance(rig, read, noise, parts)
+    return _Misfit(read, parts, d, cov, np.linalg.pinv(cov))
 
 
 def weight_chi_square(rig: Rig, tare: Run) -> tuple[float, int]:
@@ -162,16 +165,18 @@ def _size_text(name: str, form: str, a: float) -> str:
     return f"{name} off by {100 * _relative(form, a):+.3g} %"
 
 
-def _where(rig: Rig, d: np.ndarray) -> str:
-    """The extra mass the gauges carry and, on a beam or plate, its centre."""
+def _where(rig: Rig, d: np.ndarray, cov: np.ndarray) -> str:
+    """The extra mass the gauges carry and, on a beam or plate where it is beyond
+    :data:`CENTRED` standard uncertainties, its centre."""
     assert rig.weight is not None
     st = rig.structure
     ups = st.up(st.coordinates(rig.gauge_points))
-    extra = float(ups @ d) / rig.weight.gravity
-    text = f"{abs(extra):.3g} kg {'more' if extra > 0 else 'less'} than the rig's masses"
-    if st.directed or ups @ d == 0:
+    total = float(ups @ d)
+    text = (f"{abs(total / rig.weight.gravity):.3g} kg {'more' if total > 0 else 'less'} than "
+            "the rig's masses")
+    if st.directed or abs(total) <= CENTRED * np.sqrt(float(ups @ cov @ ups)):
         return text
-    centre = np.asarray(rig.gauge_points, dtype=float)[:, :st.dim].T @ d / float(ups @ d)
+    centre = np.asarray(rig.gauge_points, dtype=float)[:, :st.dim].T @ d / total
     return text + ", centred at " + ", ".join(f"{a} = {c:.3g} m"
                                               for a, c in zip(st.axes, centre, strict=False))
 
@@ -208,7 +213,7 @@ def weight_notes(rig: Rig, tare: Run | None, driven: float | None, what: str) ->
     if rig.actuator.current in tare.channels and (
             driven is None or current_rms(rig, tare) > IDLE_CURRENT * driven):
         return []
-    read, parts, d, inv = m = _misfit(rig, tare)
+    read, parts, d, cov, inv = m = _misfit(rig, tare)
     chi2, dof = m.chi_square, len(d)
     limit = chi_square_limit(dof, FALSE_ALARM)
     if chi2 <= limit:
@@ -218,8 +223,8 @@ def weight_notes(rig: Rig, tare: Run | None, driven: float | None, what: str) ->
     explain = [t for t in tried if t[0] <= left and _plausible(t[3], t[1])]
     head = (f"{what}: the tare '{tare.source}' reads {float(read.sum()):.4g} N on the gauges "
             f"where the rig's masses weigh {float((read - d).sum()):.4g} N (weight.gravity = "
-            f"{rig.weight.gravity:g} m/s^2): {_where(rig, d)}; chi-square {chi2:.3g} for {dof} "
-            f"degrees of freedom (chance exceeds {limit:.3g} at a {FALSE_ALARM:g} rate)")
+            f"{rig.weight.gravity:g} m/s^2): {_where(rig, d, cov)}; chi-square {chi2:.3g} for "
+            f"{dof} degrees of freedom (chance exceeds {limit:.3g} at a {FALSE_ALARM:g} rate)")
     if not explain:
         c2, a, name, form = tried[0]
         return [f"{head}; no single mistake tried explains it (a mass, a gauge's scale or "

@@ -41,7 +41,7 @@ from .coverage import check_scan_coverage, check_scan_on_rig
 from .frf import scan_response
 from .inertia import mass_coupling
 from .modal import PLAUSIBLE, ModalFit, identify, ratio_dof
-from .ratio_errors import error_directions, principal_directions, shared_ratio_errors
+from .ratio_errors import error_directions, shared_ratio_errors
 from .screening import MAX_SET_ASIDE, record_weights
 from .spatial import (
     MIN_SNR,
@@ -552,6 +552,7 @@ def _line_coordinates(basis: np.ndarray, weights: np.ndarray, values: np.ndarray
 RANK_FLOOR = 1e-12
 """The modal ratios' covariance over the lines keeps its principal directions down to this
 share of its largest variance (below it, rounding)."""
+
 WEIGHT_RANGE = 1e8
 """A line's ratio variance is held within this factor of the lines' median either way before
 it weighs the spline: a line whose noise reads zero took the whole fit (its ratio 1e132) and
@@ -670,7 +671,7 @@ def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
     directions : tuple of (n_dirs, n_lines) arrays, or None
         The ratios' error directions per shape: the splines' (:func:`_spline_ratios`), or the
         modal model's, whose few parameters move every line at once
-        (:meth:`~forcecal.model.modal.ModalFit.ratio_covariances`).
+        (:meth:`~forcecal.model.modal.ModalFit.ratio_errors`).
     """
     spline, spline_std, var, spline_dof, directions = _spline_ratios(frequencies, coords, cov)
     if coords.shape[0] < 2:
@@ -694,13 +695,20 @@ def choose_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
                          aic_spline=aic_spline, aic_modal=aic_modal, modes=_modes(fit),
                          level_noise=fit.level_noise)
     if chosen.source == "modal":
-        # the covariance is of the parameters' rank: all of it kept, the far lines' large
-        # variance leaving none of the mode's out
-        shared = fit.ratio_covariances(frequencies)
         return modal, modal_std, chosen, (np.zeros((0, len(frequencies))), *(
-            principal_directions(c, floor=RANK_FLOOR * float(np.max(np.diag(c), initial=0.0)))
-            for c in shared[1:]))
+            _factor_directions(f) for f in fit.ratio_errors(frequencies)[1:]))
     return spline, spline_std, chosen, directions
+
+
+def _factor_directions(factor: np.ndarray) -> np.ndarray:
+    """(n_dirs, n_lines): the principal directions of the covariance A A^T of a factor A
+    (n_lines, k), each scaled by its standard deviation, down to :data:`RANK_FLOOR` of the
+    strongest: all of its rank (the modal ratios' far lines, of large variance, would leave
+    the mode's lines out of a share of the trace)."""
+    u, sv, _ = np.linalg.svd(factor, full_matrices=False)
+    keep = sv > np.sqrt(RANK_FLOOR) * float(np.max(sv, initial=0.0))
+    out: np.ndarray = (u[:, keep] * sv[keep]).T
+    return out
 
 
 def _modes(fit: ModalFit) -> np.ndarray:

@@ -193,14 +193,17 @@ class ModalFit:
                + np.einsum("klp,pq,klq->kl", dr.imag, self.covariance, dr.imag))
         return r, np.sqrt(np.clip(var, 0.0, None) / 2.0)
 
-    def ratio_covariances(self, frequencies: np.ndarray) -> np.ndarray:
-        """(n_out, n_freq, n_freq): each ratio's covariance between the frequencies, of Re and
-        of Im each (their mean), by linear propagation of :attr:`covariance`: the few
-        parameters move every line's ratio at once (its diagonal is :meth:`ratios`' variance)."""
+    def ratio_errors(self, frequencies: np.ndarray) -> np.ndarray:
+        """(n_out, n_freq, 2 n_params): each ratio's error as a factor A over the frequencies,
+        A A^T its covariance between them, of Re and of Im each (their mean), by linear
+        propagation of :attr:`covariance`: the few parameters move every line's ratio at once
+        (its diagonal is :meth:`ratios`' variance). A factor, not the covariance: its size
+        grows with the lines, not their square."""
         _, dr = self._ratio_jacobian(frequencies)
-        cov: np.ndarray = (np.einsum("klp,pq,kmq->klm", dr.real, self.covariance, dr.real)
-                           + np.einsum("klp,pq,kmq->klm", dr.imag, self.covariance, dr.imag))
-        return cov / 2.0
+        values, vectors = np.linalg.eigh(0.5 * (self.covariance + self.covariance.T))
+        root = vectors * np.sqrt(np.clip(values, 0.0, None))               # C = root root^T
+        out: np.ndarray = np.concatenate([dr.real @ root, dr.imag @ root], axis=2) / np.sqrt(2)
+        return out
 
     def _ratio_jacobian(self, frequencies: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The ratios (n_out, n_freq) and their derivative with the parameter vector (n_out,
