@@ -566,15 +566,32 @@ def verdict(lab: Lab, which: Mistake | None = None) -> Result:
     """Make the mistake ``which`` (None: none, the baseline) on a copy of ``lab``, run
     ``forcecal reconstruct`` (and ``forcecal scan`` first when needed) and judge it."""
     with tempfile.TemporaryDirectory(dir=lab.root) as tmp:
-        name = "clean" if which is None else which.name
-        case = Case(lab=lab, folder=Path(tmp), rig=json.loads(json.dumps(lab.rig)),
-                    run=lab.run.copy(), tare=None if lab.tare is None else lab.tare.copy(),
-                    rows=np.arange(len(lab.run)), scans=list(lab.scans),
-                    rng=np.random.default_rng([lab.seed, zlib.crc32(name.encode())]))
-        if which is not None:
-            which.edit(case)
+        case = _case(lab, which, Path(tmp))
         code, err, out = _run(case)
         return _judge(case, which, code, err, out)
+
+
+def streamed(lab: Lab, which: Mistake | None = None) -> tuple[int, list[str]]:
+    """Make the mistake ``which`` as :func:`verdict` does and run ``forcecal stream`` instead:
+    its exit status and its notes (or its one line of refusal)."""
+    with tempfile.TemporaryDirectory(dir=lab.root) as tmp:
+        case = _case(lab, which, Path(tmp))
+        code, err, _ = _run(case, "stream")
+        lines = [line for line in err.splitlines() if line.strip()]
+        said = [line for line in lines if line.startswith("note: ")]
+        return code, said if code == 0 else lines[-1:]
+
+
+def _case(lab: Lab, which: Mistake | None, folder: Path) -> Case:
+    """A copy of ``lab`` in ``folder`` with the mistake ``which`` made on it."""
+    name = "clean" if which is None else which.name
+    case = Case(lab=lab, folder=folder, rig=json.loads(json.dumps(lab.rig)),
+                run=lab.run.copy(), tare=None if lab.tare is None else lab.tare.copy(),
+                rows=np.arange(len(lab.run)), scans=list(lab.scans),
+                rng=np.random.default_rng([lab.seed, zlib.crc32(name.encode())]))
+    if which is not None:
+        which.edit(case)
+    return case
 
 
 def _needs_scan(case: Case) -> bool:
@@ -590,8 +607,9 @@ def _needs_scan(case: Case) -> bool:
             or geometry(case.rig) != geometry(case.lab.rig))
 
 
-def _run(case: Case) -> tuple[int, str, Path]:
-    """Write the case's files and run the commands: exit status, stderr, output folder."""
+def _run(case: Case, command: str = "reconstruct") -> tuple[int, str, Path]:
+    """Write the case's files and run the commands (``reconstruct`` or ``stream``): exit
+    status, stderr, output folder."""
     folder, stem = case.folder, case.lab.spec.run
     rig = folder / "rig.toml"
     rig.write_text(tomli_w.dumps(case.rig), encoding="utf-8")
@@ -608,8 +626,14 @@ def _run(case: Case) -> tuple[int, str, Path]:
     if case.tare is not None:
         case.tare.to_csv(folder / "tare_record.csv", index=False)
         tare = ["--tare", folder / "tare_record.csv"]
-    code, err = quiet_main(["reconstruct", rig, model, run, "-o", folder / "out", *tare])
-    return code, err, folder / "out"
+    out = folder / "out"
+    if command == "stream":
+        out.mkdir()
+        code, err = quiet_main(["stream", rig, model, run, "-o", out / f"{stem}.forces.csv",
+                                *tare])
+        return code, err, out
+    code, err = quiet_main(["reconstruct", rig, model, run, "-o", out, *tare])
+    return code, err, out
 
 
 def _judge(case: Case, which: Mistake | None, code: int, err: str, out: Path) -> Result:

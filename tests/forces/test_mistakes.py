@@ -34,6 +34,7 @@ from mistakes import (
     build_lab,
     mistake,
     rezero,
+    streamed,
     verdict,
 )
 
@@ -97,6 +98,28 @@ def test_caught_mistake_keeps_its_verdict(lab, name):
     said = result.message if expected == REFUSED else " ".join(result.notes)
     for phrase in phrases:
         assert phrase in said, (phrase, said)
+
+
+STREAMED = ("gauge scale +10%", "skew gauges 4", "probe scale +10%", "time in ms")
+"""Caught mistakes a steady stream must catch too, from its first seconds: a note of the
+force-against-flux check, of the probes against the scan, and a refusal."""
+
+
+@pytest.mark.parametrize("name", STREAMED)
+def test_the_stream_catches_what_reconstruct_catches(lab, name):
+    # ``stream`` checks its first 10 periods as ``reconstruct`` checks a record: the same
+    # phrases, the note saying which seconds it judged; the clean run's stream is silent
+    expected, phrases = CAUGHT[name]
+    code, said = streamed(lab, mistake(name))
+    assert code == (2 if expected == REFUSED else 0), said
+    for phrase in phrases:
+        assert phrase in " ".join(said), (phrase, said)
+    if expected == NOTED:
+        assert all("(its first 0.5 s, as reconstruct checks it)" in n for n in said), said
+
+
+def test_the_clean_stream_is_silent(lab):
+    assert streamed(lab) == (0, [])
 
 
 def test_one_gauges_offset_is_not_blamed_on_the_tare(lab):

@@ -27,6 +27,7 @@ from forcecal.realtime import (
     steady_count,
     write_stream_csv,
 )
+from forcecal.realtime.replay import stream_steady
 from forcecal.records import Run
 from forcecal.signals.harmonics import design_matrix, fit_harmonics
 from forcecal.simulate.presets import NoiseSpec
@@ -635,3 +636,23 @@ def test_stream_takes_a_tare(paper, paper_dir, tmp_path, kind):
     late = slice(len(a) // 2, None)                 # once the recursive estimate has settled
     shift = (c["total"] - a["total"]).to_numpy()[late]
     np.testing.assert_allclose(np.mean(shift), -0.2, atol=1e-6)
+
+
+def test_the_streamed_forces_carry_the_notes_of_their_first_seconds(paper):
+    # the in-memory stream says what ``reconstruct`` says of the run's first 10 periods (at
+    # least 0.5 s): a gauge's scale 10 % off in the rig is named from the force against the flux;
+    # the clean run draws no note
+    from forcecal.realtime.first_segment import MIN_SECONDS, PERIODS
+
+    rig, _, model, run = paper
+    slipped = dataclasses.replace(rig, gauges=(
+        dataclasses.replace(rig.gauges[0], scale=1.1 * rig.gauges[0].scale), *rig.gauges[1:]))
+    n = int(np.ceil(max(MIN_SECONDS, PERIODS / model.f0) * run.fs))
+    first = Run(channels={k: v[:n] for k, v in run.channels.items()}, fs=run.fs, t0=run.t0,
+                source=run.source)
+    head = f"run '{run.source}'"
+    batch = tuple(head + " (its first 0.5 s, as reconstruct checks it)" + text[len(head):]
+                  for text in reconstruct(slipped, model, first).notes)
+    notes = stream_steady(slipped, model, run).notes
+    assert notes == batch and any("gauge 'R1' scale" in text for text in notes), notes
+    assert stream_steady(rig, model, run).notes == ()

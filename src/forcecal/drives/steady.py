@@ -118,7 +118,7 @@ class SteadyDrive:
             return stream_any_table(rig, model, blocks, output, check=check, note=note,
                                     tare=tare)
         return stream_table(rig, model, blocks, output, block=block, check=check,
-                            forgetting=forgetting)
+                            forgetting=forgetting, note=note)
 
     def check_report(self, rig: Rig) -> None:
         """``report`` draws a harmonic model: a broadband scan's rig is refused."""

@@ -25,6 +25,7 @@ from ..model.spatial import SpatialModel
 from ..records import Run
 from ..rig import Rig
 from .estimator import StreamEstimator
+from .first_segment import FirstSegment
 
 __all__ = [
     "StreamedForces",
@@ -188,7 +189,7 @@ def stream_rows(force: np.ndarray, static: np.ndarray,
 def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str | Path,
                  block: int = 256, *, check: Check | None = None, digits: int = CSV_DIGITS,
                  stdout: IO[bytes] | None = None, f0_guess: float | None = None,
-                 **options: object) -> int:
+                 note: Callable[[str], None] | None = None, **options: object) -> int:
     """Stream a run file through the estimator into a table, block by block.
 
     Parameters
@@ -212,6 +213,9 @@ def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str |
         Where ``-`` writes (default: standard output).
     f0_guess : float, optional
         As :func:`replay`.
+    note : callable, optional
+        Called with the notes of ``reconstruct``'s checks on the stream's first seconds as
+        soon as they arrive (:class:`~forcecal.realtime.first_segment.FirstSegment`).
     **options
         As :class:`StreamEstimator` (``n_harmonics``, ``forgetting``, ...).
 
@@ -224,14 +228,28 @@ def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str |
     est = _estimator(rig, model, blocks.fs, blocks.t0, f0_guess, dict(options))
     names = est.force_names
     size = block * max(1, STREAM_READ // block)   # whole calls of ``block`` a read
+    first = None if note is None else FirstSegment(
+        rig, model, blocks.fs, blocks.t0, blocks.n_samples, list(blocks.channel_names),
+        blocks.source, note)
+    read = list(est.channel_names)
+    extra = [c for c in (first.channels if first else []) if c not in read]
+    rows = [[*read, *extra].index(c) for c in (first.channels if first else [])]
+
+    def raw() -> Iterator[np.ndarray]:
+        for samples in blocks.blocks([*read, *extra], size):
+            if first is not None:
+                first.add(samples[rows])
+            yield samples[:len(read)]
+
     with table_writer(target, stream_columns(names, std=True), blocks.fs, blocks.t0, digits=digits,
                       rows=blocks.n_samples, stdout=stdout) as out:
-        for time, force, static, std in stream_forces(
-                est, blocks.blocks(est.channel_names, size), block, blocks.t0):
+        for time, force, static, std in stream_forces(est, raw(), block, blocks.t0):
             if check is not None:
                 check(time, dict(zip(names, force, strict=True)),
                       dict(zip(names, static, strict=True)))
             out.write(time, stream_rows(force, static, std))
+        if first is not None:        # before the table is in place: a refusal leaves none
+            first.finish()
         return out.rows
 
 
@@ -352,7 +370,9 @@ class StreamedForces:
 def stream_steady(rig: Rig, model: SpatialModel, run: Run, tare: Run | None = None,
                   block: int = 256) -> StreamedForces:
     """A run under a steady drive through the recursive estimator, as ``stream`` gives it
-    (with the defaults of :class:`StreamEstimator`), the tare's gauge DC taken off.
+    (with the defaults of :class:`StreamEstimator`), the tare's gauge DC taken off, with the
+    notes of ``reconstruct``'s checks on its first seconds
+    (:class:`~forcecal.realtime.first_segment.FirstSegment`).
 
     Raises
     ------
@@ -363,7 +383,13 @@ def stream_steady(rig: Rig, model: SpatialModel, run: Run, tare: Run | None = No
                                          for g in rig.gauges]
     est = _estimator(rig, model, run.fs, run.t0, None, {"tare_dc": tare_dc})
     force, static, std = _replay_arrays(est, run, block)
-    return StreamedForces(run.name, tuple(est.force_names), run.time, force, static, std)
+    notes: list[str] = []
+    first = FirstSegment(rig, model, run.fs, run.t0, run.time.size, list(run.channels),
+                         run.source, notes.append, tare=tare)
+    first.add(np.stack([run.channel(c) for c in first.channels]))
+    first.finish()
+    return StreamedForces(run.name, tuple(est.force_names), run.time, force, static, std,
+                          tuple(notes))
 
 
 def _replay_arrays(est: StreamEstimator, run: Run, block: int
