@@ -88,3 +88,31 @@ def test_a_transfer_with_a_pole_at_a_real_frequency_is_refused():
     q += np.sqrt(VAR_Q) * rng.standard_normal(n)
     assert abs(undamped.response(np.array([160.0]))[0]) > 1e10
     assert fit_reaction_transfer(q, u, FS, BAND, VAR_Q) is None
+
+
+def _narrow(seed: int, seconds: float = 2.0) -> tuple[np.ndarray, np.ndarray]:
+    """A sweep's first seconds: the reactions-only force swept slowly over 40-45 Hz, the
+    coordinate it ties with white noise, cut from a record three times as long."""
+    rng = np.random.default_rng(seed)
+    n = int(seconds * FS)
+    t = np.arange(3 * n) / FS
+    u = 1.5 * np.sin(2 * np.pi * np.cumsum(40.0 + 5.0 * np.clip(t / seconds - 1, 0, 1)) / FS)
+    f = np.fft.rfftfreq(3 * n, 1 / FS)
+    q = np.fft.irfft(TRUE.response(f) * np.fft.rfft(u), 3 * n)
+    cut = slice(n, 2 * n)
+    return q[cut] + np.sqrt(VAR_Q) * rng.standard_normal(n), 6.0 + u[cut]
+
+
+def test_a_narrow_band_finds_the_output_errors_minimum():
+    """On a drive that holds 40-45 Hz the Sanathanan-Koerner iterations settle away from the
+    output error's minimum (a_2 13-18 % low, the static gain 0.7-1.0 % low over five records);
+    the fit goes on to the minimum: the static gain within 0.5 % (achieved 0.19 % at most),
+    a_2 within 10 % (achieved 3.4 %), the chi-square per degree of freedom 0.9-1.15
+    (achieved 0.95-1.09)."""
+    for seed in range(5):
+        q, u = _narrow(seed)
+        fit = fit_reaction_transfer(q, u, FS, BAND, VAR_Q)
+        assert fit is not None
+        ratio = _params(fit) / _params(TRUE)
+        assert abs(ratio[0] - 1) < 0.005 and abs(ratio[2] - 1) < 0.10, (seed, ratio)
+        assert 0.9 < fit.chi2 < 1.15, (seed, fit.chi2)

@@ -134,14 +134,19 @@ def _at_lines(x: np.ndarray, lines: np.ndarray, spacing: float, t0: float) -> np
 
 def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray,
                pinv: np.ndarray, fs: float, t0: float, band: tuple[float, float],
-               mains: float | None) -> EstimateTerms:
+               mains: float | None,
+               noise: tuple[np.ndarray, np.ndarray] | None = None) -> EstimateTerms:
     """The terms of an estimate under any drive, on at most :data:`MAX_LINES` lines of the
     records' discrete Fourier transform spread over the band (and the DC): none within
     GUARD + 1 lines of a harmonic of the mains (hum on the flux or the gauges is not the
     force's), only those where the reactions carry the forces (:data:`INERTIA_SHARE`). The
     forces are Psi^+ (J - R) line by line, each line's noise the force's mean variance over the
     record shared among the lines the reactions carry (more than its share: it lies on the
-    band's other lines too).
+    band's other lines too). With ``noise``, the noise of Psi^+ (J - R) itself (not the Wiener
+    gains' less) lies on each line as its density does, and the rest of the variance (the
+    transfer's, the scan's, the type-B sources') is shared as above: a record whose drive
+    holds a narrow band has gains that take most of the noise away from the estimate, but not
+    from the terms compared.
 
     Parameters
     ----------
@@ -156,6 +161,8 @@ def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray
     band : (low, high) [Hz]
     mains : float or None [Hz]
         ``acquisition.mains``.
+    noise : ((n_f, bins), (n_f, N)) ndarrays, optional
+        ``WindowEstimate.noise_density`` and ``WindowEstimate.borne``.
 
     Returns
     -------
@@ -175,11 +182,32 @@ def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray
     n_carried = int(np.count_nonzero(carried[1:]))
     chosen = np.flatnonzero(carried)
     chosen = np.concatenate([[0], chosen[1::max(1, -(-n_carried // MAX_LINES))]])
+    var = np.repeat((np.mean(np.square(force_std), axis=1) / max(n_carried, 1))[:, None],
+                    len(chosen), axis=1)
+    if noise is not None:
+        var[:, 1:] = _line_noise(noise[0], freq[every[chosen[1:]]], freq[1:], fs) + (
+            np.mean(noise[1], axis=1) / max(n_carried, 1))[:, None]
     r, j = r[:, chosen], j[:, chosen]
-    sigma = np.sqrt(np.mean(np.square(force_std), axis=1) / max(n_carried, 1))
-    return EstimateTerms(force=pinv @ (j - r), std=np.repeat(sigma[:, None], len(chosen), axis=1),
+    return EstimateTerms(force=pinv @ (j - r), std=np.sqrt(var),
                          reactions=r, inertia=j, pinv=pinv, kept=np.ones(len(chosen), dtype=bool),
                          w0=spacing, lines=every[chosen])
+
+
+def _line_noise(density: np.ndarray, at: np.ndarray, lines: np.ndarray, fs: float
+                ) -> np.ndarray:
+    """(n_f, len(at)): the variance of the real (and of the imaginary) part of a record's
+    phasors at the frequencies ``at`` [Hz] from a noise of ``density`` (n_f, bins) per sample
+    at a frame's bins, the record's lines above the DC being ``lines`` [Hz] (Parseval: the
+    lines' variances sum to the noise's variance per sample)."""
+    bins = density.shape[-1]
+    grid = np.linspace(0.0, fs / 2, bins)
+    fold = np.full(bins, 2.0)
+    fold[0] = fold[-1] = 1.0
+    per_sample = density @ fold / (2 * (bins - 1))
+    shape = np.stack([np.interp(lines, grid, d) for d in density])
+    share = np.stack([np.interp(at, grid, d) for d in density]) / np.maximum(
+        np.sum(shape, axis=1, keepdims=True), 1e-300)
+    return per_sample[:, None] * share
 
 
 def pole_fluxes(rig: Rig, run: Run) -> dict[int, np.ndarray]:

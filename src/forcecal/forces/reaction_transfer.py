@@ -127,7 +127,11 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
     The record's transform ties Q = (B U + C) / A: C(s), a polynomial of order
     ``DEN_ORDER + NUM_ORDER``, is the record's ends' share (the transient term of a finite
     record: what the structure held at its first sample and still holds at its last), fitted
-    beside G and set aside (Pintelon and Schoukens, System Identification, ch. 2 and 6).
+    beside G and set aside (Pintelon and Schoukens, System Identification, ch. 2 and 6). The
+    Sanathanan-Koerner iterations give the start; the output error (Q - (B U + C) / A) / sigma
+    is then minimised (Levenberg-Marquardt): on a record whose drive holds a narrow band (a
+    sweep's first seconds) the iterations settle away from that minimum, its static gain off
+    and its chi-square well above the minimum's (docs/method.md, "any drive").
     """
     n = q.size
     f = np.fft.rfftfreq(n, 1.0 / fs)
@@ -139,6 +143,32 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
     qf = np.fft.rfft(q - q.mean())[sel]
     uf = np.fft.rfft(u - u.mean())[sel]
     sigma = np.sqrt(var_q * n / 2.0)                  # noise of Re or Im of a bin
+    p = _sanathanan_koerner(s, qf, uf)
+    if p is None:
+        return None
+    p = _output_error_minimum(p, s, qf, uf, sigma)
+    nb, na = NUM_ORDER + 1, DEN_ORDER
+    # a pole on the axis of real frequencies would make the response infinite there
+    poles = np.roots(np.r_[1.0, p[nb:nb + na]][::-1])
+    if np.any(np.abs(poles.real) < POLE_MARGIN * np.abs(poles)):
+        return None
+    res, jac = _output_error(p, s, qf, uf, sigma)
+    jr = np.hstack([jac.real, jac.imag]).T
+    dof = 2 * res.size - p.size
+    chi2 = float(np.sum(np.abs(res) ** 2) / dof)
+    try:
+        cov = np.linalg.inv(jr.T @ jr)[:nb + na, :nb + na] * max(chi2, 1.0)
+    except np.linalg.LinAlgError:
+        return None
+    if not np.all(np.isfinite(cov)):
+        return None
+    return ReactionTransfer(num=p[:nb], den=np.r_[1.0, p[nb:nb + na]], scale=scale, cov=cov,
+                            chi2=chi2)
+
+
+def _sanathanan_koerner(s: np.ndarray, qf: np.ndarray, uf: np.ndarray) -> np.ndarray | None:
+    """(b_0 .., a_1 .., c_0 ..) of Q A = B U + C by iterations weighted by the last
+    denominator; None when they are not finite."""
     nb, na, nc = NUM_ORDER + 1, DEN_ORDER, DEN_ORDER + NUM_ORDER + 1
     den = np.ones(s.size, dtype=complex)
     p = np.zeros(nb + na + nc)
@@ -157,24 +187,41 @@ def fit_reaction_transfer(q: np.ndarray, u: np.ndarray, fs: float, band: tuple[f
         den = np.polyval(np.r_[1.0, p[nb:nb + na]][::-1], s)
         if settled:
             break
-    # a pole on the axis of real frequencies would make the response infinite there
-    poles = np.roots(np.r_[1.0, p[nb:nb + na]][::-1])
-    if np.any(np.abs(poles.real) < POLE_MARGIN * np.abs(poles)):
-        return None
-    fit = ReactionTransfer(num=p[:nb], den=np.r_[1.0, p[nb:nb + na]], scale=scale,
-                           cov=np.zeros((nb + na, nb + na)), chi2=1.0)
+    return p
+
+
+def _output_error(p: np.ndarray, s: np.ndarray, qf: np.ndarray, uf: np.ndarray, sigma: float
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """The residual (Q - (B U + C) / A) / sigma at the bins and its derivatives
+    (n_params, n_bins) by (b_0 .., a_1 .., c_0 ..)."""
+    nb, na, nc = NUM_ORDER + 1, DEN_ORDER, DEN_ORDER + NUM_ORDER + 1
+    den = np.polyval(np.r_[1.0, p[nb:nb + na]][::-1], s)
+    g = np.polyval(p[:nb][::-1], s) / den
     ends = np.polyval(p[nb + na:][::-1], s) / den
-    res = (qf - fit.response(f[sel]) * uf - ends) / sigma
-    jac = np.vstack([-(fit.sensitivities(f[sel]) * uf),         # d res / d params, times sigma
+    res = (qf - g * uf - ends) / sigma
+    jac = np.vstack([*(-(s**k) * uf / den for k in range(nb)),
+                     *((g * uf + ends) * s**k / den for k in range(1, na + 1)),
                      *(-(s**k) / den for k in range(nc))]) / sigma
-    jac[nb:nb + na] += np.stack([ends * s**k / den for k in range(1, na + 1)]) / sigma
-    jr = np.hstack([jac.real, jac.imag]).T
-    dof = 2 * res.size - p.size
-    chi2 = float(np.sum(np.abs(res) ** 2) / dof)
-    try:
-        cov = np.linalg.inv(jr.T @ jr)[:nb + na, :nb + na] * max(chi2, 1.0)
-    except np.linalg.LinAlgError:
-        return None
-    if not np.all(np.isfinite(cov)):
-        return None
-    return ReactionTransfer(num=fit.num, den=fit.den, scale=scale, cov=cov, chi2=chi2)
+    return res, jac
+
+
+def _output_error_minimum(p: np.ndarray, s: np.ndarray, qf: np.ndarray, uf: np.ndarray,
+                          sigma: float) -> np.ndarray:
+    """The parameters at the output error's least squares from ``p`` (Levenberg-Marquardt);
+    ``p`` kept where the minimisation does not end finite and lower."""
+    from scipy.optimize import least_squares  # on use: a steady stream starts without it
+
+    def fun(x: np.ndarray) -> np.ndarray:
+        res = _output_error(x, s, qf, uf, sigma)[0]
+        return np.concatenate([res.real, res.imag])
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        d = _output_error(x, s, qf, uf, sigma)[1]
+        return np.hstack([d.real, d.imag]).T
+
+    start = float(np.sum(fun(p) ** 2))
+    with np.errstate(all="ignore"):
+        sol = least_squares(fun, p, jac=jac, method="lm", x_scale="jac")
+    if np.all(np.isfinite(sol.x)) and 2.0 * sol.cost < start:
+        return np.asarray(sol.x)
+    return p

@@ -334,8 +334,9 @@ def with_reaction_priors(setup: AnyDriveSetup, gauges: np.ndarray, probes: np.nd
     (n_probes, N) [m]: a stream's smoothers follow its drive. A sweep's first seconds hold only
     its bottom: smoothers set there, at 170 Hz where the whole run's were at 182 Hz, put the
     stream 1.3 of the batch's uncertainty off at the sweep's top, 140-150 Hz; and a transfer
-    fitted there misses a mode the sweep reaches later (the ``dwell`` preset), which the
-    probes' part then takes, its band set from what the transfer leaves in the stretch."""
+    fitted there misses a mode the sweep reaches later (the ``dwell`` preset) until the stream
+    fits it again (:mod:`forcecal.realtime.transfer_refits`): the probes' part takes what it
+    misses, its band set from what the transfer leaves in the stretch."""
     fs, band = setup.fs, setup.band
     models = tuple(band_model(fs, *_prior(g, fs, band, v, mains=mains), v)
                    for g, v in zip(gauges, setup.var_g, strict=True))
@@ -495,7 +496,12 @@ class WindowEstimate:
     (n_forces, N) reactions only; ``inertia``, ``reactions`` (n_gauges, N); ``coordinate``
     (N,); ``passed`` (n_forces,): the share of each force's smoothed noise the Wiener gains
     let through; ``scan_noise`` (N,) [N^2]: the part of the total's variance the scan's noise
-    gives (:func:`forcecal.forces.inertia_errors.scan_noise_weights`).
+    gives (:func:`forcecal.forces.inertia_errors.scan_noise_weights`); ``noise_density``
+    (n_forces, frame // 2 + 1): the density per sample of the noise of each force before the
+    Wiener gains, Psi^+ (J - R) as the cross-checks compare it, at the frame's bins (its
+    variance per sample ``noise_density @ fold / frame``); ``borne`` (n_forces, N) [N^2]: the
+    part of each force's variance that is no noise (the transfer's parameters, the scan, the
+    type-B sources, the record's ends, the inertia's scale).
     """
 
     force: np.ndarray
@@ -508,17 +514,30 @@ class WindowEstimate:
     coordinate: np.ndarray
     passed: np.ndarray
     scan_noise: np.ndarray
+    noise_density: np.ndarray
+    borne: np.ndarray
+
+    _WHOLE = ("passed", "noise_density")
+    """The fields of the window as a whole, not sample by sample."""
 
     def part(self, samples: slice) -> WindowEstimate:
-        """The ``samples`` of the stretch (``passed`` is the window's)."""
-        return WindowEstimate(**{f.name: getattr(self, f.name) if f.name == "passed"
+        """The ``samples`` of the stretch (``passed`` and ``noise_density`` are the
+        window's)."""
+        return WindowEstimate(**{f.name: getattr(self, f.name) if f.name in self._WHOLE
                                  else getattr(self, f.name)[..., samples] for f in fields(self)})
 
     @staticmethod
     def join(parts: Sequence[WindowEstimate]) -> WindowEstimate:
-        """Stretches one after another (``passed``: the largest share)."""
+        """Stretches one after another (``passed``, ``noise_density``: the largest, the
+        densities on the finest frame's bins)."""
+        bins = max(p.noise_density.shape[-1] for p in parts)
+        grid = np.linspace(0.0, 1.0, bins)
+        density = np.max([np.stack([np.interp(grid, np.linspace(0.0, 1.0, d.shape[-1]), d)
+                                    * (d.shape[-1] - 1) / (bins - 1) for d in p.noise_density])
+                          for p in parts], axis=0)
         return WindowEstimate(**{
             f.name: np.max([p.passed for p in parts], axis=0) if f.name == "passed"
+            else density if f.name == "noise_density"
             else np.concatenate([getattr(p, f.name) for p in parts], axis=-1)
             for f in fields(WindowEstimate)})
 
@@ -593,7 +612,8 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
                                                                    + var[-1]),
                           static=reactions_only(pinv, gauges), inertia=inner(inertia),
                           reactions=inner(reactions), coordinate=inner(q), passed=sw.passed,
-                          scan_noise=inner(scan[-1]))
+                          scan_noise=inner(scan[-1]),
+                          noise_density=np.sum(np.abs(noise) ** 2, axis=1), borne=var[:-1])
 
 
 def _coordinate_and_reactions(setup: AnyDriveSetup, gauges: np.ndarray, values: np.ndarray
@@ -780,7 +800,8 @@ def with_scale_std(est: WindowEstimate, pinv: np.ndarray, scale: InertiaScale
     force's and the total's."""
     var = scale_variance(pinv, est.inertia, scale.std / scale.scale)
     return dataclasses.replace(est, force_std=np.sqrt(est.force_std**2 + var[:-1]),
-                               total_std=np.sqrt(est.total_std**2 + var[-1]))
+                               total_std=np.sqrt(est.total_std**2 + var[-1]),
+                               borne=est.borne + var[:-1])
 
 
 def _calibrated_inertia(rig: Rig, run: Run, model: BroadbandModel, setup: AnyDriveSetup,
@@ -847,7 +868,7 @@ def reconstruct_any(rig: Rig, model: BroadbandModel, run: Run, tare: Run | None 
     scan = ScanNoiseShare(fs, run.t0)
     scan.add(np.vstack([est.scan_noise, est.total_std**2]))
     terms = line_terms(est.force_std, est.reactions, est.inertia, setup.pinv, fs, run.t0,
-                       model.band, rig.mains)
+                       model.band, rig.mains, (est.noise_density, est.borne))
     what = f"run '{run.source}'"
     notes = (*flux_notes(rig, run, terms, what), *pole_notes(rig, run, terms, what),
              *run_line_notes(rig, model, run, est.coordinate, what),

@@ -63,6 +63,7 @@ from ..signals.checks import NOISE_BLOCK, AboveBand, check_channel_noise
 from ..signals.wiener import stft_frame
 from .replay import Check, stream_columns, stream_rows
 from .segment_checks import SegmentChecks
+from .transfer_refits import TransferRefits
 
 __all__ = ["stream_any", "stream_any_table"]
 
@@ -164,6 +165,7 @@ class AnyDriveStream:
         self._given = 0
         self._checked = 0        # samples whose channels' noise has been checked
         self._block = int(round(NOISE_BLOCK * fs))
+        self._refits: TransferRefits | None = None      # its own setup's transfer, refitted
 
     @property
     def channel_names(self) -> list[str]:
@@ -206,6 +208,8 @@ class AnyDriveStream:
             g, p = first[:self._n_g], first[self._n_g:self._n_g + self._n_p]
             self._setup = any_drive_setup(self.rig, self.model, g, p, self.fs, self.source,
                                           self._tare, self._tare_fs)
+            if self._own_setup:
+                self._refits = TransferRefits(self._setup, g, p, self.fs, self.rig.mains)
             if self._flux and self._own_setup:     # the inertia's scale from the warm-up
                 n = self._n_g + self._n_p
                 est = window_forces(self._setup, self.model, g, p,
@@ -214,6 +218,11 @@ class AnyDriveStream:
                 self._setup, self.inertia_scale = inertia_scaled(
                     self.rig, self.model, self._setup, est, first[n:], self.source)
         self._check()
+        if self._refits is not None and self._refits.received < self._received:
+            new = self._buffer[:, self._refits.received - self._start:
+                               self._received - self._start]
+            self._setup = self._refits.add(self._setup, new[:self._n_g],
+                                           new[self._n_g:self._n_g + self._n_p])
         end = self._received if final else self._received - self._latency
         if end - self._given < (1 if final else self._step):
             return out

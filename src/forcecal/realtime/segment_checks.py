@@ -85,7 +85,7 @@ class SegmentChecks:
         n = est.force.shape[-1]
         t0 = self.t0 + self._start / self.fs
         terms = line_terms(est.force_std, est.reactions, est.inertia, pinv, self.fs, t0,
-                           self.band, self.rig.mains)
+                           self.band, self.rig.mains, (est.noise_density, est.borne))
         terms = dataclasses.replace(terms, rate=FALSE_ALARM / self.count)
         channels: Mapping[str, np.ndarray] = dict(zip(self.channels, raw, strict=True)) or {
             name: r for name, r in zip(self.rig.gauge_names, est.reactions, strict=True)}
