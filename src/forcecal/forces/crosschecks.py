@@ -176,8 +176,11 @@ def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray
     every = np.concatenate([[0], inside]).astype(int)             # the DC, then the band
     r, j = (_at_lines(x, every, spacing, t0) for x in (reactions, inertia))
     # the inertia is the estimate's least known part, most near a resonance: lines where the
-    # reactions carry the forces (the inertia at most INERTIA_SHARE of them) are compared
-    carried = np.all(np.abs(pinv @ j) <= INERTIA_SHARE * np.abs(pinv @ r), axis=0)
+    # reactions carry the forces (the inertia at most INERTIA_SHARE of them) are compared,
+    # judged by their neighbours' power, not the line's own: a line picked for its own
+    # reactions' size is one whose noise happens to be large
+    carried = np.all(_beside(np.abs(pinv @ j) ** 2)
+                     <= INERTIA_SHARE**2 * _beside(np.abs(pinv @ r) ** 2), axis=0)
     carried[0] = True
     n_carried = int(np.count_nonzero(carried[1:]))
     chosen = np.flatnonzero(carried)
@@ -191,6 +194,20 @@ def line_terms(force_std: np.ndarray, reactions: np.ndarray, inertia: np.ndarray
     return EstimateTerms(force=pinv @ (j - r), std=np.sqrt(var),
                          reactions=r, inertia=j, pinv=pinv, kept=np.ones(len(chosen), dtype=bool),
                          w0=spacing, lines=every[chosen])
+
+
+NEIGHBOURS = 4
+"""Lines on either side whose power judges whether the reactions carry a line's forces."""
+
+
+def _beside(power: np.ndarray) -> np.ndarray:
+    """(n, L): each line's neighbours' mean ``power`` (n, L), :data:`NEIGHBOURS` on either side
+    (fewer at the ends), the line itself left out."""
+    kernel = np.ones(2 * NEIGHBOURS + 1)
+    kernel[NEIGHBOURS] = 0.0
+    ones = np.ones(power.shape[-1])
+    count = np.convolve(ones, kernel, mode="same")
+    return np.stack([np.convolve(row, kernel, mode="same") for row in power]) / count
 
 
 def _line_noise(density: np.ndarray, at: np.ndarray, lines: np.ndarray, fs: float

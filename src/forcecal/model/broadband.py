@@ -443,7 +443,8 @@ def _drive_line_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndar
     lab scan one such line's spurious first coordinate took the splines' ratio there to 4,
     where the drive's lines read 0.005)."""
     if np.all(good):
-        return choose_ratios(frequencies, coords, cov)
+        ratios, std, choice, directions = choose_ratios(frequencies, coords, cov)
+        return ratios, _holding(std, directions), choice, directions
     ratios, std, choice, directions = choose_ratios(frequencies[good], coords[:, good],
                                                     cov[good])
     at = frequencies[good]
@@ -452,8 +453,21 @@ def _drive_line_ratios(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndar
         return np.array([np.interp(frequencies, at, row) for row in rows]).reshape(
             len(rows), len(frequencies))
 
-    return (onto(ratios.real) + 1j * onto(ratios.imag), onto(std), choice,
-            None if directions is None else tuple(onto(d) for d in directions))
+    directions = None if directions is None else tuple(onto(d) for d in directions)
+    return (onto(ratios.real) + 1j * onto(ratios.imag), _holding(onto(std), directions),
+            choice, directions)
+
+
+def _holding(std: np.ndarray, directions: tuple[np.ndarray, ...] | None) -> np.ndarray:
+    """Each ratio's standard uncertainty (n_shapes, n_lines) at least its shared errors' (the
+    directions' squares summed at a line), of which it is the whole: the modal ratios'
+    variance and the factor's directions are computed apart, and lines between the drive's
+    are interpolated, so they can part by a few parts in 1e4."""
+    if directions is None:
+        return std
+    shared = np.array([np.sqrt(np.sum(np.square(d), axis=0)) if len(d) else
+                       np.zeros(std.shape[-1]) for d in directions])
+    return np.maximum(std, shared)
 
 
 def _broadband_band(rig: Rig, scan: Scan | ScanSpectra | ScanFRF) -> tuple[float, float]:
