@@ -533,8 +533,7 @@ class WindowEstimate:
         bins = max(p.noise_density.shape[-1] for p in parts)
         grid = np.linspace(0.0, 1.0, bins)
         density = np.max([np.stack([np.interp(grid, np.linspace(0.0, 1.0, d.shape[-1]), d)
-                                    * (d.shape[-1] - 1) / (bins - 1) for d in p.noise_density])
-                          for p in parts], axis=0)
+                                    for d in p.noise_density]) for p in parts], axis=0)
         return WindowEstimate(**{
             f.name: np.max([p.passed for p in parts], axis=0) if f.name == "passed"
             else density if f.name == "noise_density"

@@ -214,8 +214,9 @@ def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str |
     f0_guess : float, optional
         As :func:`replay`.
     note : callable, optional
-        Called with the notes of ``reconstruct``'s checks on the stream's first seconds as
-        soon as they arrive (:class:`~forcecal.realtime.first_segment.FirstSegment`).
+        Called with the notes of ``reconstruct``'s checks on the stream's first seconds once
+        the run is through, before the table is in place
+        (:class:`~forcecal.realtime.first_segment.FirstSegment`; a refusal leaves no table).
     **options
         As :class:`StreamEstimator` (``n_harmonics``, ``forgetting``, ...).
 
