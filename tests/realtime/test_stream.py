@@ -642,7 +642,7 @@ def test_the_streamed_forces_carry_the_notes_of_their_first_seconds(paper):
     # the in-memory stream says what ``reconstruct`` says of the run's first 10 periods (at
     # least 0.5 s): a gauge's scale 10 % off in the rig is named from the force against the flux;
     # the clean run draws no note
-    from forcecal.realtime.first_segment import MIN_SECONDS, PERIODS
+    from forcecal.realtime.end_segments import MIN_SECONDS, PERIODS
 
     rig, _, model, run = paper
     slipped = dataclasses.replace(rig, gauges=(
@@ -656,3 +656,15 @@ def test_the_streamed_forces_carry_the_notes_of_their_first_seconds(paper):
     notes = stream_steady(slipped, model, run).notes
     assert notes == batch and any("gauge 'R1' scale" in text for text in notes), notes
     assert stream_steady(rig, model, run).notes == ()
+
+
+def test_a_gauge_that_slips_mid_run_is_named_from_the_streams_last_seconds(paper):
+    # R1 reads 10 % high from 0.5 s on (a gauge that slips): the first 0.5 s draw no note, the
+    # last 0.5 s name R1's scale (achieved +10.1 %), the note saying which seconds it judged
+    rig, _, model, run = paper
+    n = run.time.size // 2
+    slipped = dict(run.channels)
+    slipped["R1"] = np.concatenate([run.channel("R1")[:n], 1.1 * run.channel("R1")[n:]])
+    notes = stream_steady(rig, model, dataclasses.replace(run, channels=slipped)).notes
+    assert notes and all("(its last 0.5 s, as reconstruct checks it)" in t for t in notes), notes
+    assert any("gauge 'R1' scale" in t for t in notes), notes

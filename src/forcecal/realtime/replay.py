@@ -24,8 +24,8 @@ from ..io.table_writer import CSV_DIGITS, table_writer
 from ..model.spatial import SpatialModel
 from ..records import Run
 from ..rig import Rig
+from .end_segments import EndSegments
 from .estimator import StreamEstimator
-from .first_segment import FirstSegment
 
 __all__ = [
     "StreamedForces",
@@ -214,9 +214,9 @@ def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str |
     f0_guess : float, optional
         As :func:`replay`.
     note : callable, optional
-        Called with the notes of ``reconstruct``'s checks on the stream's first seconds once
-        the run is through, before the table is in place
-        (:class:`~forcecal.realtime.first_segment.FirstSegment`; a refusal leaves no table).
+        Called with the notes of ``reconstruct``'s checks on the stream's first (and last)
+        seconds once the run is through, before the table is in place
+        (:class:`~forcecal.realtime.end_segments.EndSegments`; a refusal leaves no table).
     **options
         As :class:`StreamEstimator` (``n_harmonics``, ``forgetting``, ...).
 
@@ -229,7 +229,7 @@ def stream_table(rig: Rig, model: SpatialModel, blocks: RunBlocks, target: str |
     est = _estimator(rig, model, blocks.fs, blocks.t0, f0_guess, dict(options))
     names = est.force_names
     size = block * max(1, STREAM_READ // block)   # whole calls of ``block`` a read
-    first = None if note is None else FirstSegment(
+    first = None if note is None else EndSegments(
         rig, model, blocks.fs, blocks.t0, blocks.n_samples, list(blocks.channel_names),
         blocks.source, note)
     read = list(est.channel_names)
@@ -372,8 +372,8 @@ def stream_steady(rig: Rig, model: SpatialModel, run: Run, tare: Run | None = No
                   block: int = 256) -> StreamedForces:
     """A run under a steady drive through the recursive estimator, as ``stream`` gives it
     (with the defaults of :class:`StreamEstimator`), the tare's gauge DC taken off, with the
-    notes of ``reconstruct``'s checks on its first seconds
-    (:class:`~forcecal.realtime.first_segment.FirstSegment`).
+    notes of ``reconstruct``'s checks on its first (and last) seconds
+    (:class:`~forcecal.realtime.end_segments.EndSegments`).
 
     Raises
     ------
@@ -385,8 +385,8 @@ def stream_steady(rig: Rig, model: SpatialModel, run: Run, tare: Run | None = No
     est = _estimator(rig, model, run.fs, run.t0, None, {"tare_dc": tare_dc})
     force, static, std = _replay_arrays(est, run, block)
     notes: list[str] = []
-    first = FirstSegment(rig, model, run.fs, run.t0, run.time.size, list(run.channels),
-                         run.source, notes.append, tare=tare)
+    first = EndSegments(rig, model, run.fs, run.t0, run.time.size, list(run.channels),
+                        run.source, notes.append, tare=tare)
     first.add(np.stack([run.channel(c) for c in first.channels]))
     first.finish()
     return StreamedForces(run.name, tuple(est.force_names), run.time, force, static, std,
