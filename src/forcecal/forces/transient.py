@@ -594,7 +594,8 @@ def window_forces(setup: AnyDriveSetup, model: BroadbandModel, gauges: np.ndarra
     basis = _total_basis(len(pinv))
     sw = wiener_smooth(basis @ force, np.einsum("jk,ksb->jsb", basis, noise), fs, frame,
                        np.vstack([basis.T, basis.sum(axis=1)]))
-    edge = ends_std(ext.inner, ext.missed, pinv, by_gauges, by_probes, reach, len(gauges))
+    edge = ends_std(ext.inner, ext.missed, pinv, by_gauges, by_probes, reach, len(gauges),
+                    _part_kernels(setup, frame))
     scan = short_time_variance(acc, np.vstack([setup.error_weights(model, frame),
                                                setup.noise_weights(model, frame)[-1:]]),
                                fs, frame)                 # and the total's by its noise alone
@@ -693,6 +694,19 @@ def _noise_paths(setup: AnyDriveSetup, correction: Callable[[np.ndarray], np.nda
         (np.sqrt(setup.var_q) * per_q)[:, None, :],
         np.stack([g * np.sqrt(v) for g, v in zip(per_gauge, setup.var_g, strict=True)]
                  + hum, axis=1)], axis=1)
+
+
+def _part_kernels(setup: AnyDriveSetup, frame: int) -> tuple[np.ndarray, np.ndarray]:
+    """The impulse responses (``frame`` samples, lag 0 first) of q_1'' to a gauge's reaction
+    (its smoother, then the transfer, s^2 G) and to the coordinate (the probes' part's
+    smoother): how far each part of the inertia reaches past a sample."""
+    f = np.fft.rfftfreq(frame, 1.0 / setup.fs)
+    transfer = setup.transfer
+    to_gauges = (np.zeros_like(f) if transfer is None
+                 else smoother_response(setup.reaction_models[0], 0, frame)
+                 * (2j * np.pi * f) ** 2 * transfer.response(f))
+    to_probes = smoother_response(setup.residual_model, 2, frame)
+    return np.fft.irfft(to_gauges, frame), np.fft.irfft(to_probes, frame)
 
 
 def _total_basis(n: int) -> np.ndarray:
