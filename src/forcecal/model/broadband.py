@@ -462,7 +462,7 @@ def _holding(std: np.ndarray, directions: tuple[np.ndarray, ...] | None) -> np.n
     """Each ratio's standard uncertainty (n_shapes, n_lines) at least its shared errors' (the
     directions' squares summed at a line), of which it is the whole: the modal ratios'
     variance and the factor's directions are computed apart, and lines between the drive's
-    are interpolated, so they can part by a few parts in 1e4."""
+    are interpolated, so they can part slightly (docs/method.md, "any drive")."""
     if directions is None:
         return std
     shared = np.array([np.sqrt(np.sum(np.square(d), axis=0)) if len(d) else

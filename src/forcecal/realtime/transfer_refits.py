@@ -25,8 +25,8 @@ from ..forces.transient import AnyDriveSetup
 __all__: list[str] = []     # used by the stream alone (realtime.any_drive)
 
 LAST = 16.0
-"""[s] the last refit: by then a sweep through the band has shown the transfer its modes (the
-``dwell`` preset's mode at 69 Hz is reached at 10 s)."""
+"""[s] the last refit: by then a slow sweep through the band has shown the transfer its modes
+(the ``dwell`` preset reaches its mode halfway)."""
 
 
 class TransferRefits:
