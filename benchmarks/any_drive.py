@@ -103,7 +103,8 @@ def _claimed(folder: Path, model: Path, run: str, truth: pd.DataFrame) -> np.nda
     setup (1 within the band, falling beyond its top as the gauges' own smoother does; content
     above the band is the gauges' and the transfer's, not the scan's), carried past the
     record's ends and with its mean passed whole, as the estimate's reactions are."""
-    from forcecal.forces.transient import any_drive_setup, run_channels
+    from forcecal.forces.any_setup import any_drive_setup
+    from forcecal.forces.transient import run_channels
     from forcecal.signals.kalman import smooth_states
     from forcecal.signals.record_ends import extend
 

@@ -190,7 +190,7 @@ def test_the_reactions_carry_the_inertia_where_the_probes_are_noisy(beam, bb_mod
     (achieved 0.18-0.28 %), each force within 0.35 % of it (achieved 0.11-0.12 %); from the
     probes alone (no transfer) the windows err 1.2-1.7 % (test > 1 %). The transfer leaves
     chi-square 1.02 per degree of freedom (test 0.8-1.25), and the note says so."""
-    import forcecal.forces.transient as transient_setup
+    import forcecal.forces.any_setup as transient_setup
 
     rng = np.random.default_rng(21)
     n = int(4.0 * FS)
@@ -220,7 +220,7 @@ def test_what_the_transfer_misses_is_left_to_the_probes(beam, bb_model, monkeypa
     in every 0.5 s window inside the record (achieved 1.09-1.62 %, the probes alone's 1.2-1.7 %);
     without the residual (every line of it taken for noise) the windows err 10-22 % (test
     > 5 %)."""
-    import forcecal.forces.transient as transient_setup
+    import forcecal.forces.any_setup as transient_setup
     from forcecal.forces.reaction_transfer import fit_reaction_transfer
 
     rng = np.random.default_rng(22)
@@ -253,7 +253,8 @@ def test_forces_off_the_scans_load_pattern_are_noted_and_bounded(beam, bb_model)
     from the first 2 s, the same note and 0.22. The same forces in the scan's pattern leave
     chi-square 0.83 (test 0.7-1.3) and no note; with one probe read 2 % high, 26 (test > 4:
     its coordinate, and so the inertia, is 1 % off)."""
-    from forcecal.forces.transient import any_drive_setup, run_channels
+    from forcecal.forces.any_setup import any_drive_setup
+    from forcecal.forces.transient import run_channels
     from forcecal.forces.unseen_motion import MISFIT_LIMIT
 
     rng = np.random.default_rng(23)

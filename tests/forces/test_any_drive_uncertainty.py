@@ -196,7 +196,8 @@ def test_the_scans_noise_is_its_part_of_the_stated_variance_and_noted(beam, bb_s
     largest value); where it makes most of the stated variance in some half second (a scan 8
     times noisier) the run is noted, in batch and in the stream, and on the fixture's scan it
     is not."""
-    from forcecal.forces.transient import any_drive_setup, run_channels, window_forces
+    from forcecal.forces.any_setup import any_drive_setup
+    from forcecal.forces.transient import run_channels, window_forces
     from forcecal.signals.wiener import stft_frame
 
     rig = beam[3]
@@ -231,7 +232,7 @@ def test_the_probes_hum_is_stated_from_the_tare(beam, bb_model, monkeypatch):
     error over its stated uncertainty inside the record 1.23 and each force's 1.23 (test
     0.7-1.6); with the gauges' tones alone 10.5-10.7 (test > 4), the estimate's error 14.4 %
     of the AC RMS against 9.8 % (1.3 % without hum)."""
-    import forcecal.forces.transient as transient_setup
+    import forcecal.forces.any_setup as transient_setup
     from forcecal.forces.reaction_transfer import fit_reaction_transfer
 
     rig = dataclasses.replace(beam[3], mains=50.0)
@@ -287,7 +288,8 @@ def test_the_scans_noise_moves_the_forces_as_stated(beam, chirp):
     (the largest within the noise, Morozov's discrepancy principle) the same study over 8
     draws at the fixture's noise gave 4.4: the smoothing's bias at the band's bottom, the
     same in every draw, was not stated."""
-    from forcecal.forces.transient import any_drive_setup, run_channels, window_forces
+    from forcecal.forces.any_setup import any_drive_setup
+    from forcecal.forces.transient import run_channels, window_forces
     from forcecal.signals.wiener import stft_frame
 
     rig = beam[3]

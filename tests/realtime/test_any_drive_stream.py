@@ -27,7 +27,8 @@ def test_stream_matches_the_batch_estimate(beam, bb_model, random_run):
     so a window's edges matter little); from its own first two seconds (its own transfer), to 0.5
     RMS (achieved 0.088, its gauges' smoothers set in every window; test 0.25) and within 0.17 %
     of the true total's AC RMS (achieved 0.058 %, the batch 0.056 %)."""
-    from forcecal.forces.transient import any_drive_setup, run_channels
+    from forcecal.forces.any_setup import any_drive_setup
+    from forcecal.forces.transient import run_channels
     from forcecal.realtime.any_drive import stream_arrays
 
     rig = beam[3]
@@ -374,7 +375,8 @@ def test_the_cross_checks_state_the_compared_terms_own_noise(dwell_start, monkey
     lines chosen by their own power (test above 1.2: a line picked for its reactions' size is
     one whose noise happens to be large)."""
     import forcecal.forces.crosschecks as checks
-    from forcecal.forces.transient import any_drive_setup, run_channels, window_forces
+    from forcecal.forces.any_setup import any_drive_setup
+    from forcecal.forces.transient import run_channels, window_forces
     from forcecal.signals.wiener import stft_frame
 
     rig, model, run, truth = dwell_start

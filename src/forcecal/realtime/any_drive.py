@@ -7,7 +7,7 @@ from displacements lags it. So the stream gives every sample once the samples a 
 the samples it gives:
 
 - the first ``warmup`` seconds set what the batch estimate takes from the whole record
-  (:func:`forcecal.forces.transient.any_drive_setup`); nothing is given before they arrive;
+  (:func:`forcecal.forces.any_setup.any_drive_setup`); nothing is given before they arrive;
 - then, whenever ``step`` seconds can be given, the window from ``history`` before them to the
   newest sample goes through :func:`forcecal.forces.transient.window_forces` and the samples
   at least ``latency`` old are given; the window starts on the Wiener frames' hop, as the
@@ -16,7 +16,7 @@ the samples it gives:
 
 Memory and work per sample stay flat in the record's length. A stream set up from its own
 first seconds sets its smoothers again in every window from the window's own records
-(:func:`forcecal.forces.transient.with_reaction_priors`: a sweep's first seconds hold only its
+(:func:`forcecal.forces.any_setup.with_reaction_priors`: a sweep's first seconds hold only its
 bottom).
 """
 
@@ -32,16 +32,15 @@ from typing import IO
 import numpy as np
 
 from ..errors import InputError
+from ..forces.any_setup import AnyDriveSetup, any_drive_setup, with_reaction_priors
 from ..forces.budget import type_b_notes
 from ..forces.inertia_errors import ScanNoiseShare
 from ..forces.inertia_scale import InertiaScale
 from ..forces.scan_check import SEGMENT, LineRatio, run_line_notes
 from ..forces.transient import (
     TRANSFER_MISFIT,
-    AnyDriveSetup,
     TransientEstimate,
     WindowEstimate,
-    any_drive_setup,
     check_length,
     hum_notes,
     inertia_scaled,
@@ -49,7 +48,6 @@ from ..forces.transient import (
     run_inputs,
     transfer_note,
     window_forces,
-    with_reaction_priors,
     with_scale_std,
 )
 from ..forces.unseen_motion import unseen_notes
@@ -111,7 +109,7 @@ class AnyDriveStream:
         The run, named in messages.
     tare, tare_fs : (n_gauges + n_probes, n) array [N and m] and float [Hz], optional
         A zero-current record's gauges, then its probes: with ``acquisition.mains``, their hum
-        tones join the noise (:func:`forcecal.forces.transient.any_drive_setup`).
+        tones join the noise (:func:`forcecal.forces.any_setup.any_drive_setup`).
     flux : sequence of str
         The run's flux channels, fed after the probes: the inertia's scale is calibrated in
         situ from the first ``warmup`` seconds (:mod:`forcecal.forces.inertia_scale`, as

@@ -19,8 +19,8 @@ import math
 
 import numpy as np
 
+from ..forces.any_setup import AnyDriveSetup
 from ..forces.reaction_transfer import fit_reaction_transfer
-from ..forces.transient import AnyDriveSetup
 
 __all__: list[str] = []     # used by the stream alone (realtime.any_drive)
 
