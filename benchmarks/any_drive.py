@@ -39,7 +39,7 @@ Writes benchmarks/results/any_drive.json (with --only or --ratios spline,
 any_drive_<preset>_<ratios>.json). ``--only`` runs one preset's drive runs (seed 0 and the
 worst windows of seeds 1-2; the sweep's stepped sines at seed 0) without the stepped sines'
 other seeds and the lab rig; ``--ratios spline`` keeps the splines' ratios whatever the
-criterion says (:func:`forcecal.model.broadband.choose_ratios`), the estimate before the
+criterion says (:func:`forcecal.model.ratios.choose_ratios`), the estimate before the
 modal model, and ``--ratios modal`` takes the modal model's wherever one is identified.
 ``--lab SEEDS`` runs the lab rig's drive runs alone at seeds 0..SEEDS-1
 (any_drive_lab.json).
@@ -61,7 +61,7 @@ import pandas as pd
 import scipy.ndimage
 import scipy.signal
 
-import forcecal.model.broadband as broadband
+import forcecal.model.ratios as ratio_model
 from forcecal.cli.main import main
 from forcecal.io.run_files import read_run
 from forcecal.model.broadband import load_any_model
@@ -474,22 +474,22 @@ def _report_lab(lab: list[dict]) -> None:
 
 
 def _keep_splines(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice, tuple | None]:
-    """:func:`forcecal.model.broadband.choose_ratios` before the modal model: the splines'."""
+                  ) -> tuple[np.ndarray, np.ndarray, ratio_model.RatioChoice, tuple | None]:
+    """:func:`forcecal.model.ratios.choose_ratios` before the modal model: the splines'."""
     _, _, choice, _ = _CHOOSE(frequencies, coords, cov)
-    ratios, std, _, _, directions = broadband._spline_ratios(frequencies, coords, cov)
+    ratios, std, _, _, directions = ratio_model._spline_ratios(frequencies, coords, cov)
     return ratios, std, dataclasses.replace(choice, source="spline"), directions
 
 
-_CHOOSE = broadband.choose_ratios
+_CHOOSE = ratio_model.choose_ratios
 
 
 def _take_modal(frequencies: np.ndarray, coords: np.ndarray, cov: np.ndarray
-                ) -> tuple[np.ndarray, np.ndarray, broadband.RatioChoice, tuple | None]:
+                ) -> tuple[np.ndarray, np.ndarray, ratio_model.RatioChoice, tuple | None]:
     """The modal model's ratios wherever :func:`forcecal.model.modal.identify` finds one,
     whatever the criterion says."""
     ratios, std, choice, directions = _CHOOSE(frequencies, coords, cov)
-    fit = broadband.identify(frequencies, coords, cov)
+    fit = ratio_model.identify(frequencies, coords, cov)
     if fit is None:
         return ratios, std, choice, directions
     return (*fit.ratios(frequencies), dataclasses.replace(choice, source="modal"), None)
@@ -503,7 +503,7 @@ if __name__ == "__main__":
                         help="only the lab rig's drive runs, seeds 0..SEEDS-1")
     args = parser.parse_args()
     if args.ratios != "auto":                     # the build looks it up when it runs
-        broadband.choose_ratios = {"spline": _keep_splines, "modal": _take_modal}[args.ratios]
+        ratio_model.choose_ratios = {"spline": _keep_splines, "modal": _take_modal}[args.ratios]
     res = run(only=args.only, lab_seeds=args.lab)
     report(res)
     RESULTS.mkdir(exist_ok=True)

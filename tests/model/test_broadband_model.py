@@ -223,11 +223,11 @@ def test_a_dead_scan_point_is_set_aside_and_noted(beam, chirp):
 
 
 def test_a_line_whose_noise_reads_zero_does_not_take_the_ratios():
-    """:func:`forcecal.model.broadband.smooth_ratios` with one line's covariance zero, one line's
+    """:func:`forcecal.model.ratios.smooth_ratios` with one line's covariance zero, one line's
     1e200 and every line's 1e-300 times its size: the smoothed ratio stays within 1e-2 of the
     lines (achieved 1.0e-3, their noise's size; a zero-variance line had taken the spline to
     1e132), with finite uncertainties."""
-    from forcecal.model.broadband import smooth_ratios
+    from forcecal.model.ratios import smooth_ratios
 
     rng = np.random.default_rng(43)
     f = np.arange(8.0, 201.0, 4.0)
@@ -295,7 +295,7 @@ def test_the_ratios_come_from_the_lines_that_carry_the_drive():
     alone and are interpolated onto the others (achieved: within 1e-12 of the true 0.01-0.012
     at every line between the drive's first and last; over every line, 0.2 or more off at the
     spurious one)."""
-    from forcecal.model.broadband import _drive_line_ratios, choose_ratios
+    from forcecal.model.ratios import choose_ratios, drive_line_ratios
 
     f = np.arange(10.0, 200.1, 2.0)
     good = (np.round(f) % 4) == 0
@@ -306,7 +306,7 @@ def test_the_ratios_come_from_the_lines_that_carry_the_drive():
     spurious = int(np.flatnonzero(~good & (f > 140))[0])
     coords[:, spurious] = [0.5, 2.0, 0.1]
     cov = np.einsum("l,kj->lkj", 1e-8 * np.maximum(np.abs(coords[0]), 1e-2) ** 2, np.eye(3))
-    ratios, std, _, _ = _drive_line_ratios(f, coords, cov, good)
+    ratios, std, _, _ = drive_line_ratios(f, coords, cov, good)
     inside = (f >= f[good][0]) & (f <= f[good][-1])      # beyond, the end's ratio is held
     off = np.abs(ratios[1] - true)[inside]
     assert np.max(off) < 1e-6, np.max(off)

@@ -1,5 +1,5 @@
 """The modal model of a broadband scan's coordinates (:mod:`forcecal.model.modal`) and the
-choice between its ratios and the splines' (:func:`forcecal.model.broadband.choose_ratios`).
+choice between its ratios and the splines' (:func:`forcecal.model.ratios.choose_ratios`).
 
 Synthetic responses of a few modes plus a constant (upper residual) per output, on lines 4 Hz
 apart over 4-200 Hz (a chirp scan's), with seeded white noise of 1 % of each output's RMS on
@@ -16,12 +16,8 @@ import pytest
 from forcecal.errors import InputError
 from forcecal.model import modal
 from forcecal.model.basis import fit_shape
-from forcecal.model.broadband import (
-    BroadbandModel,
-    RatioChoice,
-    choose_ratios,
-    smooth_ratios,
-)
+from forcecal.model.broadband import BroadbandModel
+from forcecal.model.ratios import RatioChoice, choose_ratios, smooth_ratios
 
 LINES = np.arange(4.0, 200.01, 4.0)
 THREE_MODES = ((45.0, 0.02), (110.0, 0.01), (160.0, 0.015))

@@ -2,7 +2,7 @@
 does to a steady run's shapes.
 
 The ratios a_k / a_1 of the operating shape are smoothed over the scan's lines
-(:func:`forcecal.model.broadband.smooth_ratios`): each smoothed value is a weighted sum of its
+(:func:`forcecal.model.ratios.smooth_ratios`): each smoothed value is a weighted sum of its
 neighbours' noise, so the errors at two frequencies correlate. A calibration over frequency
 (steps of a stepped sine, each run taking its shapes at its own frequency) fits a law to the
 trend of its steps: errors that move every step alike, or smoothly with the frequency, must be

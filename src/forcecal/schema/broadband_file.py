@@ -46,7 +46,7 @@ class ComplexArray(Table):
 
 
 class RatioModel(Table):
-    """Where the ratios come from (:class:`forcecal.model.broadband.RatioChoice`)."""
+    """Where the ratios come from (:class:`forcecal.model.ratios.RatioChoice`)."""
 
     noun = "ratio model"
     source: Literal["spline", "modal"]
