@@ -79,7 +79,7 @@ class EndSegments:
             self._first.append(np.array(samples[:, :take]))
         self._count += samples.shape[1]
         if self._count > self.length:                    # the latest ``length`` samples
-            self._last.append(np.array(samples[:, take:]))
+            self._last.append(np.array(samples[:, take:][:, -self.length:]))
             held = sum(s.shape[1] for s in self._last)
             while held - self._last[0].shape[1] >= self.length:
                 held -= self._last.pop(0).shape[1]
