@@ -151,6 +151,21 @@ def test_refine_fundamental_does_not_depend_on_t0():
     assert abs(f_a / f_b - 1) < 1e-9
 
 
+@pytest.mark.parametrize("n_samples", [6000, 70_000])     # QR fits; chunked sums
+def test_the_refinement_ends_at_the_residuals_minimum(n_samples):
+    # the scoring steps stop where the fit's residual sum of squares is least: the vertex of
+    # the parabola through the RSS at seven frequencies 1e-6 apart (one record: no weights)
+    rng = np.random.default_rng(23)
+    t = times(n_samples, 3.2)
+    x = synth(t, F0 * 1.0021) + 0.05 * rng.standard_normal(t.size)
+    f_est = refine_fundamental([x], FS, F0, H, t0=3.2)
+    grid = f_est * (1.0 + 1e-6 * np.arange(-3, 4))
+    rss = [float(fit_harmonics(x, FS, f, H, t0=3.2).residual_std) ** 2 for f in grid]
+    a, b, _ = np.polyfit(grid - f_est, rss, 2)
+    vertex = f_est - b / (2.0 * a)
+    assert abs(f_est / vertex - 1) < 2e-11      # achieved: 3e-12 (QR), 6e-12 (chunked)
+
+
 def test_fundamental_uncertainty_matches_cramer_rao_of_a_sinusoid():
     rng = np.random.default_rng(21)
     amp, sigma, n_samples = 1.0, 0.1, 4000

@@ -326,14 +326,26 @@ class GridBasis:
         """(2H+1, 2H+1) X^T X [1]."""
         return self.moment_grams(0.0, 0)[0]
 
-    def project(self, y: np.ndarray) -> np.ndarray:
-        """(..., 2H+1) X^T y of records ``y`` (..., n) [unit of y]."""
+    def project(self, y: np.ndarray, t_ref: float | None = None) -> np.ndarray:
+        """(..., 2H+1) X^T y of records ``y`` (..., n) [unit of y]; with ``t_ref`` [s], the
+        first moment sum_k (t_k - t_ref) x_k y_k [s unit of y]."""
         b = np.zeros((*y.shape[:-1], self.n_columns))
+        x0 = self.x0
+        if t_ref is not None:               # chunk i: t - t_ref = (T_i - t_ref) + tau
+            shift = self.starts - t_ref
+            x1 = (np.arange(self.chunk) / self.fs)[:, None] * x0
         if self.n_chunks:
             full = y[..., :self.tail_start].reshape(*y.shape[:-1], self.n_chunks, self.chunk)
-            b += self._unturn(full @ self.x0, slice(0, self.n_chunks))
+            part = full @ x0
+            if t_ref is not None:
+                part = part * shift[:self.n_chunks, None] + full @ x1
+            b += self._unturn(part, slice(0, self.n_chunks))
         if self.tail:
-            b += self._unturn(y[..., self.tail_start:] @ self.x0[:self.tail], -1)
+            tail = y[..., self.tail_start:]
+            part = tail @ x0[:self.tail]
+            if t_ref is not None:
+                part = part * shift[-1] + tail @ x1[:self.tail]
+            b += self._unturn(part, -1)
         return b
 
     def residual_sums(self, y: np.ndarray, coef: np.ndarray) -> tuple[float, np.ndarray]:

@@ -9,8 +9,9 @@ record's length. Longer records are refined on their leading :data:`LONG_RECORD`
 checked and finished on the whole record with chunked sums (:mod:`forcecal.signals.fourier_sums`):
 memory stays that of a few chunks and the records are never copied.
 
-:func:`fundamental_uncertainty` is the linearized (Cramer-Rao) bound for white noise; for long
-records its sums over time come from the chunk-0 design matrix and one rotation per chunk.
+:func:`fundamental_uncertainty` is the linearized (Cramer-Rao) bound for white noise, from the
+same derivative of the fitted series that gives the refinement's steps; for long records its
+sums over time come from the chunk-0 design matrix and one rotation per chunk.
 """
 
 from __future__ import annotations
@@ -48,6 +49,8 @@ _CHECK_STEPS = 8
 """Grid steps the check on the whole record may move from the subset's fundamental."""
 _BLOCK = 1 << 16
 """Samples per block of a pass over a record (bounds the temporaries)."""
+_MAX_STEPS = 20
+"""Most scoring steps of a refinement (it converges in a few from the grid's best point)."""
 
 Score = Callable[[int, float], float]
 """score(n_seg, f): the objective on the leading n_seg samples at the fundamental f [Hz]."""
@@ -76,8 +79,9 @@ def refine_fundamental(
 
     The fundamental minimizes the total residual sum of squares of the harmonic fits of all
     records, each scaled by its own RMS (about its mean) so that no record dominates: a grid
-    search brackets the minimum, a bounded scalar minimization refines it to about 1e-10
-    relative, and several records are finally weighted by their own noise. Records longer
+    search brackets the minimum, scoring (Gauss-Newton) steps on the variable-projection
+    residual refine it to about 1e-10 relative, and several records are finally weighted by
+    their own noise. Records longer
     than :data:`LONG_RECORD` samples are refined on their leading :data:`LONG_RECORD` samples
     first; the result is then checked on a grid over the whole record (searched further, or
     by doubling segments, when the minimum is not where the subset put it) and refined there.
@@ -132,8 +136,10 @@ def refine_fundamental(
     def objective(f: float) -> float:
         return _total_rss(groups, fs, f, n_harmonics, t0)
 
-    f_best, rss_best = _bounded_minimum(objective, (best.lo, best.hi), xatol)
-    if best.rss < rss_best:  # the grid point itself was better than any trial of the search
+    f_best = _scoring_minimum(_group_terms(groups, fs, n_harmonics, t0), best.f,
+                              (best.lo, best.hi), xatol)
+    rss_best = objective(f_best)
+    if best.rss < rss_best:  # the grid point itself was better than the steps' end
         f_best, rss_best = best.f, best.rss
     _check_explained(1.0 - rss_best / total_var, f_best, f0_nominal, search, min_explained)
     return _noise_weighted(groups, len(recs), fs, f_best, n_harmonics, t0, best.spacing, xatol)
@@ -282,6 +288,20 @@ class _LongRecords:
         """f -> sum of the records' RSS times ``weights``."""
         return lambda f: float(weights @ self.rss(f, n_seg))
 
+    def terms(self, weights: np.ndarray,
+              n_seg: int | None = None) -> Callable[[float], tuple[float, float]]:
+        """f -> (sum w r . d, sum w ||P d||^2) of the records (:func:`_fit_terms_long`), on
+        their leading ``n_seg`` samples when given."""
+        def at(f: float) -> tuple[float, float]:
+            rd, energy = 0.0, 0.0
+            for idx in self.by_length:
+                part = [self.records[i][:n_seg] for i in idx]
+                got = _fit_terms_long(part, self.fs, f, self.h, self.t0)
+                rd += float(weights[idx] @ got[0])
+                energy += float(weights[idx] @ got[1])
+            return rd, energy
+        return at
+
 
 # ------------------------------------------------------------------ searches
 
@@ -378,14 +398,81 @@ def _coarse_start(n_seg: int, width: float, fs: float, h: int, shortest: float) 
     return max(n, 1)
 
 
-def _bounded_minimum(objective: Callable[[float], float], bounds: tuple[float, float],
-                     xatol: float) -> tuple[float, float]:
-    """(f [Hz], objective) at the minimum of ``objective`` within ``bounds``."""
-    from scipy.optimize import minimize_scalar  # on first use: a stream never needs it
+def _scoring_minimum(terms: Callable[[float], tuple[float, float]], start: float,
+                     bounds: tuple[float, float], xatol: float) -> float:
+    """The fundamental [Hz] at the least residual sum of squares within ``bounds``, by scoring
+    steps from ``start``: f += (r . d) / ||P d||^2 (Gauss-Newton on the variable-projection
+    residual; ``terms(f)`` gives both sums, :func:`_fit_terms`) until a step is below ``xatol``
+    [Hz]."""
+    f = start
+    for _ in range(_MAX_STEPS):
+        rd, energy = terms(f)
+        if not energy > 0.0:            # noise-free or flat: nothing to step on
+            break
+        f_next = min(max(f + rd / energy, bounds[0]), bounds[1])
+        done = abs(f_next - f) <= xatol
+        f = f_next
+        if done:
+            break
+    return f
 
-    res = minimize_scalar(objective, bounds=bounds, method="bounded",
-                          options={"xatol": xatol, "maxiter": 500})
-    return float(res.x), float(res.fun)
+
+def _group_terms(groups: list[np.ndarray], fs: float, h: int,
+                 t0: float) -> Callable[[float], tuple[float, float]]:
+    """f -> (sum r . d, sum ||P d||^2) over every record of ``groups`` (QR fits)."""
+    def terms(f: float) -> tuple[float, float]:
+        parts = [_fit_terms(g, fs, f, h, t0)[:2] for g in groups]
+        return (float(sum(rd.sum() for rd, _ in parts)),
+                float(sum(energy.sum() for _, energy in parts)))
+    return terms
+
+
+def _rates(coef: np.ndarray) -> np.ndarray:
+    """(..., 2H+1) coefficients of dx/dt / (2 pi t)'s series: harmonic n's phasor X_n times
+    j 2 pi n, so that d = dx/df0 = t g with g = X gamma."""
+    h = (coef.shape[-1] - 1) // 2
+    z = (coef[..., 1::2] + 1j * coef[..., 2::2]) * (1j * 2.0 * np.pi * np.arange(1, h + 1))
+    gamma = np.zeros_like(coef)
+    gamma[..., 1::2], gamma[..., 2::2] = z.real, z.imag
+    return gamma
+
+
+def _fit_terms(g: np.ndarray, fs: float, f0: float, h: int,
+               t0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(r . d, ||P d||^2, r . r), each (m,), of records ``g`` (m, n) fitted at ``f0`` by QR:
+    r the residual, d = dx/df0 the fitted series' derivative, P the projection off the design
+    matrix's span (the phasors are nuisance parameters). With t' = t - t_mid, P d = P (t' g)
+    and r . d = r . (t' g), g being in the span."""
+    t = t0 + np.arange(g.shape[1]) / fs
+    fit = qr_fit(g.T, t, f0, h)
+    a = design_matrix(t, f0, h)
+    d = (t - t[t.size // 2])[:, None] * (a @ _rates(fit.coef.T).T)      # (n, m)
+    q, _ = np.linalg.qr(a)
+    d_perp = d - q @ (q.T @ d)
+    return (np.einsum("nm,nm->m", fit.residuals, d), np.einsum("nm,nm->m", d_perp, d_perp),
+            np.einsum("nm,nm->m", fit.residuals, fit.residuals))
+
+
+def _fit_terms_long(recs: list[np.ndarray], fs: float, f0: float, h: int,
+                    t0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`_fit_terms` of long records of one length from chunked sums.
+
+    With g = X gamma, ||P d||^2 = gamma^T M2 gamma - (M1 gamma)^T (X^T X)^-1 (M1 gamma) and
+    r . d = gamma^T (sum_k t'_k x_k y_k) - gamma^T M1 c, with M_q = sum_k t'_k^q x_k x_k^T:
+    small matrices and one pass over the samples beside the fit's.
+    """
+    n = len(recs[0])
+    fit = fit_chunked(recs, fs, f0, h, t0)
+    gamma = _rates(fit.coef)                                          # (m, p)
+    basis = GridBasis(n, fs, t0, f0, h)
+    t_ref = t0 + 0.5 * (n - 1) / fs
+    _, m1, m2 = basis.moment_grams(t_ref, 2)
+    moments = np.stack([basis.project(y, t_ref) for y in recs])       # sum t' x y
+    xtd = gamma @ m1                                                  # M1 symmetric
+    rd = np.einsum("mp,mp->m", gamma, moments) - np.einsum("mp,mp->m", xtd, fit.coef)
+    energy = (np.einsum("mp,pq,mq->m", gamma, m2, gamma)
+              - np.einsum("mp,pq,mq->m", xtd, fit.covariance, xtd))
+    return rd, np.maximum(energy, 0.0), fit.rss
 
 
 def _noise_weighted(groups: list[np.ndarray], n_records: int, fs: float, f_best: float,
@@ -401,12 +488,8 @@ def _noise_weighted(groups: list[np.ndarray], n_records: int, fs: float, f_best:
     floor = 1e-9                    # scaled records have unit RMS: below this, noise-free
     if n_records > 1 and all(np.all(s > floor) for s in noise):
         weighted = [g / s[:, None] for g, s in zip(groups, noise, strict=True)]
-        bounds = (f_best - spacing, f_best + spacing)
-
-        def objective(f: float) -> float:
-            return _total_rss(weighted, fs, f, n_harmonics, t0)
-
-        f_best = _bounded_minimum(objective, bounds, xatol)[0]
+        f_best = _scoring_minimum(_group_terms(weighted, fs, n_harmonics, t0), f_best,
+                                  (f_best - spacing, f_best + spacing), xatol)
     return f_best
 
 
@@ -427,14 +510,15 @@ def _refine_long(recs: list[np.ndarray], fs: float, f0_nominal: float, h: int, t
 
     n_start = min(n_sub, int(_SEGMENT_PERIODS * fs / f0_nominal))
     sub = _descend(_every_point(score), n_start, n_sub, fs, h, bounds, bounds)
-    f_sub = _bounded_minimum(long.score(unit, n_sub), (sub.lo, sub.hi), xatol)[0]
+    f_sub = _scoring_minimum(long.terms(unit, n_sub), sub.f, (sub.lo, sub.hi), xatol)
     whole = long.score(unit)
     best = _check_whole(whole, f_sub, 1.0 / (2.0 * h * n_full / fs), bounds)
     if best is None:                # not where the subset said: search by doubling segments
         best = _descend(_every_point(score), n_sub, n_full, fs, h, bounds,
                         (max(sub.lo - sub.spacing, bounds[0]),
                          min(sub.hi + sub.spacing, bounds[1])))
-    f_best, rss_best = _bounded_minimum(whole, (best.lo, best.hi), xatol)
+    f_best = _scoring_minimum(long.terms(unit), best.f, (best.lo, best.hi), xatol)
+    rss_best = whole(f_best)
     if best.rss < rss_best:
         f_best, rss_best = best.f, best.rss
     _check_explained(1.0 - rss_best / float(long.lengths.sum()), f_best, f0_nominal, search,
@@ -446,8 +530,8 @@ def _refine_long(recs: list[np.ndarray], fs: float, f0_nominal: float, h: int, t
         fit = fit_chunked([recs[i] for i in idx], fs, f_best, h, t0)
         sigma2[idx] = fit.rss / (long.lengths[idx] - (2 * h + 1))
     if np.all(sigma2 * unit > 1e-18):               # noise-free below 1e-9 of the RMS
-        f_best = _bounded_minimum(long.score(1.0 / sigma2),
-                                  (f_best - best.spacing, f_best + best.spacing), xatol)[0]
+        f_best = _scoring_minimum(long.terms(1.0 / sigma2), f_best,
+                                  (f_best - best.spacing, f_best + best.spacing), xatol)
     return f_best
 
 
@@ -536,33 +620,12 @@ def fundamental_uncertainty(
 def _information(rec: np.ndarray, fs: float, f0: float, h: int,
                  t0: float) -> tuple[float, float]:
     """(||P d||^2, sigma^2) of one record, from QR fits of the whole record."""
-    t = t0 + np.arange(rec.size) / fs
-    fit = qr_fit(rec.reshape(-1, rec.size).T, t, f0, h)
-    phasors = fit.phasors[:, 0]
-    n = np.arange(h + 1)
-    rotor = np.exp(1j * 2.0 * np.pi * f0 * np.multiply.outer(n, t))
-    d = ((1j * 2.0 * np.pi * n * t[:, None]) * rotor.T) @ phasors
-    d = d.real
-    q, _ = np.linalg.qr(design_matrix(t, f0, h))
-    d_perp = d - q @ (q.T @ d)
-    return float(d_perp @ d_perp), float(fit.sigma[0]) ** 2
+    _, energy, rss = _fit_terms(rec.reshape(1, -1), fs, f0, h, t0)
+    return float(energy[0]), float(rss[0]) / (rec.size - (2 * h + 1))
 
 
 def _information_long(rec: np.ndarray, fs: float, f0: float, h: int,
                       t0: float) -> tuple[float, float]:
-    """(||P d||^2, sigma^2) of one long record from chunked sums.
-
-    With t' = t - t_mid, P d = P (t' g) where g = X gamma is the series of the phasors
-    j 2 pi n X_n, so ||P d||^2 = gamma^T M2 gamma - (M1 gamma)^T (X^T X)^-1 (M1 gamma) with
-    M_q = sum_k t'_k^q x_k x_k^T: small matrices, no pass over the samples.
-    """
-    fit = fit_chunked([rec], fs, f0, h, t0)
-    coef = fit.coef[0]
-    z = (coef[1::2] + 1j * coef[2::2]) * (1j * 2.0 * np.pi * np.arange(1, h + 1))
-    gamma = np.zeros_like(coef)
-    gamma[1::2], gamma[2::2] = z.real, z.imag
-    basis = GridBasis(rec.size, fs, t0, f0, h)
-    _, m1, m2 = basis.moment_grams(t0 + 0.5 * (rec.size - 1) / fs, 2)
-    xtd = m1 @ gamma
-    energy = float(gamma @ m2 @ gamma - xtd @ fit.covariance @ xtd)
-    return max(energy, 0.0), float(fit.rss[0]) / (rec.size - (2 * h + 1))
+    """(||P d||^2, sigma^2) of one long record from chunked sums."""
+    _, energy, rss = _fit_terms_long([rec], fs, f0, h, t0)
+    return float(energy[0]), float(rss[0]) / (rec.size - (2 * h + 1))
