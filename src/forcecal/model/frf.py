@@ -6,9 +6,9 @@ From time records (or spectra), two estimators, chosen from the reference itself
   by default). When the record holds m >= 2 whole periods of the reference, its discrete
   Fourier transform over the whole record (rectangular window) puts the drive on every m-th
   line and nothing on the lines between: H = X / R on the drive's lines is free of leakage
-  and of the coherence's bias at a sharp resonance. The noise of X is read per point from
-  the lines between, near each drive line (``NOISE_LINES`` of them), so a coloured noise
-  floor is followed; Re and Im of H each have the standard uncertainty sqrt(P / 2) / |R|.
+  and of the coherence's bias at a sharp resonance. The noise of X and of R is read per point
+  from the lines between (``NOISE_LINES`` near each drive line: a coloured floor is followed);
+  Re and Im of H each have the standard uncertainty sqrt((P_X + |H|^2 P_R) / 2) / |R|.
 - **Any other drive** (a sweep, random): H1 = S_xr / S_rr from Welch averages (Hann window,
   half overlap) and the coherence; the standard uncertainty of Re and of Im is
   |H| sqrt((1 - coh) / (2 (n_avg - 1) coh)) (Bendat and Piersol, random errors of
@@ -58,7 +58,8 @@ class ScanResponse:
     std : (n_points, n_lines) array
         Standard uncertainty of Re and of Im of ``values``.
     coherence : (n_points, n_lines) array [1]
-        Ordinary coherence of response and reference (periodic drive: |X|^2 / (|X|^2 + P)).
+        Ordinary coherence of response and reference (periodic drive:
+        1 / (1 + P_X / |X|^2 + P_R / |R|^2)).
     source : str
         The scan's file, for messages.
     periods : int
@@ -264,17 +265,20 @@ def _periodic(f: np.ndarray, lines: np.ndarray, x: np.ndarray, r: np.ndarray,
                             "the noise on"))
     import scipy.ndimage  # on use: a steady stream starts without it
 
-    p_between = np.abs(x[:, between]) ** 2
-    # each drive line's noise: the mean over the nearest NOISE_LINES lines between
+    # each drive line's noise, the response's and the reference's: the mean over the nearest
+    # NOISE_LINES lines between
     width = min(NOISE_LINES, len(between))
-    p_smooth = scipy.ndimage.uniform_filter1d(p_between, size=width, axis=-1, mode="nearest")
     near = np.clip(np.searchsorted(between, on), 0, len(between) - 1)
-    p = p_smooth[:, near]
-    h = x[:, on] / r[:, on]
+    p, p_r = (scipy.ndimage.uniform_filter1d(np.abs(y[:, between]) ** 2, size=width, axis=-1,
+                                             mode="nearest")[:, near] for y in (x, r))
     tiny = np.finfo(float).tiny
-    std = np.sqrt(p / 2.0) / np.maximum(np.abs(r[:, on]), tiny)
-    sig = np.abs(x[:, on]) ** 2
-    coh = np.clip(sig / np.maximum(sig + p, tiny), 1e-12, 1.0)
+    r_on = np.maximum(np.abs(r[:, on]), tiny)
+    h = x[:, on] / r[:, on]
+    # H = X / R errs by (n_X - H n_R) / R: the reference's noise counts in proportion to the
+    # response, most at a mode (where the response's own is a small part of it)
+    std = np.sqrt((p + np.abs(h) ** 2 * p_r) / 2.0) / r_on
+    noise_to_signal = p / np.maximum(np.abs(x[:, on]) ** 2, tiny) + p_r / r_on**2
+    coh = np.clip(1.0 / (1.0 + noise_to_signal), 1e-12, 1.0)
     return f[on], h, std, coh
 
 
