@@ -473,7 +473,10 @@ def identify(frequencies: np.ndarray, h: np.ndarray, cov: np.ndarray) -> ModalFi
     least = min(f.aic for f in fits)
     plausible = [f for f in fits if f.aic - least <= 2.0 * np.log(1.0 / PLAUSIBLE)]
     best = max(plausible, key=lambda f: (f.n_params, -f.aic))
-    return fit_modal(frequencies, h, cov, best.poles, best.upper, best.lower)
+    final = fit_modal(frequencies, h, cov, best.poles, best.upper, best.lower)
+    # with its own level the fit can take a pole out of the lines' range or past zero
+    # damping (a residual term's stand-in): the level held at the set's then stays
+    return final if _physical(final, frequencies) else best
 
 
 def _physical(fit: ModalFit, frequencies: np.ndarray) -> bool:
