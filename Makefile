@@ -61,6 +61,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/stated_vs_observed.py
 	$(BIN)/python benchmarks/cluster.py
 	$(BIN)/python benchmarks/any_drive.py
+	$(BIN)/python benchmarks/scan_redraw.py
 	$(BIN)/python benchmarks/frf_export.py
 	$(BIN)/python benchmarks/mistakes.py
 	$(BIN)/python benchmarks/weight.py
