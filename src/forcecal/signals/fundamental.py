@@ -81,10 +81,10 @@ def refine_fundamental(
     records, each scaled by its own RMS (about its mean) so that no record dominates: a grid
     search brackets the minimum, scoring (Gauss-Newton) steps on the variable-projection
     residual refine it to about 1e-10 relative, and several records are finally weighted by
-    their own noise. Records longer
-    than :data:`LONG_RECORD` samples are refined on their leading :data:`LONG_RECORD` samples
-    first; the result is then checked on a grid over the whole record (searched further, or
-    by doubling segments, when the minimum is not where the subset put it) and refined there.
+    their own noise. Records longer than :data:`LONG_RECORD` samples are refined on their
+    leading :data:`LONG_RECORD` samples first; the result is then checked on a grid over the
+    whole record (searched further, or by doubling segments, when the minimum is not where the
+    subset put it) and refined there.
 
     Parameters
     ----------
@@ -428,8 +428,8 @@ def _group_terms(groups: list[np.ndarray], fs: float, h: int,
 
 
 def _rates(coef: np.ndarray) -> np.ndarray:
-    """(..., 2H+1) coefficients of dx/dt / (2 pi t)'s series: harmonic n's phasor X_n times
-    j 2 pi n, so that d = dx/df0 = t g with g = X gamma."""
+    """(..., 2H+1) the coefficients gamma of the series g = (dx/dt) / f0, harmonic n's phasor
+    X_n times j 2 pi n: d = dx/df0 = t g, g = X gamma."""
     h = (coef.shape[-1] - 1) // 2
     z = (coef[..., 1::2] + 1j * coef[..., 2::2]) * (1j * 2.0 * np.pi * np.arange(1, h + 1))
     gamma = np.zeros_like(coef)
