@@ -407,9 +407,10 @@ def _scoring_minimum(terms: Callable[[float], tuple[float, float]], start: float
     f = start
     for _ in range(_MAX_STEPS):
         rd, energy = terms(f)
-        if not energy > 0.0:            # noise-free or flat: nothing to step on
+        step = rd / energy if energy > 0.0 else math.nan
+        if not math.isfinite(step):     # flat (or not a number): nothing to step on
             break
-        f_next = min(max(f + rd / energy, bounds[0]), bounds[1])
+        f_next = min(max(f + step, bounds[0]), bounds[1])
         done = abs(f_next - f) <= xatol
         f = f_next
         if done:
